@@ -1,0 +1,35 @@
+# prodmaps — two commands do all the set-up on a fresh machine:
+#   make reproduce   create .venv, install, regenerate every notebook into $(OUT)
+#   make test        create/reuse .venv, run the whole test suite
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+OUT    ?= results
+PROFILE ?= paper
+JOBS   ?= 1
+
+.PHONY: reproduce test bench venv clean-venv strip-notebooks
+
+venv: $(VENV)/.installed
+
+$(VENV)/.installed: pyproject.toml
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e ".[test,bench]"
+	$(PY) -m ipykernel install --sys-prefix --name python3 >/dev/null
+	@touch $@
+
+reproduce: venv
+	$(PY) -m prodmaps reproduce --profile $(PROFILE) --out $(OUT) --jobs $(JOBS)
+
+test: venv
+	$(PY) -m pytest -q
+
+bench: venv
+	$(PY) benchmarks/run.py --out benchmarks/results
+
+strip-notebooks: venv
+	$(PY) -m prodmaps.notebook_tools strip notebooks/*.ipynb
+
+clean-venv:
+	rm -rf $(VENV)

@@ -1,0 +1,188 @@
+"""Shared helpers of the dataset preparation scripts (safe archive reading, atomic output).
+
+Safety rules implemented here:
+
+* archive members are only *read* into memory and parsed as numbers; nothing from the
+  archive is executed, imported, unpickled or extracted under its own name;
+* an archive with any member name that would land outside a target folder (absolute
+  path, ``..`` component, drive letter, backslash path, NUL byte) or with a symbolic-link
+  member is refused as a whole (zip-slip protection);
+* members larger than ``MAX_MEMBER_BYTES`` are refused (zip-bomb protection);
+* the output folder is assembled in a temporary sibling folder and renamed into place only
+  when everything has been read and verified, so a crash or a refusal leaves no
+  half-prepared dataset.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import posixpath
+import shutil
+import stat
+import sys
+import tempfile
+import zipfile
+from pathlib import Path, PurePosixPath
+
+REPO = Path(__file__).resolve().parents[1]
+if str(REPO) not in sys.path:  # run as `python data_scripts/x.py` without installing the package
+    sys.path.insert(0, str(REPO))
+
+MAX_MEMBER_BYTES = 1 << 30  # 1 GiB per member
+
+
+class PrepareError(Exception):
+    """A refusal with a message meant for the user (printed by the scripts, exit code 2)."""
+
+
+def default_data_root() -> Path:
+    """``$PRODMAPS_DATA`` if set, else the repository's ``data/`` folder."""
+    env = os.environ.get("PRODMAPS_DATA")
+    return Path(env).expanduser().resolve() if env else REPO / "data"
+
+
+def check_member_name(name: str, target: Path = Path("/nonexistent/target")) -> None:
+    """Raise :class:`PrepareError` if ``name`` would land outside ``target`` when extracted."""
+    if "\x00" in name or "\\" in name:
+        raise PrepareError(f"refusing archive: member {name!r} has a NUL byte or a backslash path")
+    p = PurePosixPath(name)
+    if p.is_absolute() or (p.parts and p.parts[0].endswith(":")) or ".." in p.parts:
+        raise PrepareError(
+            f"refusing archive: member {name!r} would be written outside the target folder "
+            "(absolute path or '..'); the archive is malformed or malicious"
+        )
+    joined = posixpath.normpath(posixpath.join(str(target), name))
+    if not (joined == str(target) or joined.startswith(str(target) + "/")):
+        raise PrepareError(f"refusing archive: member {name!r} escapes the target folder")
+
+
+class Archive:
+    """Read-only view of a ``.zip`` archive or of an already unpacked folder."""
+
+    def __init__(self, path):
+        self.path = Path(path)
+        if not self.path.exists():
+            raise PrepareError(f"{self.path}: no such file or folder")
+        self._zip = None
+        if self.path.is_dir():
+            base = self.path.resolve()
+            names = []
+            for p in sorted(self.path.rglob("*")):
+                if p.is_symlink():
+                    target = p.resolve()
+                    if base not in target.parents:
+                        raise PrepareError(f"refusing folder: {p} is a symbolic link pointing outside {base}")
+                if p.is_file():
+                    names.append(p.relative_to(self.path).as_posix())
+            self.names = names
+        else:
+            try:
+                self._zip = zipfile.ZipFile(self.path)
+            except (zipfile.BadZipFile, OSError) as exc:
+                raise PrepareError(
+                    f"{self.path}: not a readable zip archive ({exc}); the download may be "
+                    "incomplete or truncated: download it again"
+                ) from None
+            infos = self._zip.infolist()
+            for info in infos:
+                check_member_name(info.filename)
+                if stat.S_ISLNK(info.external_attr >> 16):
+                    raise PrepareError(f"refusing archive: member {info.filename!r} is a symbolic link")
+                if info.file_size > MAX_MEMBER_BYTES:
+                    raise PrepareError(f"refusing archive: member {info.filename!r} is "
+                                       f"{info.file_size} bytes (> {MAX_MEMBER_BYTES})")
+            self.names = [i.filename for i in infos if not i.is_dir()]
+
+    def read(self, name: str) -> bytes:
+        """Bytes of one member; damaged members raise :class:`PrepareError`."""
+        if self._zip is None:
+            p = self.path / name
+            if p.stat().st_size > MAX_MEMBER_BYTES:
+                raise PrepareError(f"{p}: larger than {MAX_MEMBER_BYTES} bytes")
+            return p.read_bytes()
+        try:
+            return self._zip.read(name)
+        except (zipfile.BadZipFile, EOFError, OSError, ValueError) as exc:
+            raise PrepareError(
+                f"{self.path}: member {name!r} is damaged or truncated ({exc}); download the archive again"
+            ) from None
+
+    def close(self):
+        if self._zip is not None:
+            self._zip.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def sha256_file(path, chunk: int = 1 << 20) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(chunk), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+@contextlib.contextmanager
+def staged_folder(target: Path, *, force: bool = False):
+    """Yield a temporary sibling folder of ``target``; on success rename it to ``target``.
+
+    On any exception the temporary folder is removed and ``target`` is left untouched. An
+    existing ``target`` is only replaced with ``force=True`` (the old folder is renamed aside
+    first and deleted after the new one is in place).
+    """
+    target = Path(target)
+    if target.exists() and not force:
+        raise PrepareError(f"{target} already exists; pass --force to replace it")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.partial-", dir=target.parent))
+    try:
+        yield tmp
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    old = None
+    if target.exists():
+        old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
+        os.replace(target, old / target.name)
+    os.replace(tmp, target)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def write_manifest_and_sums(folder: Path, manifest: dict) -> None:
+    """Write ``manifest.json`` and a ``SHA256SUMS`` (sha256sum format) of every file."""
+    (folder / "manifest.json").write_text(json.dumps(manifest, indent=1) + "\n")
+    lines = []
+    for p in sorted(folder.rglob("*")):
+        if p.is_file() and p.name != "SHA256SUMS":
+            lines.append(f"{sha256_file(p)}  ./{p.relative_to(folder).as_posix()}")
+    (folder / "SHA256SUMS").write_text("\n".join(lines) + "\n")
+
+
+def parse_mesh_bytes(data: bytes, suffix: str, scratch: Path):
+    """Parse mesh bytes with the package's strict reader (no validation); returns (V, F)."""
+    from prodmaps.io import read_mesh_arrays
+
+    tmp = scratch / f"_member{suffix}"
+    tmp.write_bytes(data)
+    try:
+        return read_mesh_arrays(tmp)
+    finally:
+        tmp.unlink()
+
+
+def run_cli(main_fn, argv=None) -> int:
+    """Call ``main_fn(argv)``; print refusals as one clear line and return exit code 2."""
+    try:
+        main_fn(argv)
+    except PrepareError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    return 0

@@ -1,0 +1,261 @@
+"""Approximating functions in a (product) basis: the standard projection, Approach A, Approach B.
+
+All methods minimise in the **area inner product**: the residual is measured as
+``||f - B a||_A² = (f - B a)ᵀ A (f - B a)`` with ``A`` the mass of the basis.
+
+Methods
+-------
+``"std"``
+    The A-orthogonal projection on an orthonormal :class:`~prodmaps.Basis`: ``a = Φᵀ A f``.
+``"svd"`` (Approach B, Section 4.2)
+    ``sqrt(A) B = U Σ Vᵀ``; singular values below ``rtol · σ_max`` are dropped
+    (``rtol = 1e-3`` in the paper) and ``a = V Σ⁺ Uᵀ sqrt(A) f``, the minimum-norm solution of
+    the truncated problem.
+``"ridge"`` (Approach A, p = 2)
+    ``argmin ||f - B a||_A² + ε σ_max² ||a||²`` in closed form; ``ε`` is relative to
+    ``σ_max²``, the largest eigenvalue of ``Bᵀ A B``, so it does not depend on units.
+``"lasso"`` (Approach A, p = 1)
+    ``argmin ½||f - B a||_A² + ε λ_max ||a||₁`` with ``λ_max = ||Bᵀ A f||_∞`` (the smallest
+    weight whose solution is 0), solved by FISTA on the Gram matrix; stops when the
+    optimality conditions hold to ``tol`` (relative to the weight) or after ``max_iter``.
+
+Operators are computed once per basis and reused for any number of functions: every method
+except lasso is ``a = M (Bᵀ A f)`` or ``a = P Uᵀ sqrt(A) f`` with small precomputed factors.
+
+Routes for Approach B (same result up to round-off; a test proves it):
+``"svd"`` is the paper's SVD of ``sqrt(A) B``; ``"gram"`` diagonalises ``G = Bᵀ A B = V Σ² Vᵀ``
+(``n >> K``: one GEMM and a ``K x K`` eigh, many times faster). ``"gram"`` squares the
+condition number, so it is only exact enough when ``rtol >= 1e-6``; ``"auto"`` (default)
+picks ``"gram"`` then and ``"svd"`` below.
+
+For ``pairs="ordered"`` product bases every solver runs on the scaled unique basis (see
+:mod:`prodmaps.products`), which has exactly the ordered basis' singular values; results
+are mapped back with ``Sᵀ`` and equal the direct ordered computation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from .basis import Basis
+from .products import ProductBasis
+
+__all__ = ["ApproximationOperator", "operator", "approximate", "check_functions"]
+
+METHODS = ("std", "svd", "ridge", "lasso")
+
+
+def check_functions(F, n: int, what: str = "f") -> np.ndarray:
+    """Validate a function or a matrix of functions on ``n`` points; returns float64."""
+    F = np.asarray(F, dtype=np.float64)
+    if F.ndim not in (1, 2) or F.shape[0] != n:
+        raise ValueError(f"{what} must have shape ({n},) or ({n}, m); got {F.shape}")
+    if not np.all(np.isfinite(F)):
+        raise ValueError(f"{what} contains non-finite values (NaN or inf)")
+    return F
+
+
+def _solver_parts(basis):
+    """(B_s, mass, expand Sᵀ or None, K) for a Basis or ProductBasis."""
+    if isinstance(basis, ProductBasis):
+        B_s, _ = basis.solver_basis()
+        E = None if basis.pairs == "unique" else basis.expand()
+        return B_s, basis.base, E, basis.K
+    if isinstance(basis, Basis):
+        return basis.vecs, basis, None, basis.k
+    raise TypeError(f"expected a prodmaps.Basis or ProductBasis, got {type(basis).__name__}")
+
+
+@dataclass(frozen=True, eq=False)
+class ApproximationOperator:
+    """Reusable approximation operator for one basis (build with :func:`operator`).
+
+    ``coefficients(F)`` returns coefficients in the basis' own column convention; for
+    Approach B, ``canonical(a)`` returns the canonical coefficients ``ã = Σ Vᵀ a`` of
+    Section 4.4 (``||B a||_A = ||ã||₂`` for any ``a``).
+    """
+
+    basis: object
+    method: str
+    params: dict
+    _M: np.ndarray | None = None  # (K_u, K_u): a_s = M @ (B_sᵀ A f)        [gram, ridge]
+    _P: np.ndarray | None = None  # (K_u, r):   a_s = P @ (U_rᵀ sqrt(A) f)   [svd route]
+    _U: np.ndarray | None = None  # (n, r)
+    _sV: np.ndarray | None = None  # (r, K_u):  ã = (Σ_r V_rᵀ) @ (S a)
+    _G: np.ndarray | None = None  # (K_u, K_u) Gram, lasso
+
+    @property
+    def rank(self) -> int | None:
+        """Number of singular values kept (Approach B)."""
+        return None if self._sV is None else self._sV.shape[0]
+
+    def coefficients(self, F) -> np.ndarray:
+        """Coefficients ``(K,)`` or ``(K, m)`` of ``F`` ``(n,)`` or ``(n, m)``."""
+        B_s, base, E, K = _solver_parts(self.basis)
+        F = check_functions(F, base.n)
+        if self.method == "std":
+            return base.project(F)
+        if self.method == "lasso":
+            return _fista(self, F)
+        AF = base.apply_mass(F)
+        if self._M is not None:
+            a = self._M @ (B_s.T @ AF)
+        else:  # SVD route: U_rᵀ sqrt(A) f = U_rᵀ A f / sqrt(A)
+            a = self._P @ (self._U.T @ (AF / np.sqrt(base.mass)[:, None] if F.ndim == 2 else AF / np.sqrt(base.mass)))
+        return a if E is None else E @ a
+
+    __call__ = coefficients
+
+    def canonical(self, coefs) -> np.ndarray:
+        """Canonical coefficients ``Σ_r V_rᵀ a`` ``(r,)`` or ``(r, m)`` (Approach B only)."""
+        if self._sV is None:
+            raise ValueError("canonical coefficients need an Approach B operator (method='svd')")
+        coefs = np.asarray(coefs, dtype=np.float64)
+        if isinstance(self.basis, ProductBasis) and self.basis.pairs == "ordered":
+            coefs = self.basis.expand().T @ coefs  # S a: ordered -> scaled unique
+        return self._sV @ coefs
+
+    def reconstruct(self, F) -> np.ndarray:
+        """The approximation ``B a`` of ``F`` in the basis."""
+        a = self.coefficients(F)
+        if isinstance(self.basis, ProductBasis):
+            return self.basis.evaluate(a)
+        return self.basis.vecs @ a
+
+
+def operator(basis, method: str = "svd", *, rtol: float = 1e-3, eps: float = 1e-4,
+             route: str = "auto", tol: float = 1e-6, max_iter: int = 5000) -> ApproximationOperator:
+    """Build the approximation operator of ``basis`` for ``method`` (see module doc).
+
+    Parameters
+    ----------
+    rtol : Approach B threshold relative to σ_max (paper: 1e-3).
+    eps : Approach A weight, relative (ridge: to σ_max²; lasso: to ||Bᵀ A f||_∞).
+    route : Approach B route, ``"auto"`` | ``"svd"`` | ``"gram"``.
+    tol, max_iter : lasso stopping rule.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    B_s, base, E, K = _solver_parts(basis)
+    if method == "std":
+        if isinstance(basis, ProductBasis):
+            raise ValueError("method='std' projects on an orthonormal Basis; pass ext.base, "
+                             "or use 'svd'/'ridge'/'lasso' for a ProductBasis")
+        return ApproximationOperator(basis, method, {})
+    params = {"rtol": rtol, "eps": eps, "route": route, "tol": tol, "max_iter": max_iter}
+    if method == "svd":
+        if not (0 <= rtol < 1):
+            raise ValueError(f"rtol must be in [0, 1), got {rtol}")
+        if route == "auto":
+            route = "gram" if (rtol >= 1e-6 or not base.mass_is_diagonal) else "svd"
+        if route == "svd":
+            if not base.mass_is_diagonal:
+                raise ValueError("route='svd' needs a lumped (diagonal) mass; use route='gram'")
+            X = np.sqrt(base.mass)[:, None] * B_s  # (n, K_u)
+            U, s, Vt = sla.svd(X, full_matrices=False, lapack_driver="gesdd")
+            r = int(np.sum(s > rtol * s[0]))
+            return ApproximationOperator(
+                basis, method, params | {"route": "svd"},
+                _P=Vt[:r].T / s[:r], _U=np.ascontiguousarray(U[:, :r]), _sV=s[:r, None] * Vt[:r],
+            )
+        if route != "gram":
+            raise ValueError(f"route must be 'auto', 'svd' or 'gram', got {route!r}")
+        G = _gram(B_s, base)
+        w, V = sla.eigh(G)  # ascending
+        w, V = w[::-1], V[:, ::-1]
+        s = np.sqrt(np.maximum(w, 0.0))
+        r = int(np.sum(s > rtol * s[0]))
+        Vr = V[:, :r]
+        return ApproximationOperator(
+            basis, method, params | {"route": "gram"},
+            _M=(Vr / s[:r] ** 2) @ Vr.T, _sV=s[:r, None] * Vr.T,
+        )
+    G = _gram(B_s, base)
+    if method == "ridge":
+        if eps <= 0:
+            raise ValueError(f"ridge needs eps > 0, got {eps}")
+        smax2 = sla.eigh(G, eigvals_only=True, subset_by_index=[G.shape[0] - 1] * 2)[0]
+        M = sla.solve(G + eps * smax2 * np.eye(G.shape[0]), np.eye(G.shape[0]), assume_a="pos")
+        return ApproximationOperator(basis, method, params, _M=M)
+    # lasso
+    if eps <= 0:
+        raise ValueError(f"lasso needs eps > 0, got {eps}")
+    return ApproximationOperator(basis, method, params, _G=G)
+
+
+def _gram(B_s: np.ndarray, base: Basis) -> np.ndarray:
+    """``B_sᵀ A B_s`` (symmetric, computed with one GEMM)."""
+    if base.mass_is_diagonal:
+        X = np.sqrt(base.mass)[:, None] * B_s
+        G = X.T @ X
+    else:
+        G = B_s.T @ (base.mass @ B_s)
+    return 0.5 * (G + G.T)
+
+
+def _fista(op: ApproximationOperator, F: np.ndarray) -> np.ndarray:
+    """Lasso by FISTA on the Gram matrix, all functions at once (columns independent).
+
+    Objective per column: ``½ aᵀ G a - bᵀ a + λ ||a||₁`` with ``b = Bᵀ A f`` (equal to the
+    area-weighted least squares up to a constant). In the ordered convention the Gram matrix
+    of the ordered basis is ``Sᵀ G_s S`` (applied without forming it).
+    """
+    basis = op.basis
+    B_s, base, E, K = _solver_parts(basis)
+    G_s = op._G
+    one = F.ndim == 1
+    F2 = F[:, None] if one else F
+    b_s = B_s.T @ base.apply_mass(F2)  # (K_u, m)
+    if E is None:
+        def gram(x):
+            return G_s @ x
+        b = b_s
+    else:
+        def gram(x):
+            return E @ (G_s @ (E.T @ x))
+        b = E @ b_s
+    L = sla.eigh(G_s, eigvals_only=True, subset_by_index=[G_s.shape[0] - 1] * 2)[0]
+    lam = op.params["eps"] * np.max(np.abs(b), axis=0)  # (m,)
+    lam = np.where(lam > 0, lam, 1.0)
+    tol, max_iter = op.params["tol"], op.params["max_iter"]
+    x = np.zeros_like(b)
+    y = x.copy()
+    t = 1.0
+    for _ in range(max_iter):
+        z = y - (gram(y) - b) / L
+        x_new = np.sign(z) * np.maximum(np.abs(z) - lam / L, 0.0)
+        t_new = 0.5 * (1 + np.sqrt(1 + 4 * t * t))
+        y = x_new + ((t - 1) / t_new) * (x_new - x)
+        x, t = x_new, t_new
+        if _lasso_violation(gram(x) - b, x, lam) < tol:
+            break
+    return x[:, 0] if one else x
+
+
+def _lasso_violation(g: np.ndarray, x: np.ndarray, lam: np.ndarray) -> float:
+    """Largest violation of the lasso optimality conditions, relative to λ.
+
+    ``g = Gx - b`` is the gradient of the smooth part: ``g_j = -λ sign(x_j)`` where
+    ``x_j != 0`` and ``|g_j| <= λ`` where ``x_j = 0``.
+    """
+    nz = x != 0
+    v_nz = np.where(nz, np.abs(g + lam * np.sign(x)), 0.0)
+    v_z = np.where(~nz, np.maximum(np.abs(g) - lam, 0.0), 0.0)
+    return float(np.max(np.maximum(v_nz, v_z) / lam))
+
+
+def approximate(F, basis, method: str = "svd", **params) -> np.ndarray:
+    """Coefficients of ``F`` ``(n,)``/``(n, m)`` in ``basis`` (a Basis or ProductBasis).
+
+    ``method``: ``"std"`` | ``"ridge"`` | ``"lasso"`` | ``"svd"`` (Approach B, default);
+    ``params`` as in :func:`operator` (``rtol=1e-3`` as in the paper). Operators of a
+    ProductBasis are cached on it, so repeated calls reuse the factorisation.
+    """
+    if isinstance(basis, ProductBasis):
+        op = basis.operator(method, **params)
+    else:
+        op = operator(basis, method, **params)
+    return op.coefficients(F)

@@ -1,0 +1,538 @@
+"""Functional maps: ground truth from a point map, the NO17 energy fitted by L-BFGS, ZoomOut.
+
+Conventions (the same everywhere in prodmaps)
+---------------------------------------------
+* A basis ``Φ`` is ``(n, k)``, column 0 is the constant ``φ0 = 1/sqrt(area)``, columns are
+  orthonormal in the **area inner product** ``ΦᵀAΦ = I``. ``k`` counts **all** columns, the
+  constant included (the paper's ``k_M = 9`` is a basis with 10 columns).
+* A functional map ``C_12`` has shape ``(k2, k1)`` and maps coefficients on shape 1 to shape 2:
+  ``T f ≈ Φ2 C_12 Φ1ᵀ A1 f``.
+* A point map ``p2p_21`` has shape ``(n2,)``: for every vertex of shape 2 a vertex of shape 1
+  (the pull-back direction, ``(T f)(y) = f(p2p_21[y])``). Its functional map is
+  ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` (:func:`ground_truth`).
+
+The NO17 energy (Nogneng & Ovsjanikov 2017, "Informative descriptor preservation via
+commutativity for shape matching")
+---------------------------------------------------------------------------------------------
+With ``D1 = Φ1ᵀA1 d``, ``D2 = Φ2ᵀA2 d'`` the coefficient matrices ``(k1, p)``, ``(k2, p)`` of
+``p`` paired descriptors and ``M1_q = Φ1ᵀ A1 diag(d_q) Φ1`` ``(k1, k1)``,
+``M2_q = Φ2ᵀ A2 diag(d'_q) Φ2`` ``(k2, k2)`` their multiplication operators::
+
+    E(C) = w_descr/τ_descr · ½‖C D1 − D2‖²_F                    (descriptor preservation)
+         + w_dcomm/τ_dcomm · ½ Σ_q ‖C M1_q − M2_q C‖²_F           (commutativity with products)
+         + w_lap  /τ_lap   · ½ Σ_ij L_ij C_ij²                    (Laplacian commutativity)
+
+* Laplacian term, ``lap="eigdiff"``: ``L_ij = (μ_i − λ_j)²`` with ``μ`` the eigenvalues of
+  shape 2 and ``λ`` those of shape 1, so the term is exactly ``½‖Λ2 C − C Λ1‖²_F``.
+  ``lap="resolvent"`` (default, Ren et al. 2019 "Structured regularization of functional map
+  computations"): the commutator with the bounded operator ``R = (Δ^γ − i)⁻¹`` instead of
+  ``Δ``: ``L_ij = |r(μ_i) − r(λ_j)|²`` with ``r(x) = 1/(x^γ − i)``, both spectra first divided by
+  the same number ``max(λ_max, μ_max)``; ``γ = resolvent_gamma`` (0.5). The unbounded
+  ``eigdiff`` mask grows like ``λ_k²`` and makes the weight depend on ``k``; the resolvent
+  mask is bounded by 4 and has the same null set (``L_ij = 0`` iff ``λ_j = μ_i``).
+* Descriptor normalisation (``normalize_descr=True``): every descriptor column is divided by
+  its area L2 norm on its own shape, ``d_q / sqrt(d_qᵀ A d_q)``, before projection.
+* Weights: only ratios matter; ``(w_descr, w_lap, w_dcomm)`` are divided by their sum.
+* Term normalisation ``normalize="expected"`` (default): each term is divided by its expected
+  value ``τ`` when ``C`` has i.i.d. centred entries of variance ``m/(k1 k2)``, ``m = min(k1, k2)``
+  (so ``E‖C‖²_F = m``, the squared norm of a partial isometry of rank ``m``). For a Gaussian
+  ``C`` with entry variance ``σ²``: ``E‖C X‖² = σ² k2 ‖X‖²``, ``E‖Y C‖² = σ² k1 ‖Y‖²``,
+  ``E tr(XᵀCᵀYC) = σ² tr X tr Y``, hence (the factor ½ common to all terms dropped)::
+
+      τ_descr = (m/k1) ‖D1[1:]‖²_F / p_eff          (constant row excluded: column 0 of C is fixed)
+      τ_lap   = (m/(k1 k2)) Σ_ij L_ij
+      τ_dcomm = (m/(k1 k2)) Σ_q (k2‖M1_q‖² + k1‖M2_q‖² − 2 tr M1_q tr M2_q) / p_eff
+
+  where ``p_eff = (tr G)²/‖G‖²_F``, ``G = D[1:]ᵀ D[1:]`` (averaged over the two shapes) is the
+  effective number of linearly independent descriptors, so that adding redundant descriptor
+  columns does not change the balance between descriptor and Laplacian terms. A degenerate
+  ``τ`` (zero) is replaced by 1. This is the normalisation pyFM >= 1.3 calls "canonical", so
+  the same ``w_*`` mean the same energy in both packages (checked in
+  ``tests/test_pyfmaps_crosscheck.py``). ``normalize="sum"``: ``τ_descr = τ_dcomm = 1`` and
+  ``τ_lap = Σ_ij L_ij`` (pyFM's ``normalize_weights=False``); ``normalize=None``: all ``τ = 1``.
+* First column: ``C[0, 0] = s·sqrt(area_2/area_1)`` and ``C[1:, 0] = 0`` with
+  ``s = sign(φ0¹ φ0²)`` (= +1 with prodmaps bases). Derivation: for any point map ``T``,
+  ``T φ0¹`` is the constant ``1/sqrt(area_1)`` on shape 2, so
+  ``C[i, 0] = ⟨φ_i², T φ0¹⟩_A2 = (1/sqrt(area_1)) ∫ φ_i²``, which is 0 for ``i ≥ 1``
+  (orthogonal to the constant) and ``area_2/(sqrt(area_1) sqrt(area_2)) = sqrt(area_2/area_1)``
+  for ``i = 0``. (The ratio is area_2 over area_1, not the reverse.) The optimisation runs
+  over ``C[:, 1:]`` only; the energy still includes column 0.
+* Optimiser: ``scipy.optimize.minimize(method="L-BFGS-B")`` with the analytic gradient,
+  started from zeros (``init="zeros"``) or the rectangular identity (``init="identity"``) in
+  the free columns; ``factr``/``pgtol`` as scipy's ``fmin_l_bfgs_b`` (defaults 1e7, 1e-5).
+* Rectangular maps are allowed: ``k1 = basis_1.k``, ``k2 = basis_2.k`` (e.g. 30 and 40
+  columns for the paper's Table 2 ``k_M = 29, k_N = 39``).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .basis import Basis
+
+__all__ = [
+    "ground_truth",
+    "first_column",
+    "NO17Terms",
+    "no17_terms",
+    "energy_and_gradient",
+    "fit_no17",
+    "zoomout",
+    "wave_kernel_weights",
+    "auto_wks_energies",
+    "no17_demo_descriptors",
+    "farthest_point_landmarks",
+]
+
+LAP_FORMS = ("resolvent", "eigdiff")
+NORMALIZATIONS = ("expected", "sum", None)
+
+
+# ---------------------------------------------------------------------------- helpers
+def _check_basis(basis, name: str) -> Basis:
+    if not isinstance(basis, Basis):
+        raise TypeError(f"{name} must be a prodmaps.Basis, got {type(basis).__name__}")
+    return basis
+
+
+def _check_fmap(C, basis_1: Basis, basis_2: Basis) -> np.ndarray:
+    C = np.asarray(C, dtype=np.float64)
+    if C.ndim != 2:
+        raise ValueError(f"C_12 must be a 2D array (k2, k1); got shape {C.shape}")
+    k2, k1 = C.shape
+    if k1 > basis_1.k or k2 > basis_2.k:
+        raise ValueError(
+            f"C_12 has shape (k2, k1) = {C.shape} but basis_1 has {basis_1.k} and basis_2 "
+            f"{basis_2.k} columns; C_12 must be (k2 <= {basis_2.k}, k1 <= {basis_1.k}) "
+            "(rows index shape 2, columns shape 1)"
+        )
+    if not np.all(np.isfinite(C)):
+        raise ValueError("C_12 contains non-finite values")
+    return C
+
+
+def _check_p2p(p2p, n_target: int, n_source: int, name: str = "p2p_21") -> np.ndarray:
+    p2p = np.asarray(p2p)
+    if p2p.ndim != 1 or p2p.shape[0] != n_target:
+        raise ValueError(
+            f"{name} must have shape ({n_target},) (one source vertex per vertex of shape 2); "
+            f"got {p2p.shape}"
+        )
+    if not np.issubdtype(p2p.dtype, np.integer):
+        raise ValueError(f"{name} must hold integer vertex indices, got dtype {p2p.dtype}")
+    if p2p.size and (p2p.min() < 0 or p2p.max() >= n_source):
+        raise ValueError(f"{name} holds indices outside [0, {n_source}) (shape 1 has {n_source} vertices)")
+    return p2p.astype(np.int64, copy=False)
+
+
+def ground_truth(p2p_21, basis_1: Basis, basis_2: Basis) -> np.ndarray:
+    """Functional map ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` ``(k2, k1)`` induced by a point map.
+
+    ``p2p_21`` ``(n2,)`` gives for each vertex of shape 2 its image on shape 1 (pull-back
+    direction). The projection uses the area inner product of shape 2 (``Φ2ᵀA2Φ2 = I``).
+    Equal to :func:`prodmaps.fmap_from_p2p`.
+    """
+    _check_basis(basis_1, "basis_1")
+    _check_basis(basis_2, "basis_2")
+    p2p = _check_p2p(p2p_21, basis_2.n, basis_1.n)
+    return basis_2.project(basis_1.vecs[p2p])  # (k2, k1)
+
+
+def first_column(basis_1: Basis, basis_2: Basis, k2: int | None = None) -> np.ndarray:
+    """The fixed first column of every point-map-induced ``C_12``: ``(k2,)``.
+
+    ``[s·sqrt(area_2/area_1), 0, …, 0]`` with ``s = sign(φ0¹ φ0²)`` (see module doc).
+    """
+    k2 = basis_2.k if k2 is None else k2
+    col = np.zeros(k2)
+    s = np.sign(basis_1.vecs[0, 0] * basis_2.vecs[0, 0]) or 1.0
+    col[0] = s * np.sqrt(basis_2.area / basis_1.area)
+    return col
+
+
+def _normalize_columns(descr: np.ndarray, basis: Basis) -> np.ndarray:
+    """Divide each column by its area L2 norm ``sqrt(dᵀ A d)``."""
+    sq = np.einsum("nq,nq->q", descr, basis.apply_mass(descr))  # (p,)
+    if np.any(sq <= 0):
+        bad = np.flatnonzero(sq <= 0)[:5]
+        raise ValueError(f"descriptor columns {bad.tolist()} are zero; drop them before fitting")
+    return descr / np.sqrt(sq)[None, :]
+
+
+def multiplication_operators(basis: Basis, descr: np.ndarray) -> np.ndarray:
+    """``Φᵀ A diag(d_q) Φ`` for every descriptor column: ``(p, k, k)`` (lumped mass only)."""
+    if not basis.mass_is_diagonal:
+        raise ValueError("multiplication operators need a lumped (diagonal) mass; build the basis with mass='lumped'")
+    PhiA = basis.vecs * basis.mass[:, None]  # (n, k)
+    return np.einsum("ni,nq,nj->qij", PhiA, descr, basis.vecs, optimize=True)  # (p, k, k)
+
+
+def laplacian_mask(evals_1: np.ndarray, evals_2: np.ndarray, lap: str = "resolvent", gamma: float = 0.5) -> np.ndarray:
+    """Mask ``L`` ``(k2, k1)`` of the Laplacian term ``½ Σ L_ij C_ij²`` (module doc)."""
+    lam = np.abs(np.asarray(evals_1, dtype=np.float64))
+    mu = np.abs(np.asarray(evals_2, dtype=np.float64))
+    if lap == "eigdiff":
+        return np.square(mu[:, None] - lam[None, :])
+    if lap == "resolvent":
+        if not 0 < gamma <= 1:
+            raise ValueError(f"resolvent_gamma must be in (0, 1], got {gamma}")
+        scale = max(lam.max(), mu.max())
+        scale = scale if scale > 0 else 1.0
+        r1 = 1.0 / ((lam / scale) ** gamma - 1j)  # (k1,) complex resolvent symbols
+        r2 = 1.0 / ((mu / scale) ** gamma - 1j)  # (k2,)
+        return np.abs(r2[:, None] - r1[None, :]) ** 2
+    raise ValueError(f"lap must be one of {LAP_FORMS}, got {lap!r}")
+
+
+def _effective_p(*coefs: np.ndarray) -> float:
+    vals = []
+    for F in coefs:
+        G = F[1:].T @ F[1:]  # (p, p)
+        den = float(np.sum(G * G))
+        vals.append(float(np.trace(G)) ** 2 / den if den > 0 else 1.0)
+    return float(np.mean(vals))
+
+
+@dataclass
+class NO17Terms:
+    """Precomputed pieces of the NO17 energy (see module doc); build with :func:`no17_terms`.
+
+    Attributes: ``D1 (k1, p)``, ``D2 (k2, p)`` descriptor coefficients; ``M1 (p, k1, k1)``,
+    ``M2 (p, k2, k2)`` multiplication operators (None if ``mu_dcomm == 0``); ``L (k2, k1)``
+    Laplacian mask; ``mu_descr, mu_lap, mu_dcomm`` the final multipliers ``w/τ``; ``col0 (k2,)``
+    the fixed first column.
+    """
+
+    D1: np.ndarray
+    D2: np.ndarray
+    M1: np.ndarray | None
+    M2: np.ndarray | None
+    L: np.ndarray
+    mu_descr: float
+    mu_lap: float
+    mu_dcomm: float
+    col0: np.ndarray
+    taus: tuple
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.D2.shape[0], self.D1.shape[0])
+
+
+def no17_terms(
+    basis_1: Basis,
+    basis_2: Basis,
+    descr_1: np.ndarray,
+    descr_2: np.ndarray,
+    *,
+    w_descr: float = 1.0,
+    w_lap: float = 1e-2,
+    w_dcomm: float = 1e-1,
+    w_orient: float = 0.0,
+    lap: str = "resolvent",
+    resolvent_gamma: float = 0.5,
+    normalize: str | None = "expected",
+    normalize_descr: bool = True,
+) -> NO17Terms:
+    """Precompute the NO17 energy terms for ``C_12`` of shape ``(basis_2.k, basis_1.k)``.
+
+    ``descr_1`` ``(n1, p)`` and ``descr_2`` ``(n2, p)`` are paired descriptor columns
+    (column q on shape 1 corresponds to column q on shape 2). See the module doc for every
+    weight and normalisation. ``w_orient`` (the orientation term of Ren et al. 2018) is not
+    implemented: it must be 0.
+    """
+    _check_basis(basis_1, "basis_1")
+    _check_basis(basis_2, "basis_2")
+    if w_orient != 0:
+        raise NotImplementedError("w_orient != 0: the orientation-preserving term is not implemented; use w_orient=0")
+    d1 = np.asarray(descr_1, dtype=np.float64)
+    d2 = np.asarray(descr_2, dtype=np.float64)
+    d1 = d1[:, None] if d1.ndim == 1 else d1
+    d2 = d2[:, None] if d2.ndim == 1 else d2
+    if d1.shape[0] != basis_1.n or d2.shape[0] != basis_2.n:
+        raise ValueError(
+            f"descr_1 must have {basis_1.n} rows (shape 1) and descr_2 {basis_2.n} rows (shape 2); "
+            f"got {d1.shape} and {d2.shape}"
+        )
+    if d1.shape[1] != d2.shape[1]:
+        raise ValueError(f"descr_1 and descr_2 must have the same number of columns; got {d1.shape[1]} and {d2.shape[1]}")
+    if not (np.all(np.isfinite(d1)) and np.all(np.isfinite(d2))):
+        raise ValueError("descriptors contain non-finite values")
+    ws = np.array([w_descr, w_lap, w_dcomm], dtype=np.float64)
+    if np.any(ws < 0) or ws.sum() <= 0:
+        raise ValueError(f"weights must be >= 0 with a positive sum; got w_descr={w_descr}, w_lap={w_lap}, w_dcomm={w_dcomm}")
+    if normalize not in NORMALIZATIONS:
+        raise ValueError(f"normalize must be one of {NORMALIZATIONS}, got {normalize!r}")
+    ws = ws / ws.sum()
+    if normalize_descr:
+        d1 = _normalize_columns(d1, basis_1)
+        d2 = _normalize_columns(d2, basis_2)
+    k1, k2 = basis_1.k, basis_2.k
+    D1 = basis_1.project(d1)  # (k1, p)
+    D2 = basis_2.project(d2)  # (k2, p)
+    L = laplacian_mask(basis_1.evals, basis_2.evals, lap=lap, gamma=resolvent_gamma)  # (k2, k1)
+    M1 = M2 = None
+    if ws[2] > 0:
+        M1 = multiplication_operators(basis_1, d1)  # (p, k1, k1)
+        M2 = multiplication_operators(basis_2, d2)  # (p, k2, k2)
+    if normalize == "expected":
+        m = min(k1, k2)
+        p_eff = max(_effective_p(D1, D2), 1e-12)
+        t_descr = m * float(np.sum(D1[1:] ** 2)) / k1 / p_eff
+        t_lap = m * float(L.sum()) / (k1 * k2)
+        t_dcomm = 1.0
+        if M1 is not None:
+            pos = k2 * float(np.sum(M1**2)) + k1 * float(np.sum(M2**2))
+            tot = pos - 2.0 * float(np.sum(np.trace(M1, axis1=1, axis2=2) * np.trace(M2, axis1=1, axis2=2)))
+            t_dcomm = tot * m / (k1 * k2) / p_eff if tot > 1e-12 * pos else 1.0
+        taus = tuple(t if t > 0 else 1.0 for t in (t_descr, t_lap, t_dcomm))
+    elif normalize == "sum":
+        taus = (1.0, float(L.sum()) if L.sum() > 0 else 1.0, 1.0)
+    else:
+        taus = (1.0, 1.0, 1.0)
+    mus = ws / np.array(taus)
+    return NO17Terms(D1, D2, M1, M2, L, float(mus[0]), float(mus[1]), float(mus[2]), first_column(basis_1, basis_2), taus)
+
+
+def energy_and_gradient(C: np.ndarray, terms: NO17Terms) -> tuple[float, np.ndarray]:
+    """NO17 energy ``E(C)`` and its full gradient ``∂E/∂C`` ``(k2, k1)`` (column 0 included).
+
+    ``C`` is ``(k2, k1)`` (or its row-major ravel). Gradients of the three terms:
+    ``(C D1 − D2) D1ᵀ``; ``L ∘ C``; ``Σ_q R_q M1_qᵀ − M2_qᵀ R_q`` with ``R_q = C M1_q − M2_q C``.
+    """
+    k2, k1 = terms.shape
+    C = np.asarray(C, dtype=np.float64).reshape(k2, k1)
+    E = 0.0
+    G = np.zeros_like(C)
+    if terms.mu_descr > 0:
+        R = C @ terms.D1 - terms.D2  # (k2, p)
+        E += terms.mu_descr * 0.5 * float(np.sum(R * R))
+        G += terms.mu_descr * (R @ terms.D1.T)
+    if terms.mu_lap > 0:
+        E += terms.mu_lap * 0.5 * float(np.sum(terms.L * C * C))
+        G += terms.mu_lap * (terms.L * C)
+    if terms.mu_dcomm > 0 and terms.M1 is not None:
+        R = np.matmul(C, terms.M1) - np.matmul(terms.M2, C)  # (p, k2, k1)
+        E += terms.mu_dcomm * 0.5 * float(np.sum(R * R))
+        G += terms.mu_dcomm * (
+            np.einsum("qab,qcb->ac", R, terms.M1) - np.einsum("qba,qbc->ac", terms.M2, R)
+        )
+    return E, G
+
+
+def fit_no17(
+    basis_1: Basis,
+    basis_2: Basis,
+    descr_1: np.ndarray,
+    descr_2: np.ndarray,
+    *,
+    w_descr: float = 1.0,
+    w_lap: float = 1e-2,
+    w_dcomm: float = 1e-1,
+    w_orient: float = 0.0,
+    lap: str = "resolvent",
+    resolvent_gamma: float = 0.5,
+    normalize: str | None = "expected",
+    normalize_descr: bool = True,
+    init: str = "zeros",
+    factr: float = 1e7,
+    pgtol: float = 1e-5,
+    maxiter: int = 15000,
+    return_info: bool = False,
+):
+    """Functional map ``C_12`` ``(basis_2.k, basis_1.k)`` minimising the NO17 energy.
+
+    Parameters
+    ----------
+    basis_1, basis_2 : bases of shape 1 (source) and 2 (target); their column counts set the
+        map size ``(k2, k1)`` (constant included; truncate them with ``basis.truncate``).
+    descr_1, descr_2 : ``(n1, p)``, ``(n2, p)`` paired descriptors.
+    w_descr, w_lap, w_dcomm : relative weights of descriptor preservation, Laplacian
+        commutativity and descriptor-operator commutativity (divided by their sum).
+        Defaults are the NO17 demo weights of pyFM (1, 1e-2, 1e-1).
+    w_orient : must be 0 (orientation term not implemented).
+    lap, resolvent_gamma, normalize, normalize_descr : see the module doc.
+    init : ``"zeros"`` or ``"identity"`` for the free columns ``C[:, 1:]``.
+    factr, pgtol, maxiter : L-BFGS-B stopping rules (scipy ``fmin_l_bfgs_b`` meaning).
+    return_info : also return a dict (energy, iterations, time, taus, message).
+
+    Returns
+    -------
+    C_12 : ``(k2, k1)``, first column fixed to :func:`first_column`.
+    """
+    from scipy.optimize import minimize
+
+    t0 = time.perf_counter()
+    terms = no17_terms(
+        basis_1, basis_2, descr_1, descr_2, w_descr=w_descr, w_lap=w_lap, w_dcomm=w_dcomm,
+        w_orient=w_orient, lap=lap, resolvent_gamma=resolvent_gamma, normalize=normalize,
+        normalize_descr=normalize_descr,
+    )
+    k2, k1 = terms.shape
+    if init == "zeros":
+        free0 = np.zeros((k2, k1 - 1))
+    elif init == "identity":
+        free0 = np.eye(k2, k1)[:, 1:]
+    else:
+        raise ValueError(f"init must be 'zeros' or 'identity', got {init!r}")
+    C = np.empty((k2, k1))
+    C[:, 0] = terms.col0
+
+    def fun(x):
+        C[:, 1:] = x.reshape(k2, k1 - 1)
+        E, G = energy_and_gradient(C, terms)
+        return E, G[:, 1:].ravel()
+
+    if k1 > 1:
+        res = minimize(
+            fun, free0.ravel(), jac=True, method="L-BFGS-B",
+            options={"ftol": factr * np.finfo(float).eps, "gtol": pgtol, "maxiter": maxiter, "maxfun": 10 * maxiter},
+        )
+        C[:, 1:] = res.x.reshape(k2, k1 - 1)
+        info = {"energy": float(res.fun), "nit": int(res.nit), "message": str(res.message), "success": bool(res.success)}
+    else:
+        info = {"energy": energy_and_gradient(C, terms)[0], "nit": 0, "message": "nothing to fit", "success": True}
+    info["time"] = time.perf_counter() - t0
+    info["taus"] = terms.taus
+    return (C.copy(), info) if return_info else C.copy()
+
+
+# ---------------------------------------------------------------------------- ZoomOut
+def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return_p2p: bool = False):
+    """ZoomOut refinement (Melzi et al. 2019, "ZoomOut: spectral upsampling for efficient shape correspondence").
+
+    Starting from ``C_12`` ``(k2, k1)``, repeat: convert the current map to a point map with
+    the standard nearest-neighbour rule (:func:`prodmaps.p2p.from_fmap`, ``p2p_21`` ``(n2,)``),
+    grow both sizes by ``step`` (each clipped at its target) and set
+    ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` at the new size. Stops when the size reaches ``k_final``.
+
+    Parameters
+    ----------
+    k_final : int (both sides) or ``(k2_final, k1_final)`` (the order of ``C.shape``); counts
+        the constant; must not exceed the bases' column counts nor be below ``C_12.shape``.
+    step : size increase per iteration (>= 1).
+    return_p2p : also return the last point map (the one that produced the final ``C``).
+    """
+    from .p2p import from_fmap
+
+    _check_basis(basis_1, "basis_1")
+    _check_basis(basis_2, "basis_2")
+    C = _check_fmap(C_12, basis_1, basis_2)
+    k2, k1 = C.shape
+    if isinstance(k_final, (int, np.integer)):
+        K2, K1 = int(k_final), int(k_final)
+    else:
+        K2, K1 = (int(v) for v in k_final)
+    if K1 > basis_1.k or K2 > basis_2.k:
+        raise ValueError(f"k_final (k2, k1) = {(K2, K1)} exceeds the bases ({basis_2.k}, {basis_1.k} columns)")
+    if K1 < k1 or K2 < k2:
+        raise ValueError(f"k_final (k2, k1) = {(K2, K1)} is smaller than the initial map {C.shape}")
+    if int(step) < 1:
+        raise ValueError(f"step must be >= 1, got {step}")
+    p2p = None
+    while True:
+        p2p = from_fmap(C, basis_1, basis_2, method="std")
+        if k1 == K1 and k2 == K2:
+            # one last conversion at the final size so the returned C comes from a point map
+            C = basis_2.truncate(K2).project(basis_1.vecs[p2p, :K1])
+            break
+        k1, k2 = min(k1 + step, K1), min(k2 + step, K2)
+        C = basis_2.truncate(k2).project(basis_1.vecs[p2p, :k1])  # (k2, k1)
+    return (C, p2p) if return_p2p else C
+
+
+# ---------------------------------------------------------------- NO17 demo descriptors
+def auto_wks_energies(evals: np.ndarray, n_energies: int, sigma_factor: float = 7.0, margin: float = 2.0):
+    """Log-energies and ``σ`` of the usual automatic WKS sampling (Aubry et al. 2011).
+
+    ``e_min = log λ_1``, ``e_max = log λ_max`` over the non-zero eigenvalues,
+    ``σ = sigma_factor·(e_max − e_min)/n_energies``, energies evenly spaced in
+    ``[e_min + margin·σ, e_max − margin·σ]``. Returns ``(energies (n_energies,), σ)``.
+    """
+    ev = np.abs(np.asarray(evals, dtype=np.float64))
+    ev = np.sort(ev[ev > 1e-8 * ev.max()])
+    if ev.size < 2:
+        raise ValueError("need at least two non-zero eigenvalues for the WKS energies")
+    e_min, e_max = np.log(ev[0]), np.log(ev[-1])
+    sigma = sigma_factor * (e_max - e_min) / n_energies
+    return np.linspace(e_min + margin * sigma, e_max - margin * sigma, n_energies), float(sigma)
+
+
+def wave_kernel_weights(evals: np.ndarray, energies: np.ndarray, sigma: float, scaled: bool = True) -> np.ndarray:
+    """WKS spectral weights ``(len(energies), k)``: ``exp(−(e − log λ_i)²/(2σ²))``.
+
+    The constant eigenpair (λ = 0) gets weight 0. With ``scaled`` each row is divided by its
+    sum (the usual WKS normalisation ``C_e``).
+    """
+    ev = np.abs(np.asarray(evals, dtype=np.float64))
+    keep = ev > 1e-8 * ev.max()
+    logs = np.log(np.where(keep, ev, 1.0))
+    w = np.exp(-((np.asarray(energies)[:, None] - logs[None, :]) ** 2) / (2 * sigma**2)) * keep[None, :]
+    if scaled:
+        w = w / w.sum(axis=1, keepdims=True)
+    return w
+
+
+def farthest_point_landmarks(vertices: np.ndarray, n: int, start: int = 0) -> np.ndarray:
+    """``n`` vertex indices by Euclidean farthest-point sampling from vertex ``start`` (deterministic)."""
+    V = np.asarray(vertices, dtype=np.float64)
+    idx = [int(start)]
+    d = np.linalg.norm(V - V[start], axis=1)
+    for _ in range(n - 1):  # n landmarks, a handful of iterations
+        j = int(np.argmax(d))
+        idx.append(j)
+        d = np.minimum(d, np.linalg.norm(V - V[j], axis=1))
+    return np.array(idx, dtype=np.int64)
+
+
+def no17_demo_descriptors(
+    basis_1: Basis,
+    basis_2: Basis,
+    landmarks=None,
+    n_descr: int = 100,
+    subsample_step: int = 5,
+    k_descr: int | None = 128,
+):
+    """Descriptors of pyFM's NO17 demo: WKS plus wave-kernel maps at landmarks, subsampled.
+
+    Built from the first ``k_descr`` eigenpairs of each basis (all if None), with the automatic
+    energies of :func:`auto_wks_energies` computed **on each shape's own spectrum** and scaled
+    weights ``w_e`` (:func:`wave_kernel_weights`):
+
+    * WKS ``(n, n_descr)``: ``WKS_e(x) = Σ_i w_e,i φ_i(x)²``;
+    * for each landmark pair ``(l1, l2)`` the wave-kernel maps ``x ↦ Σ_i w_e,i φ_i(l) φ_i(x)``
+      ``(n, n_descr)`` each, landmarks in order, energies fastest;
+    * columns ``[WKS, maps]`` concatenated, then every ``subsample_step``-th column kept.
+
+    ``landmarks``: None, ``(q,)`` (same indices on both shapes) or ``(q, 2)`` (column 0 on
+    shape 1, column 1 on shape 2). No normalisation here (:func:`fit_no17` normalises).
+    Returns ``(descr_1 (n1, p), descr_2 (n2, p))``.
+    """
+    if landmarks is None:
+        l1 = l2 = np.zeros(0, dtype=np.int64)
+    else:
+        lm = np.asarray(landmarks)
+        if lm.ndim == 1:
+            l1 = l2 = lm.astype(np.int64)
+        elif lm.ndim == 2 and lm.shape[1] == 2:
+            l1, l2 = lm[:, 0].astype(np.int64), lm[:, 1].astype(np.int64)
+        else:
+            raise ValueError(f"landmarks must be (q,) or (q, 2); got shape {lm.shape}")
+    out = []
+    for basis, lms in ((basis_1, l1), (basis_2, l2)):
+        k = basis.k if k_descr is None else min(k_descr, basis.k)
+        if lms.size and (lms.min() < 0 or lms.max() >= basis.n):
+            raise ValueError(f"landmark indices must be in [0, {basis.n})")
+        Phi, ev = basis.vecs[:, :k], basis.evals[:k]
+        energies, sigma = auto_wks_energies(ev, n_descr)
+        w = wave_kernel_weights(ev, energies, sigma)  # (n_descr, k)
+        cols = [(Phi**2) @ w.T]  # (n, n_descr)
+        if lms.size:
+            maps = np.einsum("ek,lk,nk->nle", w, Phi[lms], Phi, optimize=True)  # (n, q, n_descr)
+            cols.append(maps.reshape(basis.n, -1))
+        out.append(np.concatenate(cols, axis=1)[:, ::subsample_step])
+    return out[0], out[1]

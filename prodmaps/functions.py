@@ -1,0 +1,292 @@
+"""The paper's families of test functions (Section 5.1), as seeded generators.
+
+Every family produces a matrix ``F_1`` ``(n1, m)`` of ``m`` functions on the source shape
+(one function per column). The ground truth of a transfer to a target shape is the
+**pull-back through the ground-truth point map**: ``G_2_true = F_1[p2p_21]`` ``(n2, m)``, where
+``p2p_21`` ``(n2,)`` gives for each vertex of the target (shape 2) its vertex on the source
+(shape 1) -- the package-wide point-map direction. No family is recomputed on the target.
+
+Families (``FAMILIES``; ``m`` is the default number of columns; "k_M" marks the families that
+depend on the source basis size, computed from ``basis_1.truncate(k_M + 1)``; the paper's
+``k_M`` counts non-constant functions, so ``k_M = 9`` uses 10 columns):
+
+=========== ==== ===== =================================================================
+name         m   k_M   definition
+=========== ==== ===== =================================================================
+hk_k         10  yes   heat kernels ``h_t(x, ·)`` at ``m`` random distinct vertices ``x``,
+                       from the ``k_M + 1`` eigenpairs (so in the span of the basis)
+hk_K         10  no    the same kernels from 200 eigenpairs (constant included)
+HKS          10  yes   HKS at 10 random times, log-uniform in ``[4 ln10/λ_max, 4 ln10/λ_1]``
+                       of the ``k_M + 1`` basis (SOG09 range), unscaled ``h_t(x, x)``
+WKS          10  yes   WKS at 10 random energies, uniform in the energy range of
+                       :func:`prodmaps.descriptors.wks_energies` (100-energy grid:
+                       σ = 7·δ, margins 2σ), ASC11 scaling, from the ``k_M + 1`` basis
+Random       10  yes   ``B a`` with ``B`` the order-2 extended basis of the ``k_M + 1`` basis
+                       (``pm.product_basis(..., pairs="unique")``: constant, ``φ_l``, and
+                       ``φ_l φ_m`` for ``1 <= l <= m <= k_M``; 55 columns for ``k_M = 9``),
+                       each column scaled to unit area norm, ``a ~ N(0, 1)`` i.i.d.
+XYZ           3  no    the x, y, z vertex coordinates of the source
+Indicator    10  no    indicators of geodesic balls (edge-graph Dijkstra distance) around
+                       random vertices, the radius chosen so the ball covers a random
+                       fraction ``U[0.05, 0.25]`` of the area
+SHOT         10  no    10 random columns of :func:`prodmaps.descriptors.shot` (352 dims,
+                       default radius ``0.1·sqrt(area)``), chosen among columns non-zero on
+                       at least 1 % of the vertices (the others have no meaningful
+                       relative error)
+AWFT         10  no    10 random columns of :func:`prodmaps.descriptors.awft` (30 dims with
+                       the defaults)
+=========== ==== ===== =================================================================
+
+Heat kernel time (not stated in the paper): ``t = t_rel · area`` with ``t_rel = 1e-3`` by
+default (a localised kernel, Gaussian width ``~sqrt(4t) ≈ 0.06·sqrt(area)``); a parameter.
+Relative errors are computed column by column, so the per-column scaling of HKS/WKS does not
+change any reported number.
+
+Caching: SHOT, AWFT and the 200-eigenpair basis cost seconds per shape; pass the same
+``cache`` dict (one per source mesh, owned by the caller) to reuse them across calls.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import descriptors as _d
+from .basis import Basis, eigenbasis
+from .mesh import Mesh
+
+__all__ = ["FAMILIES", "PAPER_LABELS", "FamilySpec", "make_family", "pull_back", "family_names"]
+
+
+@dataclass(frozen=True)
+class FamilySpec:
+    name: str
+    paper_label: str  # row label in the paper's tables
+    m: int | None  # default number of functions (None: fixed by the family)
+    uses_k_M: bool  # computed from basis_1.truncate(k_M + 1)
+    description: str
+
+
+FAMILIES: dict[str, FamilySpec] = {
+    s.name: s
+    for s in [
+        FamilySpec("hk_k", "hk k", 10, True, "heat kernels at random points from k_M+1 eigenpairs"),
+        FamilySpec("hk_K", "hk K", 10, False, "heat kernels at random points from 200 eigenpairs"),
+        FamilySpec("HKS", "HKS", 10, True, "HKS at 10 random times (k_M+1 eigenpairs)"),
+        FamilySpec("WKS", "WKS", 10, True, "WKS at 10 random energies (k_M+1 eigenpairs)"),
+        FamilySpec("Random", "Random", 10, True, "random combinations of the order-2 extended basis"),
+        FamilySpec("XYZ", "XYZ", 3, False, "vertex coordinates x, y, z"),
+        FamilySpec("Indicator", "Indicator", 10, False, "indicators of random geodesic balls"),
+        FamilySpec("SHOT", "SHOT", 10, False, "10 random SHOT dimensions"),
+        FamilySpec("AWFT", "AWFT", 10, False, "10 random AWFT dimensions"),
+    ]
+}
+PAPER_LABELS = {name: spec.paper_label for name, spec in FAMILIES.items()}
+
+
+def family_names() -> list[str]:
+    """Family names in the paper's table order."""
+    return list(FAMILIES)
+
+
+def pull_back(F_1: np.ndarray, p2p_21) -> np.ndarray:
+    """Ground truth on the target: ``F_1[p2p_21]`` ``(n2, m)``; ``p2p_21`` ``(n2,)`` indexes shape 1."""
+    F_1 = np.asarray(F_1)
+    p = np.asarray(p2p_21)
+    if p.ndim != 1 or not np.issubdtype(p.dtype, np.integer):
+        raise ValueError("p2p_21 must be a 1-D integer array (for each target vertex, a source vertex)")
+    if p.size and (p.min() < 0 or p.max() >= F_1.shape[0]):
+        raise ValueError(
+            f"p2p_21 has indices in [{p.min()}, {p.max()}] but the source has {F_1.shape[0]} vertices"
+        )
+    return F_1[p]
+
+
+# ----------------------------------------------------------------------------- generators
+def _random_vertices(rng, n: int, m: int) -> np.ndarray:
+    return rng.choice(n, size=m, replace=m > n)
+
+
+def _gen_hk(ctx, rng, m, *, t_rel: float = 1e-3, n_eig_K: int = 200, big: bool):
+    mesh, area = ctx["mesh"], ctx["mesh"].area
+    if not np.isfinite(t_rel) or t_rel <= 0:
+        raise ValueError(f"t_rel must be > 0, got {t_rel!r}")
+    src = _random_vertices(rng, mesh.n_vertices, m)
+    if big:
+        basis = _big_basis(ctx, n_eig_K)
+    else:
+        basis = ctx["basis_k"]
+    return _d.heat_kernel(basis, src, t_rel * area)
+
+
+def _big_basis(ctx, n_eig: int) -> Basis:
+    b1 = ctx["basis"]
+    if b1.k >= n_eig:
+        return b1.truncate(n_eig)
+    key = ("basis", n_eig)
+    cache = ctx["cache"]
+    if key not in cache:
+        cache[key] = eigenbasis(ctx["mesh"], n_eig)
+    return cache[key]
+
+
+def _gen_hks(ctx, rng, m, *, factor: float = 4.0 * np.log(10.0)):
+    b = ctx["basis_k"]
+    lo_hi = _d.hks_times(b, 2, factor=factor)  # [t_min, t_max]
+    t = np.sort(np.exp(rng.uniform(np.log(lo_hi[0]), np.log(lo_hi[1]), size=m)))
+    return _d.hks(b, t)
+
+
+def _gen_wks(ctx, rng, m, *, num_grid: int = 100, variance: float = 7.0, margin: float = 2.0):
+    b = ctx["basis_k"]
+    grid, sigma = _d.wks_energies(b, num_grid, variance=variance, margin=margin)
+    e = np.sort(rng.uniform(grid[0], grid[-1], size=m))
+    return _d.wks(b, e, sigma, scaled=True)
+
+
+def _gen_random(ctx, rng, m):
+    from .products import product_basis
+
+    b = ctx["basis_k"]
+    B = product_basis(b, order=2, pairs="unique").matrix  # (n, K)
+    norms = np.sqrt(np.einsum("ij,ij->j", B, b.apply_mass(B)))  # (K,) area norms
+    B = B / norms[None, :]
+    a = rng.standard_normal((B.shape[1], m))  # (K, m)
+    return B @ a
+
+
+def _gen_xyz(ctx, rng, m):
+    return np.array(ctx["mesh"].vertices, dtype=np.float64, copy=True)
+
+
+def _gen_indicator(ctx, rng, m, *, min_frac: float = 0.05, max_frac: float = 0.25, method: str = "graph"):
+    from .geodesics import distances
+
+    if not 0 < min_frac <= max_frac < 1:
+        raise ValueError(f"need 0 < min_frac <= max_frac < 1, got {min_frac}, {max_frac}")
+    mesh = ctx["mesh"]
+    mass = ctx["basis"].mass
+    mass = mass if ctx["basis"].mass_is_diagonal else np.asarray(mass.sum(axis=1)).ravel()
+    src = _random_vertices(rng, mesh.n_vertices, m)
+    frac = rng.uniform(min_frac, max_frac, size=m)
+    D = distances(mesh, src, method=method)  # (m, n)
+    order = np.argsort(D, axis=1, kind="stable")  # (m, n)
+    cum = np.cumsum(mass[order], axis=1) / mass.sum()  # (m, n)
+    cut = np.argmax(cum >= frac[:, None], axis=1)  # first index reaching the fraction
+    radius = D[np.arange(m), order[np.arange(m), cut]]  # (m,)
+    return (D <= radius[:, None]).T.astype(np.float64)  # (n, m)
+
+
+def _cached_descriptor(ctx, key, fn):
+    cache = ctx["cache"]
+    if key not in cache:
+        cache[key] = fn()
+    return cache[key]
+
+
+def _pick_columns(rng, D: np.ndarray, m: int, name: str, min_support: float = 0.01) -> np.ndarray:
+    support = (np.abs(D) > 0).mean(axis=0)
+    ok = np.flatnonzero(support >= min_support)
+    if ok.size < m:
+        raise ValueError(f"{name}: only {ok.size} usable dimensions, cannot pick m={m}")
+    cols = np.sort(rng.choice(ok, size=m, replace=False))
+    return D[:, cols]
+
+
+def _gen_shot(ctx, rng, m, **shot_opts):
+    key = ("shot", tuple(sorted(shot_opts.items())))
+    D = _cached_descriptor(ctx, key, lambda: _d.shot(ctx["mesh"], **shot_opts))
+    return _pick_columns(rng, D, m, "SHOT")
+
+
+def _gen_awft(ctx, rng, m, **awft_opts):
+    key = ("awft", tuple(sorted((k, str(v)) for k, v in awft_opts.items())))
+    D = _cached_descriptor(ctx, key, lambda: _d.awft(ctx["mesh"], **awft_opts))
+    return _pick_columns(rng, D, m, "AWFT")
+
+
+_GENERATORS = {
+    "hk_k": lambda ctx, rng, m, **o: _gen_hk(ctx, rng, m, big=False, **o),
+    "hk_K": lambda ctx, rng, m, **o: _gen_hk(ctx, rng, m, big=True, **o),
+    "HKS": _gen_hks,
+    "WKS": _gen_wks,
+    "Random": _gen_random,
+    "XYZ": _gen_xyz,
+    "Indicator": _gen_indicator,
+    "SHOT": _gen_shot,
+    "AWFT": _gen_awft,
+}
+
+
+def make_family(
+    name: str,
+    mesh_1: Mesh,
+    basis_1: Basis,
+    *,
+    k_M: int,
+    seed: int,
+    p2p_21=None,
+    m: int | None = None,
+    cache: dict | None = None,
+    **options,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Generate the family ``name`` on the source and its ground truth on the target.
+
+    Parameters
+    ----------
+    name : one of ``FAMILIES`` (``hk_k, hk_K, HKS, WKS, Random, XYZ, Indicator, SHOT, AWFT``).
+    mesh_1, basis_1 : source mesh and its eigenbasis (``basis_1.k >= k_M + 1`` columns,
+        A-orthonormal, constant first).
+    k_M : the paper's source basis size (non-constant functions). Families marked ``uses_k_M``
+        are computed from ``basis_1.truncate(k_M + 1)``; use the larger ``k_M`` when comparing
+        several basis sizes (the paper, Table 3).
+    seed : seeds ``numpy.random.default_rng``; the same arguments give identical arrays.
+    p2p_21 : optional ``(n2,)`` ground-truth point map (target vertex -> source vertex).
+    m : number of functions (default ``FAMILIES[name].m``; XYZ always has 3).
+    cache : optional dict, one per source mesh, reused for SHOT/AWFT/200-eigenpair bases.
+    options : family parameters (``t_rel``, ``n_eig_K`` for the heat kernels; ``num_grid``,
+        ``variance``, ``margin`` for WKS; ``factor`` for HKS; ``min_frac``, ``max_frac``,
+        ``method`` for Indicator; :func:`~prodmaps.descriptors.shot` /
+        :func:`~prodmaps.descriptors.awft` keywords for SHOT / AWFT).
+
+    Returns
+    -------
+    F_1 : ``(n1, m)`` functions on the source.
+    G_2_true : ``(n2, m)`` ``= F_1[p2p_21]``, or None when ``p2p_21`` is None.
+    """
+    if name not in FAMILIES:
+        raise ValueError(f"unknown family {name!r}; choose one of {list(FAMILIES)}")
+    if not isinstance(mesh_1, Mesh):
+        raise TypeError(f"mesh_1 must be a prodmaps.Mesh, got {type(mesh_1).__name__}")
+    if not isinstance(basis_1, Basis):
+        raise TypeError(f"basis_1 must be a prodmaps.Basis, got {type(basis_1).__name__}")
+    if basis_1.n != mesh_1.n_vertices:
+        raise ValueError(f"basis_1 has {basis_1.n} rows but mesh_1 has {mesh_1.n_vertices} vertices")
+    if not isinstance(k_M, (int, np.integer)) or isinstance(k_M, bool) or k_M < 1:
+        raise ValueError(f"k_M must be a positive integer (non-constant basis functions), got {k_M!r}")
+    if k_M + 1 > basis_1.k:
+        raise ValueError(
+            f"k_M={k_M} needs k_M+1={k_M + 1} basis columns but basis_1 has {basis_1.k}; "
+            f"compute pm.eigenbasis(mesh, {k_M + 1}) or more"
+        )
+    spec = FAMILIES[name]
+    if name == "XYZ":
+        if m not in (None, 3):
+            raise ValueError("the XYZ family always has m=3 columns")
+        m = 3
+    m = spec.m if m is None else m
+    if not isinstance(m, (int, np.integer)) or isinstance(m, bool) or m < 1:
+        raise ValueError(f"m must be a positive integer, got {m!r}")
+    ctx = {
+        "mesh": mesh_1,
+        "basis": basis_1,
+        "basis_k": basis_1.truncate(k_M + 1),
+        "cache": {} if cache is None else cache,
+    }
+    rng = np.random.default_rng(seed)
+    F_1 = np.ascontiguousarray(_GENERATORS[name](ctx, rng, int(m), **options), dtype=np.float64)
+    if F_1.shape != (mesh_1.n_vertices, m) or not np.all(np.isfinite(F_1)):
+        raise RuntimeError(f"family {name} produced an invalid array {F_1.shape}")  # pragma: no cover
+    G_2 = None if p2p_21 is None else pull_back(F_1, p2p_21)
+    return F_1, G_2

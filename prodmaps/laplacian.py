@@ -1,0 +1,100 @@
+"""Discrete Laplace–Beltrami operators: cotangent stiffness ``W`` and mass ``A``.
+
+Conventions
+-----------
+* ``W`` is the positive semi-definite cotangent stiffness matrix (``W @ 1 == 0``,
+  ``f^T W f = ∫|∇f|²`` for piecewise-linear ``f``), so eigenpairs solve ``W φ = λ A φ`` with
+  ``λ >= 0``.
+* ``A`` is the lumped (barycentric) mass: each vertex gets one third of the area of every
+  incident triangle. It is returned as a vector ``(n,)`` (the diagonal). With
+  ``mass="full"`` the consistent FEM mass matrix is returned instead, as a sparse ``(n, n)``
+  matrix (``area/6`` on the diagonal, ``area/12`` off it, per triangle).
+* Boundaries: natural (Neumann) boundary condition; a boundary edge has one cotangent term.
+* ``kind="robust"`` uses the intrinsic-Delaunay Laplacian of Sharp & Crane (2020) through
+  the ``robust_laplacian`` package (optional dependency), which stays well behaved on
+  meshes with thin or obtuse triangles; its mass is the lumped (Voronoi-free barycentric)
+  mass of the intrinsic mesh. ``mass="full"`` is not available there.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from .mesh import Mesh
+
+__all__ = ["laplacian", "cotan_weights", "lumped_mass", "fem_mass"]
+
+
+def cotan_weights(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
+    """PSD cotangent stiffness matrix ``W`` ``(n, n)``: ``W_ij = -(cot α_ij + cot β_ij)/2``."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    n = v.shape[0]
+    rows, cols, vals = [], [], []
+    for c in range(3):  # corner c is opposite edge (i, j)
+        i, j, k = f[:, (c + 1) % 3], f[:, (c + 2) % 3], f[:, c]
+        e1 = v[i] - v[k]  # (m, 3)
+        e2 = v[j] - v[k]  # (m, 3)
+        cross = np.linalg.norm(np.cross(e1, e2), axis=1)
+        cot = np.einsum("ij,ij->i", e1, e2) / np.maximum(cross, np.finfo(float).tiny)
+        rows += [i, j]
+        cols += [j, i]
+        vals += [-0.5 * cot, -0.5 * cot]
+    off = sp.coo_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)
+    ).tocsr()
+    diag = -np.asarray(off.sum(axis=1)).ravel()
+    return (off + sp.diags(diag)).tocsr()
+
+
+def lumped_mass(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Barycentric lumped mass ``(n,)``: a third of each incident triangle's area."""
+    from .mesh import face_areas
+
+    a = face_areas(vertices, faces) / 3.0
+    n = np.asarray(vertices).shape[0]
+    return np.bincount(np.asarray(faces).ravel(), weights=np.repeat(a, 3), minlength=n)
+
+
+def fem_mass(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
+    """Consistent (full) piecewise-linear FEM mass matrix ``(n, n)``."""
+    from .mesh import face_areas
+
+    f = np.asarray(faces, dtype=np.int64)
+    a = face_areas(vertices, f)
+    n = np.asarray(vertices).shape[0]
+    rows = np.concatenate([f[:, i] for i in range(3) for _ in range(3)])
+    cols = np.concatenate([f[:, j] for _ in range(3) for j in range(3)])
+    w = np.concatenate([a / (6.0 if i == j else 12.0) for i in range(3) for j in range(3)])
+    return sp.coo_matrix((w, (rows, cols)), shape=(n, n)).tocsr()
+
+
+def laplacian(mesh: Mesh, kind: str = "cotan", mass: str = "lumped"):
+    """Stiffness and mass of ``mesh``: returns ``(W, A)``.
+
+    Parameters
+    ----------
+    kind : ``"cotan"`` (default) or ``"robust"`` (intrinsic Delaunay, needs ``robust_laplacian``).
+    mass : ``"lumped"`` (default, ``A`` is an ``(n,)`` vector) or ``"full"`` (sparse FEM mass).
+    """
+    if not isinstance(mesh, Mesh):
+        raise TypeError(f"laplacian expects a prodmaps.Mesh, got {type(mesh).__name__}")
+    if mass not in ("lumped", "full"):
+        raise ValueError(f"mass must be 'lumped' or 'full', got {mass!r}")
+    if kind == "cotan":
+        W = cotan_weights(mesh.vertices, mesh.faces)
+        A = lumped_mass(mesh.vertices, mesh.faces) if mass == "lumped" else fem_mass(mesh.vertices, mesh.faces)
+        return W, A
+    if kind == "robust":
+        if mass != "lumped":
+            raise ValueError("kind='robust' provides only the lumped mass")
+        try:
+            import robust_laplacian
+        except ImportError as exc:  # pragma: no cover - depends on the environment
+            raise ImportError(
+                "kind='robust' needs the optional package robust-laplacian: pip install robust-laplacian"
+            ) from exc
+        L, M = robust_laplacian.mesh_laplacian(np.asarray(mesh.vertices), np.asarray(mesh.faces))
+        return sp.csr_matrix(L), np.asarray(M.diagonal(), dtype=np.float64)
+    raise ValueError(f"kind must be 'cotan' or 'robust', got {kind!r}")

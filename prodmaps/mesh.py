@@ -1,0 +1,300 @@
+"""Triangle meshes: the :class:`Mesh` container, its validation, and explicit repairs.
+
+Conventions
+-----------
+* ``vertices``: ``(n, 3)`` float64 positions.
+* ``faces``: ``(m, 3)`` int64, 0-based vertex indices, one row per triangle.
+* A valid mesh is non-empty, finite, triangular, has no degenerate (zero-area) or
+  duplicate faces, no unreferenced vertices, only manifold edges (each edge in at most
+  two faces) and exactly one connected component.
+* Open boundaries are allowed. The cotangent Laplacian built on such a mesh
+  (:func:`prodmaps.laplacian`) uses the **natural (Neumann) boundary condition**:
+  boundary edges simply carry one cotangent weight, so the normal derivative of the
+  eigenfunctions vanishes on the boundary and the constant function stays in the kernel.
+
+Validation runs when a :class:`Mesh` is built and raises :class:`MeshError` naming the
+problem and the repair helper that fixes it. Repairs are never implicit: call
+:func:`repair` (or the individual helpers) yourself, so that vertex indices (and with them
+ground-truth correspondences) change only when you ask.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+__all__ = [
+    "Mesh",
+    "MeshError",
+    "validate",
+    "face_areas",
+    "face_normals",
+    "vertex_normals",
+    "edges",
+    "boundary_edges",
+    "largest_component",
+    "remove_unreferenced_vertices",
+    "remove_degenerate_faces",
+    "remove_duplicate_faces",
+    "repair",
+]
+
+
+class MeshError(ValueError):
+    """A mesh that the library cannot work with; the message names the problem and the fix."""
+
+
+def face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area of every triangle, ``(m,)``."""
+    v = np.asarray(vertices, dtype=np.float64)
+    e1 = v[faces[:, 1]] - v[faces[:, 0]]  # (m, 3)
+    e2 = v[faces[:, 2]] - v[faces[:, 0]]  # (m, 3)
+    return 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
+
+
+def face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Unit normal of every triangle (right-hand rule on the face order), ``(m, 3)``."""
+    v = np.asarray(vertices, dtype=np.float64)
+    n = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    return n / np.where(norm > 0, norm, 1.0)
+
+
+def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals, ``(n, 3)``."""
+    v = np.asarray(vertices, dtype=np.float64)
+    fn = np.cross(v[faces[:, 1]] - v[faces[:, 0]], v[faces[:, 2]] - v[faces[:, 0]])  # (m,3), |.|=2*area
+    vn = np.zeros_like(v)
+    for c in range(3):
+        np.add.at(vn, faces[:, c], fn)
+    norm = np.linalg.norm(vn, axis=1, keepdims=True)
+    return vn / np.where(norm > 0, norm, 1.0)
+
+
+def edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unique undirected edges ``(e, 2)`` (sorted pairs) and how many faces use each ``(e,)``."""
+    half = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])  # (3m, 2)
+    half.sort(axis=1)
+    uniq, counts = np.unique(half, axis=0, return_counts=True)
+    return uniq, counts
+
+
+def boundary_edges(faces: np.ndarray) -> np.ndarray:
+    """Edges used by exactly one face, ``(b, 2)``."""
+    e, c = edges(faces)
+    return e[c == 1]
+
+
+def _components(n: int, faces: np.ndarray) -> tuple[int, np.ndarray]:
+    rows = np.concatenate([faces[:, 0], faces[:, 1], faces[:, 2]])
+    cols = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])
+    adj = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
+    return connected_components(adj, directed=False)
+
+
+def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -> None:
+    """Raise :class:`MeshError` if ``(vertices, faces)`` is not a valid triangle mesh.
+
+    ``area_tol`` is relative to the squared bounding-box diagonal: a face whose area is below
+    ``area_tol * diag**2`` counts as degenerate.
+    """
+    v = np.asarray(vertices)
+    f = np.asarray(faces)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise MeshError(f"vertices must have shape (n, 3); got {v.shape}")
+    if v.shape[0] == 0:
+        raise MeshError("empty mesh: no vertices")
+    if f.ndim != 2 or f.shape[0] == 0:
+        raise MeshError(f"empty mesh: no faces (faces shape {f.shape})")
+    if f.shape[1] != 3:
+        raise MeshError(
+            f"non-triangular faces: faces have {f.shape[1]} corners; triangulate the mesh first"
+        )
+    if not np.issubdtype(f.dtype, np.integer):
+        raise MeshError(f"face indices must be integers; got dtype {f.dtype}")
+    if not np.all(np.isfinite(v)):
+        bad = np.flatnonzero(~np.all(np.isfinite(v), axis=1))
+        raise MeshError(
+            f"non-finite coordinates (NaN or inf) at {bad.size} vertices, first {bad[:5].tolist()}"
+        )
+    n = v.shape[0]
+    if f.min() < 0:
+        raise MeshError(f"negative face indices (min {int(f.min())}); indices must be 0-based")
+    if f.max() >= n:
+        raise MeshError(
+            f"face indices out of range: max index {int(f.max())} but only {n} vertices"
+        )
+    if np.any((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])):
+        bad = np.flatnonzero((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2]))
+        raise MeshError(
+            f"degenerate faces: {bad.size} faces repeat a vertex (first {bad[:5].tolist()}); "
+            "use prodmaps.mesh.remove_degenerate_faces"
+        )
+    diag2 = float(np.sum((v.max(0) - v.min(0)) ** 2))
+    areas = face_areas(v, f)
+    degen = np.flatnonzero(areas <= area_tol * max(diag2, np.finfo(float).tiny))
+    if degen.size:
+        raise MeshError(
+            f"degenerate (zero-area) faces: {degen.size} faces, first {degen[:5].tolist()}; "
+            "use prodmaps.mesh.remove_degenerate_faces"
+        )
+    fs = np.sort(f, axis=1)
+    _, first, counts = np.unique(fs, axis=0, return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        raise MeshError(
+            f"duplicate faces: {int(np.sum(counts - 1))} faces repeat another face's vertices; "
+            "use prodmaps.mesh.remove_duplicate_faces"
+        )
+    used = np.zeros(n, dtype=bool)
+    used[f.ravel()] = True
+    if not used.all():
+        bad = np.flatnonzero(~used)
+        raise MeshError(
+            f"unreferenced vertices: {bad.size} vertices belong to no face (first {bad[:5].tolist()}); "
+            "use prodmaps.mesh.remove_unreferenced_vertices"
+        )
+    e, c = edges(f)
+    if np.any(c > 2):
+        bad = e[c > 2]
+        raise MeshError(
+            f"non-manifold edges: {bad.shape[0]} edges are shared by more than two faces "
+            f"(first {bad[:3].tolist()}); the Laplacian is undefined there"
+        )
+    ncomp, labels = _components(n, f)
+    if ncomp > 1:
+        sizes = np.bincount(labels)
+        raise MeshError(
+            f"several connected components: {ncomp} (sizes {sorted(sizes.tolist(), reverse=True)[:5]}); "
+            "use prodmaps.mesh.largest_component"
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """A validated triangle mesh.
+
+    Parameters
+    ----------
+    vertices : (n, 3) array_like of float
+    faces : (m, 3) array_like of int, 0-based
+    validate : bool
+        Run :func:`validate` (default). Only skip it for meshes you built yourself and know.
+    name : str, optional
+        A label used in messages and file names.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    name: str = ""
+    validate: bool = field(default=True, repr=False)
+
+    def __post_init__(self):
+        v = np.ascontiguousarray(np.asarray(self.vertices, dtype=np.float64))
+        f_in = np.asarray(self.faces)
+        if f_in.size and not np.issubdtype(f_in.dtype, np.integer):
+            if np.all(np.isfinite(f_in)) and np.all(f_in == np.round(f_in)):
+                f_in = f_in.astype(np.int64)
+        f = np.ascontiguousarray(f_in.astype(np.int64) if np.issubdtype(f_in.dtype, np.integer) else f_in)
+        if f.ndim == 1 and f.size == 0:
+            f = f.reshape(0, 3)
+        if self.validate:
+            validate(v, f)
+        v.setflags(write=False)
+        f.setflags(write=False)
+        object.__setattr__(self, "vertices", v)
+        object.__setattr__(self, "faces", f)
+
+    @property
+    def n_vertices(self) -> int:
+        return self.vertices.shape[0]
+
+    @property
+    def n_faces(self) -> int:
+        return self.faces.shape[0]
+
+    @property
+    def face_areas(self) -> np.ndarray:
+        return face_areas(self.vertices, self.faces)
+
+    @property
+    def area(self) -> float:
+        """Total surface area."""
+        return float(self.face_areas.sum())
+
+    @property
+    def boundary_edges(self) -> np.ndarray:
+        return boundary_edges(self.faces)
+
+    @property
+    def is_closed(self) -> bool:
+        return self.boundary_edges.shape[0] == 0
+
+    def vertex_normals(self) -> np.ndarray:
+        return vertex_normals(self.vertices, self.faces)
+
+    def __repr__(self) -> str:
+        label = f"{self.name!r}, " if self.name else ""
+        return f"Mesh({label}n_vertices={self.n_vertices}, n_faces={self.n_faces})"
+
+
+# --------------------------------------------------------------------------- repairs
+# Each helper returns (vertices, faces, kept_vertex_index) so that per-vertex data and
+# ground-truth maps can be carried along: new vertex i is old vertex kept[i].
+
+
+def remove_unreferenced_vertices(vertices, faces):
+    """Drop vertices used by no face. Returns ``(vertices, faces, kept)``, ``kept`` old indices."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    used = np.zeros(v.shape[0], dtype=bool)
+    used[f.ravel()] = True
+    kept = np.flatnonzero(used)
+    new_index = np.full(v.shape[0], -1, dtype=np.int64)
+    new_index[kept] = np.arange(kept.size)
+    return v[kept], new_index[f], kept
+
+
+def remove_degenerate_faces(vertices, faces, area_tol: float = 1e-14):
+    """Drop faces that repeat a vertex or have (relative) zero area. Vertices are unchanged."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    rep = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
+    diag2 = float(np.sum((v.max(0) - v.min(0)) ** 2))
+    small = face_areas(v, f) <= area_tol * max(diag2, np.finfo(float).tiny)
+    return v, f[~(rep | small)], np.arange(v.shape[0])
+
+
+def remove_duplicate_faces(vertices, faces):
+    """Keep the first of faces that use the same three vertices (in any order)."""
+    f = np.asarray(faces, dtype=np.int64)
+    _, first = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
+    v = np.asarray(vertices, dtype=np.float64)
+    return v, f[np.sort(first)], np.arange(v.shape[0])
+
+
+def largest_component(vertices, faces):
+    """Keep the connected component with the largest surface area; drops the other vertices."""
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    _, labels = _components(v.shape[0], f)
+    face_label = labels[f[:, 0]]
+    comp_area = np.bincount(face_label, weights=face_areas(v, f))
+    keep = face_label == int(np.argmax(comp_area))
+    return remove_unreferenced_vertices(v, f[keep])
+
+
+def repair(vertices, faces, *, name: str = "") -> tuple[Mesh, np.ndarray]:
+    """Apply the common repairs in a safe order and return a validated mesh.
+
+    Order: drop degenerate faces, drop duplicate faces, keep the largest component, drop
+    unreferenced vertices. Non-manifold edges are *not* repaired (no canonical fix).
+
+    Returns ``(mesh, kept)`` where ``kept[i]`` is the input index of output vertex ``i``.
+    """
+    v, f, _ = remove_degenerate_faces(vertices, faces)
+    v, f, _ = remove_duplicate_faces(v, f)
+    v, f, kept = largest_component(v, f)
+    return Mesh(v, f, name=name), kept

@@ -1,0 +1,58 @@
+"""Errors of approximation and transfer, as the paper measures them (Section 5.1).
+
+All integrals use the lumped area weights ``mass`` ``(n,)`` of the shape the functions live on.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["relative_error", "area_fraction_curve", "pointwise_error"]
+
+
+def _prep(f, g, mass):
+    f = np.asarray(f, dtype=np.float64)
+    g = np.asarray(g, dtype=np.float64)
+    mass = np.asarray(mass, dtype=np.float64)
+    if f.shape != g.shape:
+        raise ValueError(f"f and g must have the same shape; got {f.shape} and {g.shape}")
+    if mass.shape != (f.shape[0],):
+        raise ValueError(f"mass must have shape ({f.shape[0]},); got {mass.shape}")
+    if not (np.all(np.isfinite(f)) and np.all(np.isfinite(g))):
+        raise ValueError("functions contain non-finite values")
+    return f, g, mass
+
+
+def relative_error(f, g_true, mass) -> np.ndarray | float:
+    """``sqrt(∫(f-g)²) / sqrt(∫g²)`` with area weights; per column for ``(n, m)`` inputs.
+
+    Raises ``ValueError`` when the reference ``g_true`` is zero (the error is undefined).
+    """
+    f, g, mass = _prep(f, g_true, mass)
+    num = np.sqrt(np.einsum("i,i...->...", mass, (f - g) ** 2))
+    den = np.sqrt(np.einsum("i,i...->...", mass, g**2))
+    if np.any(den == 0):
+        raise ValueError("relative error undefined: the reference function is zero")
+    out = num / den
+    return float(out) if np.ndim(out) == 0 else out
+
+
+def pointwise_error(f, g_true, mass) -> np.ndarray:
+    """``(f(x) - g(x))² / sqrt(∫g²)``: the per-point quantity thresholded in Figure 8."""
+    f, g, mass = _prep(f, g_true, mass)
+    den = np.sqrt(np.einsum("i,i...->...", mass, g**2))
+    if np.any(den == 0):
+        raise ValueError("undefined: the reference function is zero")
+    return (f - g) ** 2 / den
+
+
+def area_fraction_curve(f, g_true, mass, thresholds) -> np.ndarray:
+    """Fraction of the surface area where ``(f-g)² < γ·sqrt(∫g²)``, for each ``γ``.
+
+    Returns ``(len(thresholds),)`` for 1D inputs, ``(len(thresholds), m)`` per column otherwise
+    (average the columns for the paper's curves).
+    """
+    e = pointwise_error(f, g_true, mass)  # (n,) or (n, m)
+    gam = np.asarray(thresholds, dtype=np.float64)
+    below = e[None, ...] < gam.reshape((-1,) + (1,) * e.ndim)  # (t, n[, m])
+    return np.einsum("i,ti...->t...", mass, below.astype(np.float64)) / mass.sum()

@@ -1,0 +1,198 @@
+"""Point-map recovery from a functional map: standard [OBCS*12] and extended (paper Sections 4.4, 5.3).
+
+Conventions
+-----------
+* ``C_12`` ``(k2, k1)`` maps coefficients on shape 1 to shape 2 (``T f ≈ Φ2 C_12 Φ1ᵀ A1 f``);
+  bases are A-orthonormal with the constant in column 0; ``k`` counts all columns.
+* The result ``p2p_21`` ``(n2,)`` gives for every vertex ``y`` of shape 2 a vertex of shape 1
+  (pull-back direction), the convention of :func:`prodmaps.fmap_from_p2p`.
+
+Standard conversion (``method="std"``)
+    The delta function at ``x`` on shape 1 has coefficients ``Φ1[x]`` (times ``A1[x]``, a
+    per-point scale dropped as in [OBCS*12]); its image has coefficients ``C_12 Φ1[x]ᵀ``.
+    Each vertex ``y`` of shape 2 (coefficients ``Φ2[y]``) is matched to the ``x`` whose image
+    is nearest: rows of ``Φ2[:, :k2]`` ``(n2, k2)`` against rows of ``Φ1[:, :k1] C_12ᵀ``
+    ``(n1, k2)``.
+
+Extended conversion (``method="extended"``)
+    Each point ``x`` is represented by the squared heat kernel ``h_t(x, ·)²`` built from the
+    first ``n_eig`` eigenpairs, ``h_t(x, ·) = Σ_{i<n_eig} e^{−λ_i t} φ_i(x) φ_i``. Its
+    coefficients in the order-2 extended basis ``[φ0, φ1..φk, φl φm]`` are closed form: with
+    ``a_i = e^{−λ_i t} φ_i(x)`` and the constant value ``c = φ0``::
+
+        h² = a_0² c·φ0 + Σ_{j≥1} 2 a_0 c a_j·φ_j + Σ_{l,m≥1} a_l a_m·φ_l φ_m
+
+    (``φ0² = c φ0`` and ``φ0 φ_j = c φ_j`` because products never involve the constant). With
+    ``pairs="ordered"`` the product column ``(l, m)`` gets ``a_l a_m``; with ``"unique"``
+    (``l ≤ m``) it gets ``a_l²`` or ``2 a_l a_m``. The source points' coefficients
+    ``(n1, K1)`` are transferred with the extended map ``C̃ = pm.extend_fmap(C_12)`` ``(K2, K1)``
+    and turned into canonical coefficients of the target's extended basis
+    (``ã = Σ Vᵀ a`` from the SVD ``sqrt(A2) B2 = U Σ Vᵀ`` truncated at ``rtol``, Section 4.4),
+    so that Euclidean distances between canonical coefficients are area-L2 distances between
+    the functions. The target points' own squared kernels get their canonical coefficients
+    the same way, and each target vertex is matched to its exact nearest transferred source
+    point. Parameters the paper leaves open: ``t`` (default ``t_scale / λ_max`` with
+    ``λ_max`` the largest kernel eigenvalue on shape 1 and ``t_scale = 1``; the same absolute
+    ``t`` is used on both shapes), ``n_eig`` (default ``min(k1, k2)``), ``rtol`` (1e-3),
+    ``pairs`` (default ``"unique"``: same span and the same canonical coefficients as
+    ``"ordered"``, fewer columns).
+
+Nearest neighbours are exact, computed with blocked matrix products
+(:func:`nearest_neighbors`), not a kd-tree (the extended embedding has up to ~2.5k dimensions).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .basis import Basis
+
+__all__ = ["nearest_neighbors", "from_fmap", "heat_square_coefficients", "extended_embeddings"]
+
+METHODS = ("std", "extended")
+
+
+def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None = None, return_distance: bool = False):
+    """Exact Euclidean nearest neighbour in ``points`` ``(n_p, d)`` of every row of ``queries`` ``(n_q, d)``.
+
+    Distances ``‖q‖² + ‖p‖² − 2 q·p`` are formed block by block (``block`` query rows at a time;
+    default such that a block of distances holds about 4·10⁶ entries), and the argmin is taken
+    per block. Ties go to the smallest index. Returns ``idx (n_q,)`` int64 (and the distances
+    ``(n_q,)`` if ``return_distance``).
+    """
+    Q = np.asarray(queries, dtype=np.float64)
+    P = np.asarray(points, dtype=np.float64)
+    if Q.ndim != 2 or P.ndim != 2:
+        raise ValueError(f"queries and points must be 2D arrays (n, d); got {Q.shape} and {P.shape}")
+    if Q.shape[1] != P.shape[1]:
+        raise ValueError(f"queries have dimension {Q.shape[1]} but points have {P.shape[1]}; they must match")
+    if P.shape[0] == 0:
+        raise ValueError("points is empty: nothing to match to")
+    if block is None:
+        block = max(1, int(4_000_000 // P.shape[0]))
+    block = int(block)
+    if block < 1:
+        raise ValueError(f"block must be >= 1, got {block}")
+    p_sq = np.einsum("ij,ij->i", P, P)  # (n_p,)
+    idx = np.empty(Q.shape[0], dtype=np.int64)
+    dist = np.empty(Q.shape[0]) if return_distance else None
+    for s in range(0, Q.shape[0], block):  # blocks of queries, vectorised inside
+        q = Q[s : s + block]
+        d2 = p_sq[None, :] - 2.0 * (q @ P.T)  # (b, n_p); ‖q‖² is constant per row
+        j = np.argmin(d2, axis=1)
+        idx[s : s + block] = j
+        if return_distance:
+            q_sq = np.einsum("ij,ij->i", q, q)
+            dist[s : s + block] = np.sqrt(np.maximum(d2[np.arange(q.shape[0]), j] + q_sq, 0.0))
+    return (idx, dist) if return_distance else idx
+
+
+def _check_inputs(C_12, basis_1, basis_2) -> np.ndarray:
+    for b, name in ((basis_1, "basis_1"), (basis_2, "basis_2")):
+        if not isinstance(b, Basis):
+            raise TypeError(f"{name} must be a prodmaps.Basis, got {type(b).__name__}")
+    C = np.asarray(C_12, dtype=np.float64)
+    if C.ndim != 2:
+        raise ValueError(f"C_12 must be 2D (k2, k1); got shape {C.shape}")
+    k2, k1 = C.shape
+    if k1 > basis_1.k or k2 > basis_2.k:
+        raise ValueError(
+            f"C_12 has shape (k2, k1) = {C.shape} but basis_1 has {basis_1.k} columns and basis_2 "
+            f"{basis_2.k}: rows of C_12 index shape 2, columns index shape 1 (transpose it or "
+            "pass the bases in the other order?)"
+        )
+    if not np.all(np.isfinite(C)):
+        raise ValueError("C_12 contains non-finite values")
+    return C
+
+
+def heat_square_coefficients(basis: Basis, t: float, n_eig: int, pairs: str = "unique", points=None) -> np.ndarray:
+    """Closed-form coefficients ``(n_points, K)`` of ``h_t(x, ·)²`` in the order-2 extended basis of ``basis``.
+
+    ``h_t(x, ·) = Σ_{i<n_eig} e^{−λ_i t} φ_i(x) φ_i`` (constant included in the count); one row per
+    point ``x`` (all vertices, or ``points``). Column layout of
+    ``prodmaps.product_basis(basis, order=2, pairs=pairs)`` (see module doc).
+    """
+    from .products import multi_indices
+
+    k = basis.k - 1  # non-constant functions of the extended basis
+    if not 1 <= n_eig <= basis.k:
+        raise ValueError(f"n_eig must be in [1, {basis.k}] (columns of the basis, constant included), got {n_eig}")
+    if not t >= 0:
+        raise ValueError(f"t must be >= 0, got {t}")
+    Phi = basis.vecs if points is None else basis.vecs[np.asarray(points)]
+    w = np.zeros(basis.k)
+    w[:n_eig] = np.exp(-basis.evals[:n_eig] * t)
+    a = Phi * w[None, :]  # (m, k+1) a_i(x)
+    c = basis.phi0
+    idx = multi_indices(k, 2, pairs)  # (K, 2)
+    prod = idx[:, 1] > 0
+    out = np.empty((a.shape[0], idx.shape[0]))
+    out[:, 0] = a[:, 0] ** 2 * c
+    out[:, 1 : k + 1] = 2.0 * c * a[:, :1] * a[:, 1:]
+    l, m = idx[prod, 0], idx[prod, 1]
+    factor = np.where((l != m) & (pairs == "unique"), 2.0, 1.0)  # (K - k - 1,)
+    out[:, prod] = a[:, l] * a[:, m] * factor[None, :]
+    return out
+
+
+def extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, t=None, t_scale: float = 1.0, n_eig=None, rtol: float = 1e-3, pairs: str = "unique"):
+    """Canonical coefficients used by the extended conversion.
+
+    Returns ``(emb_1 (n1, r), emb_2 (n2, r), info)``: the transferred squared heat kernels of
+    the vertices of shape 1 and the squared heat kernels of the vertices of shape 2, both as
+    canonical coefficients of shape 2's extended basis (``r`` retained singular values), plus
+    a dict of the parameters used. Arguments as in :func:`from_fmap`.
+    """
+    import prodmaps as pm
+
+    C = _check_inputs(C_12, basis_1, basis_2)
+    k2, k1 = C.shape
+    b1, b2 = basis_1.truncate(k1), basis_2.truncate(k2)
+    n_eig = min(k1, k2) if n_eig is None else int(n_eig)
+    if not 2 <= n_eig <= min(k1, k2):
+        raise ValueError(f"n_eig must be in [2, min(k1, k2) = {min(k1, k2)}], got {n_eig}")
+    if t is None:
+        t = float(t_scale) / float(b1.evals[n_eig - 1])
+    if not (np.isfinite(t) and t >= 0):
+        raise ValueError(f"t must be a finite number >= 0, got {t}")
+    a1 = heat_square_coefficients(b1, t, n_eig, pairs)  # (n1, K1)
+    a2 = heat_square_coefficients(b2, t, n_eig, pairs)  # (n2, K2)
+    Ct = pm.extend_fmap(C, b1, b2, order=2, pairs=pairs)  # (K2, K1)
+    op = pm.product_basis(b2, order=2, pairs=pairs).operator("svd", rtol=rtol)
+    emb_1 = np.asarray(op.canonical(Ct @ a1.T)).T  # (n1, r)
+    emb_2 = np.asarray(op.canonical(a2.T)).T  # (n2, r)
+    return emb_1, emb_2, {"t": t, "n_eig": n_eig, "rtol": rtol, "pairs": pairs, "dim": emb_1.shape[1]}
+
+
+def from_fmap(C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, block: int | None = None, **params) -> np.ndarray:
+    """Point map ``p2p_21`` ``(n2,)`` (for each vertex of shape 2 a vertex of shape 1) from ``C_12`` ``(k2, k1)``.
+
+    Parameters
+    ----------
+    C_12 : ``(k2, k1)`` functional map; uses the first ``k1`` columns of ``basis_1`` and the
+        first ``k2`` of ``basis_2``.
+    method : ``"std"`` (nearest neighbours between ``Φ2`` and ``Φ1 C_12ᵀ``, [OBCS*12]) or
+        ``"extended"`` (squared heat kernels compared through canonical coefficients of the
+        extended basis, Sections 4.4/5.3). See the module doc.
+    block : query rows per block of the exact nearest-neighbour search.
+    **params : for ``"extended"``: ``t`` (heat time; default ``t_scale/λ_max``), ``t_scale``
+        (1.0), ``n_eig`` (eigenpairs in the kernel, constant included; default ``min(k1, k2)``),
+        ``rtol`` (SVD truncation, 1e-3), ``pairs`` (``"unique"`` or ``"ordered"``).
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    C = _check_inputs(C_12, basis_1, basis_2)
+    k2, k1 = C.shape
+    if method == "std":
+        if params:
+            raise TypeError(f"method='std' takes no extra parameters, got {sorted(params)}")
+        emb_1 = basis_1.vecs[:, :k1] @ C.T  # (n1, k2) images of the source deltas
+        emb_2 = basis_2.vecs[:, :k2]  # (n2, k2)
+    else:
+        allowed = {"t", "t_scale", "n_eig", "rtol", "pairs"}
+        bad = set(params) - allowed
+        if bad:
+            raise TypeError(f"unknown parameters for method='extended': {sorted(bad)}; allowed: {sorted(allowed)}")
+        emb_1, emb_2, _ = extended_embeddings(C, basis_1, basis_2, **params)
+    return nearest_neighbors(emb_2, emb_1, block=block)

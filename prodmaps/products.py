@@ -1,0 +1,253 @@
+"""Extended (product) bases: a basis plus pointwise products of its non-constant functions.
+
+Column layout of a :class:`ProductBasis` of order ``r`` built on a basis with columns
+``φ0 (constant), φ1, …, φk``:
+
+``[φ0, φ1, …, φk,  degree-2 products,  degree-3 products, …, degree-r products]``
+
+Products never involve the constant ``φ0``. Two index conventions:
+
+* ``pairs="ordered"`` (the paper's, Section 4.2): every ordered tuple
+  ``(i1, …, id)`` with ``1 <= i_t <= k``; for order 2 the column of ``φl ⊙ φm`` is
+  ``k + 1 + (l-1)·k + (m-1)`` (the paper's ``l·k + m`` with 0-based non-constant indices).
+  ``K = 1 + k + k² + … + k^r`` columns; ``(l, m)`` and ``(m, l)`` are the same function.
+* ``pairs="unique"``: one column per multiset ``i1 <= … <= id`` (``itertools``'
+  ``combinations_with_replacement`` order), ``K = 1 + k + k(k+1)/2 + …``. Same span, far
+  fewer columns.
+
+``index`` is a ``(K, r)`` integer array: row ``j`` lists the non-constant factors of column
+``j`` (0 pads, so ``[0, …, 0]`` is the constant column and ``[l, 0, …]`` is ``φl``).
+
+Computational note (exact, not an approximation): the ordered basis is ``B_o = B_s S`` where
+``B_s`` is the unique-multiset basis with every column scaled by the square root of its number
+of distinct orderings, and ``S`` has orthonormal rows (each multiset column spread evenly over
+its orderings with weight ``1/sqrt(#orderings)``). Hence ``B_o`` and ``B_s`` share their
+singular values and left singular vectors, and ``pinv(B_o) = Sᵀ pinv(B_s)`` for any
+singular-value truncation. All solvers therefore work on the (much smaller) scaled unique
+basis and map coefficients back with ``Sᵀ``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from .basis import Basis
+
+__all__ = ["ProductBasis", "product_basis", "multi_indices", "n_columns"]
+
+PAIRS = ("ordered", "unique")
+
+
+def _check_pairs(pairs: str) -> None:
+    if pairs not in PAIRS:
+        raise ValueError(f"pairs must be 'ordered' (the paper's) or 'unique', got {pairs!r}")
+
+
+def multi_indices(k: int, order: int, pairs: str) -> np.ndarray:
+    """Multi-indices ``(K, order)`` of the extended basis on ``k`` non-constant functions.
+
+    Rows are in column order: the constant ``[0…0]``, the ``k`` singletons, then products
+    by increasing degree. Factors are 1-based (``1..k``); 0 pads.
+    """
+    _check_pairs(pairs)
+    if order < 1:
+        raise ValueError(f"order must be >= 1, got {order}")
+    rows = [np.zeros((1, order), dtype=np.int64)]
+    for d in range(1, order + 1):
+        gen = (
+            itertools.product(range(1, k + 1), repeat=d)
+            if (pairs == "ordered" and d > 1)
+            else itertools.combinations_with_replacement(range(1, k + 1), d)
+        )
+        block = np.array(list(gen), dtype=np.int64).reshape(-1, d)
+        rows.append(np.pad(block, ((0, 0), (0, order - d))))
+    return np.concatenate(rows)
+
+
+def n_columns(k: int, order: int, pairs: str) -> int:
+    """Number of columns of the extended basis (``k`` non-constant functions)."""
+    _check_pairs(pairs)
+    if pairs == "ordered":
+        return 1 + sum(k**d for d in range(1, order + 1))
+    return 1 + sum(math.comb(k + d - 1, d) for d in range(1, order + 1))
+
+
+def _n_orderings(index: np.ndarray) -> np.ndarray:
+    """Number of distinct orderings of each multiset row (0 pads ignored)."""
+    out = np.empty(index.shape[0], dtype=np.float64)
+    for j, row in enumerate(index):  # K rows of small multi-indices; not a per-vertex loop
+        r = row[row > 0]
+        counts = np.unique(r, return_counts=True)[1]
+        out[j] = math.factorial(r.size) / np.prod([math.factorial(c) for c in counts])
+    return out
+
+
+def evaluate_products(vecs: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """Columns ``Π_t vecs[:, index[j, t]]`` (0 = no factor), the constant column kept as is."""
+    n = vecs.shape[0]
+    padded = np.concatenate([np.ones((n, 1)), vecs[:, 1:]], axis=1)  # factor 0 -> 1
+    out = padded[:, index[:, 0]].copy()
+    for t in range(1, index.shape[1]):
+        out *= padded[:, index[:, t]]
+    out[:, 0] = vecs[:, 0]  # the constant column is φ0 itself
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class ProductBasis:
+    """A basis extended by pointwise products of its non-constant functions (see module doc).
+
+    Build with :func:`product_basis`. ``matrix`` is materialised lazily and cached;
+    ``operator(...)`` returns a cached, reusable approximation operator.
+    """
+
+    base: Basis
+    order: int
+    pairs: str
+    index: np.ndarray = field(repr=False)
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    @property
+    def k(self) -> int:
+        """Number of non-constant base functions (the paper's k_M)."""
+        return self.base.k - 1
+
+    @property
+    def K(self) -> int:
+        """Number of columns of the extended basis."""
+        return self.index.shape[0]
+
+    @property
+    def n(self) -> int:
+        return self.base.n
+
+    @property
+    def mass(self):
+        return self.base.mass
+
+    @property
+    def degree(self) -> np.ndarray:
+        """Number of non-constant factors of each column, ``(K,)``."""
+        return (self.index > 0).sum(axis=1)
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """The extended basis ``B`` ``(n, K)`` (materialised once and cached)."""
+        if "matrix" not in self._cache:
+            self._cache["matrix"] = evaluate_products(self.base.vecs, self.index)
+        return self._cache["matrix"]
+
+    # ----------------------------------------------------------- unique/ordered bridge
+    @property
+    def unique_index(self) -> np.ndarray:
+        """Multi-indices of the unique (multiset) columns spanning the same space."""
+        if self.pairs == "unique":
+            return self.index
+        if "uindex" not in self._cache:
+            self._cache["uindex"] = multi_indices(self.k, self.order, "unique")
+        return self._cache["uindex"]
+
+    def solver_basis(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(B_s (n, K_u), scale (K_u,))``: the unique basis the solvers work on.
+
+        For ``pairs="unique"`` the scale is 1. For ``"ordered"`` each multiset column is
+        scaled by ``sqrt(#orderings)`` so that ``B_o = B_s S`` with orthonormal-row ``S``
+        (:meth:`expand`).
+        """
+        if "solver" not in self._cache:
+            if self.pairs == "unique":
+                self._cache["solver"] = (self.matrix, np.ones(self.K))
+            else:
+                scale = np.sqrt(_n_orderings(self.unique_index))
+                B = evaluate_products(self.base.vecs, self.unique_index) * scale
+                self._cache["solver"] = (B, scale)
+        return self._cache["solver"]
+
+    def expand(self) -> sp.csr_matrix:
+        """``Sᵀ`` ``(K, K_u)``: maps solver (scaled-unique) coefficients to this basis' coefficients.
+
+        Identity for ``pairs="unique"``.
+        """
+        if "expand" not in self._cache:
+            if self.pairs == "unique":
+                E = sp.identity(self.K, format="csr")
+            else:
+                E = _ordered_to_unique(self.index, self.unique_index).T.tocsr()  # counts -> weights
+                # S[u, o] = 1/sqrt(#orderings(u)) for every ordering o of multiset u
+                w = 1.0 / np.sqrt(_n_orderings(self.unique_index))
+                E = (E @ sp.diags(w)).tocsr()
+            self._cache["expand"] = E
+        return self._cache["expand"]
+
+    def fold(self) -> sp.csr_matrix:
+        """``(K_u, K)`` sparse map from this basis' coefficients to unique-multiset coefficients.
+
+        ``B @ a == B_unique @ (fold() @ a)``: ordered coefficients of the same multiset are summed.
+        """
+        if "fold" not in self._cache:
+            if self.pairs == "unique":
+                self._cache["fold"] = sp.identity(self.K, format="csr")
+            else:
+                self._cache["fold"] = _ordered_to_unique(self.index, self.unique_index)
+        return self._cache["fold"]
+
+    def evaluate(self, coefs: np.ndarray) -> np.ndarray:
+        """The function(s) ``B @ coefs`` ``(n,)``/``(n, m)``, computed through the unique basis."""
+        coefs = np.asarray(coefs, dtype=np.float64)
+        if coefs.shape[0] != self.K:
+            raise ValueError(f"coefficients have {coefs.shape[0]} rows, the basis has {self.K} columns")
+        if self.pairs == "unique":
+            return self.matrix @ coefs
+        B_s, scale = self.solver_basis()
+        cu = self.fold() @ coefs  # (K_u,) or (K_u, m)
+        return B_s @ (cu / (scale if cu.ndim == 1 else scale[:, None]))
+
+    def operator(self, method: str = "svd", **params):
+        """A cached reusable approximation operator (see :func:`prodmaps.approx.operator`)."""
+        from .approx import operator
+
+        key = ("op", method, tuple(sorted(params.items())))
+        if key not in self._cache:
+            self._cache[key] = operator(self, method=method, **params)
+        return self._cache[key]
+
+    def __repr__(self) -> str:
+        return f"ProductBasis(order={self.order}, pairs={self.pairs!r}, k={self.k}, K={self.K}, n={self.n})"
+
+
+def _ordered_to_unique(index_o: np.ndarray, index_u: np.ndarray) -> sp.csr_matrix:
+    """0/1 matrix ``(K_u, K_o)``: ordered column -> the multiset column it equals."""
+    key_u = {tuple(r): i for i, r in enumerate(np.sort(index_u, axis=1)[:, ::-1])}
+    sorted_o = np.sort(index_o, axis=1)[:, ::-1]
+    rows = np.fromiter((key_u[tuple(r)] for r in sorted_o), dtype=np.int64, count=sorted_o.shape[0])
+    cols = np.arange(index_o.shape[0])
+    return sp.csr_matrix((np.ones(cols.size), (rows, cols)), shape=(index_u.shape[0], index_o.shape[0]))
+
+
+def product_basis(basis: Basis, order: int = 2, pairs: str = "ordered") -> ProductBasis:
+    """The extended basis of ``basis`` with products up to ``order`` (see module doc).
+
+    Cached on ``basis``: asking twice returns the same object (and so reuses its operators).
+
+    Parameters
+    ----------
+    basis : a :class:`prodmaps.Basis` (column 0 constant).
+    order : highest product degree, ``>= 2`` (``1`` gives the base basis as a ProductBasis).
+    pairs : ``"ordered"`` (the paper's convention, the default for reproduction) or
+        ``"unique"`` (multisets; same span, fewer columns).
+    """
+    if not isinstance(basis, Basis):
+        raise TypeError(f"product_basis expects a prodmaps.Basis, got {type(basis).__name__}")
+    if not isinstance(order, (int, np.integer)) or order < 1:
+        raise ValueError(f"order must be an integer >= 1, got {order!r}")
+    _check_pairs(pairs)
+    key = ("product_basis", int(order), pairs)
+    if key not in basis._cache:
+        idx = multi_indices(basis.k - 1, int(order), pairs)
+        basis._cache[key] = ProductBasis(basis, int(order), pairs, idx)
+    return basis._cache[key]

@@ -1,0 +1,178 @@
+"""Functional maps between bases, the extended map ``C~`` (Section 4.3) and function transfer.
+
+Conventions
+-----------
+* ``C_12`` has shape ``(k2, k1)`` (columns of ``basis_2`` by columns of ``basis_1``, constants
+  included) and maps coefficients on shape 1 to shape 2: ``T f ≈ Φ2 C_12 Φ1ᵀ A1 f``.
+* A point map ``p2p_21`` has shape ``(n2,)``: for each vertex of shape 2, a vertex of shape 1
+  (the pull-back direction: ``(T f)(y) = f(p2p_21[y])``).
+* Ground truth: ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]``.
+* ``C~`` (:func:`extend_fmap`) has shape ``(K2, K1)`` between the extended bases of
+  :func:`prodmaps.product_basis` with the same ``order`` and ``pairs``; by Lemma 2,
+  ``B2 C~ a`` is the function whose value is the exact pointwise product of the transferred
+  basis functions, for *any* ``C`` (not only ground-truth maps).
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import scipy.sparse as sp
+
+from .approx import check_functions
+from .basis import Basis
+from .products import _n_orderings, multi_indices, product_basis
+
+__all__ = ["fmap_from_p2p", "extend_fmap", "transfer", "check_fmap", "check_p2p"]
+
+
+def check_p2p(p2p_21, n1: int, n2: int) -> np.ndarray:
+    """Validate a point map ``(n2,)`` into ``[0, n1)``."""
+    p = np.asarray(p2p_21)
+    if p.shape != (n2,):
+        raise ValueError(f"p2p_21 must have shape (n2,) = ({n2},): one vertex of shape 1 per "
+                         f"vertex of shape 2; got {p.shape}")
+    if not np.issubdtype(p.dtype, np.integer):
+        raise ValueError(f"p2p_21 must contain integer vertex indices, got dtype {p.dtype}")
+    if p.size and (p.min() < 0 or p.max() >= n1):
+        raise ValueError(f"p2p_21 indices must be in [0, {n1}); got range [{p.min()}, {p.max()}]")
+    return p.astype(np.int64)
+
+
+def check_fmap(C_12, basis_1: Basis, basis_2: Basis) -> np.ndarray:
+    """Validate ``C_12`` against the bases: shape ``(k2, k1)``, finite."""
+    C = np.asarray(C_12, dtype=np.float64)
+    if C.shape != (basis_2.k, basis_1.k):
+        raise ValueError(
+            f"C_12 must have shape (basis_2.k, basis_1.k) = ({basis_2.k}, {basis_1.k}); got {C.shape}. "
+            "C_12 maps coefficients on shape 1 to shape 2"
+        )
+    if not np.all(np.isfinite(C)):
+        raise ValueError("C_12 contains non-finite values")
+    return C
+
+
+def fmap_from_p2p(p2p_21, basis_1: Basis, basis_2: Basis) -> np.ndarray:
+    """Functional map ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` ``(k2, k1)`` induced by a point map."""
+    p = check_p2p(p2p_21, basis_1.n, basis_2.n)
+    return basis_2.project(basis_1.vecs[p])  # (k2, k1)
+
+
+# ------------------------------------------------------------------------- C~
+def extend_fmap(C_12, basis_1: Basis, basis_2: Basis, order: int = 2, pairs: str = "ordered") -> np.ndarray:
+    """The extended functional map ``C~`` ``(K2, K1)`` of Section 4.3 / Lemma 2.
+
+    For ``order=2, pairs="ordered"`` this is the paper's formula (Eq. 6): with
+    ``c0 = C[0, 1:]``, ``Cb = C[1:, 1:]`` and ``φ0`` the value of the target's constant,
+
+    ``C~ = [[C, φ0·kron(c0, C[:, 1:]) + φ0·kron([0; Cb], c0)], [0, kron(Cb, Cb)]]``.
+
+    Other cases (``pairs="unique"``, any ``order``) use the general product rule: the image
+    of ``φ_{i1} ⊙ … ⊙ φ_{id}`` is ``Π_t (Φ2 C e_{it})``, expanded in the target's products;
+    for ordered targets the coefficient of a multiset is spread evenly over its orderings.
+    ``C`` may be rectangular (``k2 != k1``).
+    """
+    C = check_fmap(C_12, basis_1, basis_2)
+    if order < 1:
+        raise ValueError(f"order must be >= 1, got {order}")
+    if pairs not in ("ordered", "unique"):
+        raise ValueError(f"pairs must be 'ordered' or 'unique', got {pairs!r}")
+    phi0 = basis_2.phi0
+    k1, k2 = basis_1.k - 1, basis_2.k - 1
+    if order == 1:
+        return C.copy()
+    if order == 2 and pairs == "ordered":
+        return _extend_order2_ordered(C, phi0)
+    Cu = _extend_unique(C, phi0, order)  # (K2_u, K1_u)
+    if pairs == "unique":
+        return Cu
+    ext1 = product_basis(basis_1, order, "ordered")
+    ext2 = product_basis(basis_2, order, "ordered")
+    spread = ext2.fold().T @ sp.diags(1.0 / _n_orderings(ext2.unique_index))  # (K2_o, K2_u)
+    return np.asarray(spread @ (ext1.fold().T @ Cu.T).T)
+
+
+def _extend_order2_ordered(C: np.ndarray, phi0: float) -> np.ndarray:
+    k2, k1 = C.shape[0] - 1, C.shape[1] - 1
+    c0 = C[0:1, 1:]  # (1, k1)
+    Cb = C[1:, 1:]  # (k2, k1)
+    K1, K2 = 1 + k1 + k1 * k1, 1 + k2 + k2 * k2
+    Ct = np.zeros((K2, K1))
+    Ct[: k2 + 1, : k1 + 1] = C
+    Cb0 = np.vstack([np.zeros((1, k1)), Cb])  # (k2+1, k1)
+    Ct[: k2 + 1, k1 + 1:] = phi0 * (np.kron(c0, C[:, 1:]) + np.kron(Cb0, c0))  # (k2+1, k1²)
+    Ct[k2 + 1:, k1 + 1:] = np.kron(Cb, Cb)  # (k2², k1²)
+    return Ct
+
+
+def _monomial_tables(k: int, order: int):
+    """Unique monomials per degree and the multiplication tables degree d -> d+1."""
+    monos = [[()]] + [list(itertools.combinations_with_replacement(range(1, k + 1), d))
+                      for d in range(1, order + 1)]
+    pos = [{m: i for i, m in enumerate(ms)} for ms in monos]
+    mul = []  # mul[d]: (Q_d, k) index in degree d+1 of sorted(m + (l,))
+    for d in range(order):
+        table = np.array([[pos[d + 1][tuple(sorted(m + (l,)))] for l in range(1, k + 1)]
+                          for m in monos[d]], dtype=np.int64)
+        mul.append(table)
+    return monos, mul
+
+
+def _extend_unique(C: np.ndarray, phi0: float, order: int) -> np.ndarray:
+    """``C~`` between unique (multiset) extended bases of any order, by the product rule."""
+    k2, k1 = C.shape[0] - 1, C.shape[1] - 1
+    monos2, mul = _monomial_tables(k2, order)
+    Q = [len(m) for m in monos2]  # target monomials per degree
+    # linear form of the image of φ_l (l >= 1): a_l·1 + Σ b_l[m] φ_m, with 1 = φ0-column / φ0
+    a = phi0 * C[0, 1:]  # (k1,)
+    b = C[1:, 1:]  # (k2, k1)
+    idx1 = multi_indices(k1, order, "unique")
+    deg1 = (idx1 > 0).sum(axis=1)
+    offsets2 = np.concatenate([[0], np.cumsum(Q)])  # degree-0 monomial <-> column 0
+    Ct = np.zeros((offsets2[-1], idx1.shape[0]))
+    Ct[: k2 + 1, : k1 + 1] = C
+    scatters = [
+        sp.csr_matrix((np.ones(mul[s].size), (mul[s].ravel(), np.arange(mul[s].size))),
+                      shape=(Q[s + 1], mul[s].size))
+        for s in range(order)
+    ]
+    for d in range(2, order + 1):
+        cols = np.flatnonzero(deg1 == d)
+        J = idx1[cols, :d] - 1  # (P, d) 0-based non-constant factors
+        poly = [a[J[:, 0]][None, :], b[:, J[:, 0]]]  # degree 0: (1, P), degree 1: (k2, P)
+        for t in range(1, d):
+            at, bt = a[J[:, t]], b[:, J[:, t]]  # (P,), (k2, P)
+            new = [p * at for p in poly] + [np.zeros((Q[len(poly)], cols.size))]
+            for s, X in enumerate(poly):
+                Z = (X[:, None, :] * bt[None, :, :]).reshape(-1, cols.size)  # (Q_s*k2, P)
+                new[s + 1] += scatters[s] @ Z
+            poly = new
+        for s, X in enumerate(poly):
+            Ct[offsets2[s]: offsets2[s + 1], cols] = X
+        Ct[0, cols] /= phi0  # the function 1 is the constant column divided by φ0
+    return Ct
+
+
+# ------------------------------------------------------------------------- transfer
+def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, order: int = 2,
+             pairs: str = "ordered", approx: str = "svd", **params) -> np.ndarray:
+    """Transfer function(s) ``F`` ``(n1,)``/``(n1, m)`` from shape 1 to shape 2 with ``C_12``.
+
+    ``method="std"``: ``Φ2 C_12 Φ1ᵀ A1 F`` (A-orthogonal projection, then the map).
+    ``method="prod"``: the paper's extended transfer ``B2 C~ a`` where ``a`` are the
+    coefficients of ``F`` in the extended basis of shape 1 (``approx`` = ``"svd"``
+    (Approach B, default), ``"ridge"`` or ``"lasso"`` (Approach A); ``params`` such as
+    ``rtol=1e-3`` go to :func:`prodmaps.approx.operator`). Factorisations are cached on the
+    bases, so transferring many functions in one call or in repeated calls reuses them.
+    """
+    C = check_fmap(C_12, basis_1, basis_2)
+    F = check_functions(F, basis_1.n)
+    if method == "std":
+        return basis_2.vecs @ (C @ basis_1.project(F))
+    if method != "prod":
+        raise ValueError(f"method must be 'std' or 'prod', got {method!r}")
+    ext1 = product_basis(basis_1, order, pairs)
+    ext2 = product_basis(basis_2, order, pairs)
+    a = ext1.operator(approx, **params).coefficients(F)  # (K1,) or (K1, m)
+    return ext2.evaluate(extend_fmap(C, basis_1, basis_2, order, pairs) @ a)

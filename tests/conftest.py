@@ -1,0 +1,58 @@
+"""Shared fixtures: small meshes from the embedded data and synthetic shapes."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import prodmaps as pm
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "data" / "anny_humans"
+BROKEN = Path(__file__).resolve().parent / "data" / "broken"
+
+
+def icosphere(subdivisions: int = 2) -> pm.Mesh:
+    """A unit icosphere (closed, genus 0) built here, for fast tests."""
+    t = (1 + 5**0.5) / 2
+    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
+                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
+    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
+                  [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
+                  [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
+    for _ in range(subdivisions):
+        e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        uniq, inv = np.unique(e, axis=0, return_inverse=True)
+        mid = v.shape[0] + inv.reshape(3, -1).T  # (m, 3) midpoints of edges 01, 12, 20
+        v = np.vstack([v, 0.5 * (v[uniq[:, 0]] + v[uniq[:, 1]])])
+        a, b, c = f.T
+        ab, bc, ca = mid.T
+        f = np.concatenate([np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1),
+                            np.stack([ca, bc, c], 1), np.stack([ab, bc, ca], 1)])
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    return pm.Mesh(v, f, name="icosphere")
+
+
+@pytest.fixture(scope="session")
+def sphere():
+    return icosphere(3)  # 642 vertices
+
+
+@pytest.fixture(scope="session")
+def human_0():
+    return pm.load_mesh(DATA / "shapes" / "anny_000.ply")
+
+
+@pytest.fixture(scope="session")
+def human_13():
+    return pm.load_mesh(DATA / "shapes" / "anny_013.ply")
+
+
+@pytest.fixture(scope="session")
+def basis_0(human_0):
+    return pm.eigenbasis(human_0, 40)
+
+
+@pytest.fixture(scope="session")
+def basis_13(human_13):
+    return pm.eigenbasis(human_13, 40)

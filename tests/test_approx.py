@@ -1,0 +1,128 @@
+"""Approaches A and B: exactness on representable functions, routes, limits, optimality."""
+
+import numpy as np
+import pytest
+
+import prodmaps as pm
+from prodmaps.approx import _lasso_violation
+
+
+def hks(basis, times):
+    return (basis.vecs**2) @ np.exp(-np.outer(basis.evals, times))  # (n, len(times))
+
+
+@pytest.fixture(scope="module")
+def b10(basis_0):
+    return basis_0.truncate(10)
+
+
+def test_std_is_projection(b10, basis_0):
+    f = basis_0.vecs[:, :10] @ np.arange(10.0)
+    np.testing.assert_allclose(pm.approximate(f, b10, "std"), np.arange(10.0), atol=1e-10)
+    with pytest.raises(ValueError, match="std"):
+        pm.approximate(f, pm.product_basis(b10), "std")
+
+
+@pytest.mark.parametrize("pairs", ["ordered", "unique"])
+def test_hks_reproduced_by_products(b10, pairs):
+    F = hks(b10, [1e-3, 1e-2, 1e-1])
+    ext = pm.product_basis(b10, 2, pairs)
+    exact = ext.evaluate(pm.approximate(F, ext, "svd", rtol=1e-9))
+    err = pm.relative_error(exact, F, b10.mass)
+    assert np.all(err < 1e-8), err
+    paper = ext.evaluate(pm.approximate(F, ext, "svd", rtol=1e-3))
+    err3 = pm.relative_error(paper, F, b10.mass)
+    assert np.all(err3 < 1e-4), err3
+    std = b10.vecs @ pm.approximate(F, b10, "std")
+    assert np.all(pm.relative_error(std, F, b10.mass) > 100 * err3)
+
+
+def test_svd_and_gram_routes_agree(basis_0):
+    ext = pm.product_basis(basis_0.truncate(20), 2, "ordered")
+    F = np.random.default_rng(0).normal(size=(basis_0.n, 4))
+    a_svd = pm.operator(ext, "svd", rtol=1e-3, route="svd").coefficients(F)
+    a_gram = pm.operator(ext, "svd", rtol=1e-3, route="gram").coefficients(F)
+    assert np.abs(a_svd - a_gram).max() <= 1e-8 * np.abs(a_svd).max()
+
+
+def test_ordered_solution_equals_direct_pseudoinverse(basis_0):
+    b = basis_0.truncate(12)
+    ext = pm.product_basis(b, 2, "ordered")
+    f = np.random.default_rng(2).normal(size=b.n)
+    X = np.sqrt(b.mass)[:, None] * ext.matrix  # the paper's sqrt(A) B, both ordered pairs
+    U, s, Vt = np.linalg.svd(X, full_matrices=False)
+    r = int(np.sum(s > 1e-3 * s[0]))
+    direct = Vt[:r].T @ ((U[:, :r].T @ (np.sqrt(b.mass) * f)) / s[:r])
+    ours = pm.approximate(f, ext, "svd", rtol=1e-3)
+    np.testing.assert_allclose(ours, direct, rtol=0, atol=1e-9 * np.abs(direct).max())
+
+
+def test_operator_single_equals_batch(b10):
+    ext = pm.product_basis(b10, 2, "ordered")
+    F = np.random.default_rng(3).normal(size=(b10.n, 5))
+    op = ext.operator("svd", rtol=1e-3)
+    assert op is ext.operator("svd", rtol=1e-3)  # cached and reused
+    batch = op.coefficients(F)
+    for j in range(F.shape[1]):
+        # same operator; only the BLAS kernel (GEMV vs GEMM) differs -> round-off level
+        np.testing.assert_allclose(op.coefficients(F[:, j]), batch[:, j], rtol=0,
+                                   atol=1e-10 * np.abs(batch[:, j]).max())
+
+
+@pytest.mark.parametrize("pairs", ["ordered", "unique"])
+def test_canonical_coefficients_preserve_norm(b10, pairs):
+    ext = pm.product_basis(b10, 2, pairs)
+    op = ext.operator("svd", rtol=1e-3)
+    a = np.random.default_rng(4).normal(size=(ext.K, 3))
+    f = ext.evaluate(a)
+    norm_A = np.sqrt(np.einsum("i,ij->j", b10.mass, f**2))
+    np.testing.assert_allclose(np.linalg.norm(op.canonical(a), axis=0), norm_A, rtol=1e-3)
+    # exact for functions in the kept subspace
+    a2 = op.coefficients(f)
+    g = ext.evaluate(a2)
+    np.testing.assert_allclose(np.linalg.norm(op.canonical(a2), axis=0),
+                               np.sqrt(np.einsum("i,ij->j", b10.mass, g**2)), rtol=1e-9)
+
+
+@pytest.mark.parametrize("pairs", ["unique", "ordered"])
+def test_ridge_tends_to_min_norm_least_squares(basis_0, pairs):
+    b = basis_0.truncate(7)  # σ_min²/σ_max² ≈ 1.4e-9 for this unique basis
+    ext = pm.product_basis(b, 2, pairs)
+    f = np.random.default_rng(5).normal(size=b.n)
+    target = pm.approximate(f, ext, "svd", rtol=1e-12, route="svd")  # min-norm least squares
+    gaps = [np.linalg.norm(pm.approximate(f, ext, "ridge", eps=e) - target) / np.linalg.norm(target)
+            for e in (1e-10, 1e-13, 1e-16)]
+    # the ridge bias is ≈ ε σ_max² / σ_min²: it shrinks ~1000x per step of ε
+    assert gaps[1] < 1e-2 * gaps[0] and gaps[2] < 1e-2 * gaps[1]
+    assert gaps[2] < 1e-6
+
+
+def test_lasso_meets_optimality_conditions(b10):
+    ext = pm.product_basis(b10, 2, "unique")
+    rng = np.random.default_rng(6)
+    F = ext.matrix @ rng.normal(size=(ext.K, 2)) + 0.1 * rng.normal(size=(b10.n, 2))
+    op = pm.operator(ext, "lasso", eps=1e-2, tol=1e-6)
+    a = op.coefficients(F)
+    B = ext.matrix
+    G = B.T @ (b10.mass[:, None] * B)
+    b = B.T @ (b10.mass[:, None] * F)
+    lam = 1e-2 * np.abs(b).max(axis=0)
+    assert _lasso_violation(G @ a - b, a, lam) < 1e-6
+    nnz_small = np.count_nonzero(a)
+    nnz_big = np.count_nonzero(pm.approximate(F, ext, "lasso", eps=1e-1))
+    assert nnz_big < nnz_small  # stronger weight, sparser solution
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_non_finite_functions_are_rejected(b10, bad):
+    f = np.zeros(b10.n)
+    f[3] = bad
+    with pytest.raises(ValueError, match="non-finite"):
+        pm.approximate(f, pm.product_basis(b10), "svd")
+
+
+def test_wrong_length_is_rejected(b10):
+    with pytest.raises(ValueError, match="shape"):
+        pm.approximate(np.zeros(b10.n + 1), b10, "std")
+    with pytest.raises(ValueError, match="method"):
+        pm.approximate(np.zeros(b10.n), b10, "magic")

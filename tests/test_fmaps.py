@@ -1,0 +1,191 @@
+"""Functional maps: ground truth, the NO17 energy (gradient, fixed first column, sizes), ZoomOut."""
+
+import numpy as np
+import pytest
+
+import prodmaps as pm
+from prodmaps import fmaps
+from prodmaps.p2p import from_fmap
+
+
+@pytest.fixture(scope="module")
+def demo(human_0, human_13):
+    """Bases with 60 columns and the NO17 demo descriptors (5 landmarks) on 000 -> 013."""
+    b1, b2 = pm.eigenbasis(human_0, 60), pm.eigenbasis(human_13, 60)
+    lm = fmaps.farthest_point_landmarks(human_0.vertices, 5)
+    d1, d2 = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=20, subsample_step=5, k_descr=60)
+    return b1, b2, d1, d2, lm
+
+
+def _rel_fd_error(terms, C, rng, n_dir=4, h=1e-6):
+    """Max relative error of the analytic directional derivative vs central differences."""
+    _, G = fmaps.energy_and_gradient(C, terms)
+    errs = []
+    for _ in range(n_dir):
+        D = rng.normal(size=C.shape)
+        num = (fmaps.energy_and_gradient(C + h * D, terms)[0] - fmaps.energy_and_gradient(C - h * D, terms)[0]) / (2 * h)
+        ana = float(np.sum(G * D))
+        errs.append(abs(num - ana) / abs(ana))
+    return max(errs)
+
+
+@pytest.mark.parametrize("lap", ["resolvent", "eigdiff"])
+@pytest.mark.parametrize("normalize", ["expected", "sum", None])
+def test_gradient_matches_finite_differences(demo, lap, normalize):
+    b1, b2, d1, d2, _ = demo
+    terms = fmaps.no17_terms(b1.truncate(8), b2.truncate(12), d1, d2, lap=lap, normalize=normalize)
+    rng = np.random.default_rng(0)
+    C = rng.normal(size=(12, 8)) * 0.3
+    assert terms.shape == (12, 8)
+    assert _rel_fd_error(terms, C, rng) < 1e-5
+
+
+@pytest.mark.parametrize("weights", [(1, 0, 0), (0, 1, 0), (0, 0, 1)])
+def test_each_term_gradient(demo, weights):
+    b1, b2, d1, d2, _ = demo
+    w_descr, w_lap, w_dcomm = weights
+    terms = fmaps.no17_terms(b1.truncate(10), b2.truncate(7), d1, d2, w_descr=w_descr, w_lap=w_lap, w_dcomm=w_dcomm)
+    rng = np.random.default_rng(1)
+    assert _rel_fd_error(terms, rng.normal(size=(7, 10)), rng) < 1e-5
+
+
+def test_terms_match_their_definitions(demo):
+    b1, b2, d1, d2, _ = demo
+    k1, k2 = 9, 11
+    B1, B2 = b1.truncate(k1), b2.truncate(k2)
+    rng = np.random.default_rng(2)
+    C = rng.normal(size=(k2, k1))
+    # Laplacian term, eigdiff form, no normalisation: ½‖Λ2 C − C Λ1‖²
+    t = fmaps.no17_terms(B1, B2, d1, d2, w_descr=0, w_lap=1, w_dcomm=0, lap="eigdiff", normalize=None)
+    E, _ = fmaps.energy_and_gradient(C, t)
+    ref = 0.5 * np.sum((np.diag(B2.evals) @ C - C @ np.diag(B1.evals)) ** 2)
+    assert E == pytest.approx(ref, rel=1e-12)
+    # descriptor + commutativity terms, explicit projections of the area-normalised descriptors
+    n1 = d1 / np.sqrt(np.sum(B1.mass[:, None] * d1**2, axis=0))
+    n2 = d2 / np.sqrt(np.sum(B2.mass[:, None] * d2**2, axis=0))
+    A, B = B1.vecs.T @ (B1.mass[:, None] * n1), B2.vecs.T @ (B2.mass[:, None] * n2)
+    t = fmaps.no17_terms(B1, B2, d1, d2, w_descr=1, w_lap=0, w_dcomm=0, normalize=None)
+    assert fmaps.energy_and_gradient(C, t)[0] == pytest.approx(0.5 * np.sum((C @ A - B) ** 2), rel=1e-12)
+    t = fmaps.no17_terms(B1, B2, d1, d2, w_descr=0, w_lap=0, w_dcomm=1, normalize=None)
+    ref = 0.0
+    for q in range(d1.shape[1]):
+        M1 = B1.vecs.T @ (B1.mass[:, None] * n1[:, q:q + 1] * B1.vecs)
+        M2 = B2.vecs.T @ (B2.mass[:, None] * n2[:, q:q + 1] * B2.vecs)
+        ref += 0.5 * np.sum((C @ M1 - M2 @ C) ** 2)
+    assert fmaps.energy_and_gradient(C, t)[0] == pytest.approx(ref, rel=1e-10)
+
+
+def test_resolvent_mask_bounded_and_null_on_equal_eigenvalues():
+    lam = np.array([0.0, 1.0, 2.0, 5.0])
+    L = fmaps.laplacian_mask(lam, lam, "resolvent")
+    assert L.shape == (4, 4)
+    assert np.allclose(np.diag(L), 0.0)
+    assert np.all(L[~np.eye(4, dtype=bool)] > 0)
+    assert L.max() <= 4.0
+    assert np.allclose(fmaps.laplacian_mask(lam, lam[:3] + 1, "eigdiff"), (lam[None, :] - lam[:3, None] - 1) ** 2)
+
+
+def test_first_column_from_area_ratio(human_0):
+    """C[0,0] = sqrt(area_2/area_1), C[1:,0] = 0 for any point map (derivation in fmaps doc)."""
+    big = pm.Mesh(2.0 * human_0.vertices, human_0.faces)  # area x 4
+    b1, b2 = pm.eigenbasis(human_0, 12), pm.eigenbasis(big, 15)
+    rng = np.random.default_rng(3)
+    p2p = rng.integers(0, human_0.n_vertices, size=big.n_vertices)
+    C = fmaps.ground_truth(p2p, b1, b2)
+    col = fmaps.first_column(b1, b2)
+    assert col[0] == pytest.approx(2.0, rel=1e-12)
+    assert np.allclose(C[:, 0], col, atol=1e-12)
+    assert np.allclose(fmaps.ground_truth(p2p, b1, b2), pm.fmap_from_p2p(p2p, b1, b2))
+
+
+def test_fit_fixes_first_column_and_is_rectangular(demo):
+    b1, b2, d1, d2, _ = demo
+    C, info = fmaps.fit_no17(b1.truncate(10), b2.truncate(14), d1, d2, return_info=True)
+    assert C.shape == (14, 10)
+    assert C[0, 0] == np.sqrt(b2.area / b1.area)
+    assert np.all(C[1:, 0] == 0.0)
+    assert info["success"]
+    # at the optimum the gradient of the free columns is small compared with its value at C = 0
+    terms = fmaps.no17_terms(b1.truncate(10), b2.truncate(14), d1, d2)
+    C0 = np.zeros((14, 10))
+    C0[:, 0] = C[:, 0]
+    g_opt = np.abs(fmaps.energy_and_gradient(C, terms)[1][:, 1:]).max()
+    g_0 = np.abs(fmaps.energy_and_gradient(C0, terms)[1][:, 1:]).max()
+    assert g_opt < 1e-3 * g_0
+
+
+def test_weights_only_matter_through_ratios(demo):
+    b1, b2, d1, d2, _ = demo
+    C1 = fmaps.fit_no17(b1.truncate(8), b2.truncate(8), d1, d2, w_descr=1, w_lap=1e-2, w_dcomm=1e-1)
+    C2 = fmaps.fit_no17(b1.truncate(8), b2.truncate(8), d1, d2, w_descr=10, w_lap=1e-1, w_dcomm=1)
+    assert np.array_equal(C1, C2)
+
+
+def test_fit_on_identical_shapes_gives_accurate_map(human_0):
+    b = pm.eigenbasis(human_0, 60)
+    lm = fmaps.farthest_point_landmarks(human_0.vertices, 5)
+    d, _ = fmaps.no17_demo_descriptors(b, b, lm, n_descr=50, subsample_step=5, k_descr=60)
+    C = fmaps.fit_no17(b.truncate(20), b.truncate(20), d, d)
+    C_true = np.eye(20)
+    assert np.linalg.norm(C - C_true) < 0.2 * np.linalg.norm(C_true)
+    p2p = from_fmap(C, b, b)
+    err = np.linalg.norm(human_0.vertices[p2p] - human_0.vertices, axis=1) / np.sqrt(human_0.area)
+    assert err.mean() < 0.03
+
+
+def test_bad_inputs(demo):
+    b1, b2, d1, d2, _ = demo
+    with pytest.raises(ValueError, match="rows"):
+        fmaps.no17_terms(b1, b2, d1[:-1], d2)
+    with pytest.raises(ValueError, match="same number of columns"):
+        fmaps.no17_terms(b1, b2, d1, d2[:, :-1])
+    with pytest.raises(NotImplementedError):
+        fmaps.no17_terms(b1, b2, d1, d2, w_orient=1.0)
+    with pytest.raises(ValueError, match="lap"):
+        fmaps.no17_terms(b1, b2, d1, d2, lap="cot")
+    with pytest.raises(ValueError, match="weights"):
+        fmaps.no17_terms(b1, b2, d1, d2, w_descr=-1)
+    with pytest.raises(ValueError, match="normalize"):
+        fmaps.no17_terms(b1, b2, d1, d2, normalize="max")
+    with pytest.raises(ValueError, match="init"):
+        fmaps.fit_no17(b1.truncate(5), b2.truncate(5), d1, d2, init="random")
+    with pytest.raises(ValueError, match="p2p_21"):
+        fmaps.ground_truth(np.arange(b1.n - 1), b1, b2)
+    with pytest.raises(ValueError, match="zero"):
+        fmaps.no17_terms(b1, b2, np.zeros_like(d1), d2)
+
+
+def test_demo_descriptors_layout(demo):
+    b1, b2, _, _, lm = demo
+    d1, d2 = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=12, subsample_step=1, k_descr=60)
+    assert d1.shape == (b1.n, 12 * 6) and d2.shape == (b2.n, 12 * 6)
+    # the WKS is the diagonal of the wave-kernel map: WKS_e(l) == map_{l,e}(l)
+    for j, l in enumerate(lm):
+        assert np.allclose(d1[l, :12], d1[l, 12 * (j + 1):12 * (j + 2)], rtol=1e-12)
+    sub, _ = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=12, subsample_step=5, k_descr=60)
+    assert np.array_equal(sub, d1[:, ::5])
+
+
+def test_zoomout_keeps_exact_maps_and_grows(human_0):
+    b = pm.eigenbasis(human_0, 30)
+    C = fmaps.ground_truth(np.arange(b.n), b.truncate(10), b.truncate(10))
+    C_zo, p2p = fmaps.zoomout(C, b, b, 25, step=3, return_p2p=True)
+    assert C_zo.shape == (25, 25)
+    assert np.array_equal(p2p, np.arange(b.n))
+    assert np.allclose(C_zo, np.eye(25), atol=1e-10)
+    C_r = fmaps.zoomout(C, b, b, (30, 20), step=4)
+    assert C_r.shape == (30, 20)
+    with pytest.raises(ValueError, match="exceeds"):
+        fmaps.zoomout(C, b, b, 31)
+    with pytest.raises(ValueError, match="smaller"):
+        fmaps.zoomout(C, b, b, 5)
+
+
+def test_zoomout_improves_a_coarse_computed_map(demo, human_0):
+    b1, b2, d1, d2, _ = demo
+    C = fmaps.fit_no17(b1.truncate(12), b2.truncate(12), d1, d2)
+    idn = np.arange(b2.n)
+    err = lambda p: np.mean(np.linalg.norm(human_0.vertices[p] - human_0.vertices[idn], axis=1))  # noqa: E731
+    e0 = err(from_fmap(C, b1, b2))
+    e1 = err(fmaps.zoomout(C, b1, b2, 40, step=7, return_p2p=True)[1])
+    assert e1 < e0

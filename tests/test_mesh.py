@@ -1,0 +1,95 @@
+"""Mesh validation, I/O and repairs; every broken mesh in tests/data/broken must be named."""
+
+import numpy as np
+import pytest
+
+import prodmaps as pm
+from prodmaps import mesh as pmesh
+
+from conftest import BROKEN, DATA
+
+
+@pytest.mark.parametrize(
+    "name, message",
+    [
+        ("empty.off", "empty mesh"),
+        ("nonfinite.off", "non-finite coordinates"),
+        ("index_out_of_range.off", "out of range"),
+        ("negative_index.off", "negative face indices"),
+        ("quad.off", "non-triangular"),
+        ("degenerate.off", "degenerate"),
+        ("duplicate.off", "duplicate faces"),
+        ("unreferenced.off", "unreferenced vertices"),
+        ("nonmanifold_edge.off", "non-manifold edges"),
+        ("two_components.off", "several connected components"),
+        ("truncated.ply", "truncated"),
+        ("truncated.off", "truncated"),
+        ("not_a_mesh.ply", "not a PLY file"),
+    ],
+)
+def test_broken_corpus_errors_name_the_problem(name, message):
+    with pytest.raises(pm.MeshError, match=message) as info:
+        pm.load_mesh(BROKEN / name)
+    assert name in str(info.value)  # the file is named too
+
+
+def test_missing_and_unsupported_files(tmp_path):
+    with pytest.raises(pm.MeshError, match="no such file"):
+        pm.load_mesh(tmp_path / "nope.ply")
+    p = tmp_path / "mesh.stl"
+    p.write_text("solid")
+    with pytest.raises(pm.MeshError, match="unsupported format"):
+        pm.load_mesh(p)
+
+
+def test_valid_files_load():
+    m = pm.load_mesh(BROKEN / "tetra_ok.off")
+    assert (m.n_vertices, m.n_faces) == (4, 4) and m.is_closed
+    obj = pm.load_mesh(BROKEN / "tetra_vt.obj")
+    np.testing.assert_array_equal(obj.faces, m.faces)
+    opened = pm.load_mesh(BROKEN / "open_boundary.off")  # open boundaries are allowed
+    assert not opened.is_closed and opened.boundary_edges.shape == (3, 2)
+
+
+def test_human_ply_counts_and_area(human_0):
+    assert (human_0.n_vertices, human_0.n_faces) == (5002, 10000)
+    assert human_0.is_closed
+    assert 1.0 < human_0.area < 2.5  # an adult body surface in m²
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".off"])
+def test_save_load_roundtrip(tmp_path, human_0, suffix):
+    path = pm.save_mesh(tmp_path / f"h{suffix}", human_0)
+    back = pm.load_mesh(path)
+    np.testing.assert_allclose(back.vertices, human_0.vertices, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(back.faces, human_0.faces)
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_repairs_fix_the_common_cases():
+    for name in ("duplicate.off", "unreferenced.off", "two_components.off", "degenerate.off"):
+        v, f = pm.io.read_mesh_arrays(BROKEN / name)
+        if name == "degenerate.off":  # removing the zero-area face also removes the non-manifold edge
+            pass
+        mesh, kept = pmesh.repair(v, f)
+        assert mesh.n_faces == 4, name
+        np.testing.assert_array_equal(mesh.vertices, v[kept])
+
+
+def test_largest_component_keeps_bigger_area():
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    v2, f2 = np.vstack([v, 3 * v + 10]), np.vstack([f, f + 4])
+    out_v, out_f, kept = pmesh.largest_component(v2, f2)
+    np.testing.assert_array_equal(kept, [4, 5, 6, 7])
+    np.testing.assert_allclose(out_v, 3 * v + 10)
+
+
+def test_mesh_arrays_are_read_only(human_0):
+    with pytest.raises(ValueError):
+        human_0.vertices[0, 0] = 1.0
+
+
+def test_vertices_shape_error():
+    with pytest.raises(pm.MeshError, match=r"shape \(n, 3\)"):
+        pm.Mesh(np.zeros((4, 2)), np.array([[0, 1, 2]]))

@@ -1,0 +1,119 @@
+"""Point-map recovery: exact blocked nearest neighbours, standard and extended conversions."""
+
+import numpy as np
+import pytest
+from scipy.spatial.distance import cdist
+
+import prodmaps as pm
+from prodmaps import fmaps
+from prodmaps.p2p import extended_embeddings, from_fmap, heat_square_coefficients, nearest_neighbors
+
+
+@pytest.mark.parametrize("dim", [3, 40, 2500])
+@pytest.mark.parametrize("block", [1, 7, None])
+def test_blocked_nn_equals_brute_force(dim, block):
+    rng = np.random.default_rng(dim)
+    P = rng.normal(size=(300, dim))
+    Q = rng.normal(size=(123, dim))
+    idx, dist = nearest_neighbors(Q, P, block=block, return_distance=True)
+    D = cdist(Q, P)
+    assert idx.dtype == np.int64 and idx.shape == (123,)
+    assert np.array_equal(idx, np.argmin(D, axis=1))
+    assert np.allclose(dist, D.min(axis=1), rtol=1e-9)
+
+
+def test_nn_exact_hits_and_ties():
+    P = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 0.0], [5.0, 5.0]])
+    assert np.array_equal(nearest_neighbors(P, P), [0, 1, 1, 3])  # duplicate rows: smallest index
+
+
+def test_nn_bad_inputs():
+    with pytest.raises(ValueError, match="dimension"):
+        nearest_neighbors(np.zeros((3, 2)), np.zeros((4, 3)))
+    with pytest.raises(ValueError, match="2D"):
+        nearest_neighbors(np.zeros(3), np.zeros((4, 3)))
+    with pytest.raises(ValueError, match="empty"):
+        nearest_neighbors(np.zeros((3, 2)), np.zeros((0, 2)))
+    with pytest.raises(ValueError, match="block"):
+        nearest_neighbors(np.zeros((3, 2)), np.zeros((4, 2)), block=0)
+
+
+def test_std_matches_its_definition(basis_0, basis_13):
+    rng = np.random.default_rng(0)
+    C = rng.normal(size=(15, 12))
+    p2p = from_fmap(C, basis_0, basis_13, method="std")
+    ref = np.argmin(cdist(basis_13.vecs[:, :15], basis_0.vecs[:, :12] @ C.T), axis=1)
+    assert p2p.shape == (basis_13.n,)
+    assert np.array_equal(p2p, ref)
+
+
+@pytest.mark.parametrize("method", ["std", "extended"])
+def test_ground_truth_identity_recovered_exactly(basis_0, method):
+    k = 12
+    C = fmaps.ground_truth(np.arange(basis_0.n), basis_0.truncate(k), basis_0.truncate(k))
+    assert np.array_equal(from_fmap(C, basis_0, basis_0, method=method), np.arange(basis_0.n))
+
+
+def test_extended_identity_rectangular(basis_0):
+    """Ground-truth (k2, k1) = (16, 10) map on one shape: the extended conversion is exact."""
+    C = fmaps.ground_truth(np.arange(basis_0.n), basis_0.truncate(10), basis_0.truncate(16))
+    assert C.shape == (16, 10)
+    assert np.array_equal(from_fmap(C, basis_0, basis_0, method="extended"), np.arange(basis_0.n))
+
+
+@pytest.mark.parametrize("pairs", ["unique", "ordered"])
+def test_heat_square_coefficients_closed_form(basis_0, pairs):
+    b = basis_0.truncate(9)
+    t = 0.7 / b.evals[-1]
+    pts = [0, 17, 4000]
+    a = heat_square_coefficients(b, t, 7, pairs, points=pts)  # kernel from 7 eigenpairs
+    ext = pm.product_basis(b, 2, pairs)
+    assert a.shape == (3, ext.K)
+    w = np.exp(-b.evals[:7] * t)
+    h = (b.vecs[:, :7] * w) @ b.vecs[pts, :7].T  # (n, 3)
+    assert np.allclose(ext.matrix @ a.T, h**2, rtol=0, atol=1e-10 * np.abs(h**2).max())
+
+
+def test_canonical_distances_are_area_distances(basis_0):
+    """‖ã_y − ã_y'‖ equals the area-L2 distance of the squared kernels (no truncation)."""
+    b = basis_0.truncate(8)
+    C = np.eye(8)
+    e1, e2, info = extended_embeddings(C, b, b, rtol=1e-12)
+    assert info["dim"] == 1 + 7 + 28  # full rank, unique products
+    t = info["t"]
+    w = np.exp(-b.evals * t)
+    ys = [5, 900, 3000]
+    h2 = ((b.vecs * w) @ b.vecs[ys].T) ** 2  # (n, 3)
+    for i, j in [(0, 1), (1, 2)]:
+        d_fun = np.sqrt(np.sum(b.mass * (h2[:, i] - h2[:, j]) ** 2))
+        assert np.linalg.norm(e2[ys[i]] - e2[ys[j]]) == pytest.approx(d_fun, rel=1e-6)
+    assert np.allclose(e1, e2, atol=1e-9 * np.abs(e2).max())  # identity map transfers exactly
+
+
+def test_pairs_conventions_agree(basis_0, basis_13):
+    rng = np.random.default_rng(4)
+    C = fmaps.ground_truth(np.arange(basis_13.n), basis_0.truncate(8), basis_13.truncate(10))
+    C = C + 0.05 * rng.normal(size=C.shape)
+    pu = from_fmap(C, basis_0, basis_13, method="extended", pairs="unique")
+    po = from_fmap(C, basis_0, basis_13, method="extended", pairs="ordered")
+    assert np.mean(pu == po) > 0.999  # identical up to floating-point near-ties
+
+
+def test_from_fmap_bad_inputs(basis_0, basis_13):
+    C = np.zeros((10, 8))
+    with pytest.raises(ValueError, match="method"):
+        from_fmap(C, basis_0, basis_13, method="icp")
+    with pytest.raises(ValueError, match="rows of C_12 index shape 2"):
+        from_fmap(np.zeros((50, 8)), basis_0, basis_13)
+    with pytest.raises(ValueError, match="2D"):
+        from_fmap(np.zeros(8), basis_0, basis_13)
+    with pytest.raises(TypeError, match="std"):
+        from_fmap(C, basis_0, basis_13, method="std", t=1.0)
+    with pytest.raises(TypeError, match="unknown"):
+        from_fmap(C, basis_0, basis_13, method="extended", time=1.0)
+    with pytest.raises(ValueError, match="n_eig"):
+        from_fmap(C, basis_0, basis_13, method="extended", n_eig=9)
+    with pytest.raises(ValueError, match="t must"):
+        from_fmap(C, basis_0, basis_13, method="extended", t=-1.0)
+    with pytest.raises(TypeError):
+        from_fmap(C, basis_0.vecs, basis_13)

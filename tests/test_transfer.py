@@ -1,0 +1,94 @@
+"""Lemma 2 (C~ transfers exact pointwise products for ANY C), ground-truth maps, errors."""
+
+import numpy as np
+import pytest
+
+import prodmaps as pm
+
+
+def product_images(C, basis_2, index):
+    """Π_t (Φ2 C e_{i_t}) for every multi-index row: the exact image of each product column."""
+    T = basis_2.vecs @ C  # (n2, k1): images of the basis functions
+    padded = np.concatenate([np.ones((T.shape[0], 1)), T[:, 1:]], axis=1)
+    img = np.prod(padded[:, index], axis=2)
+    img[:, 0] = T[:, 0]
+    return img
+
+
+@pytest.mark.parametrize("pairs", ["ordered", "unique"])
+@pytest.mark.parametrize("order, k1, k2", [(2, 10, 10), (2, 7, 12), (2, 12, 7), (3, 6, 8), (4, 4, 5)])
+def test_lemma2_any_C(basis_0, basis_13, pairs, order, k1, k2):
+    b1, b2 = basis_0.truncate(k1), basis_13.truncate(k2)
+    C = np.random.default_rng(order * 100 + k1).normal(size=(k2, k1))  # not a ground-truth map
+    Ct = pm.extend_fmap(C, b1, b2, order=order, pairs=pairs)
+    e1, e2 = pm.product_basis(b1, order, pairs), pm.product_basis(b2, order, pairs)
+    assert Ct.shape == (e2.K, e1.K)
+    a = np.random.default_rng(7).normal(size=(e1.K, 3))
+    got = e2.evaluate(Ct @ a)
+    want = product_images(C, b2, e1.index) @ a  # Σ_j a_j Π(Φ2 C e_i)
+    assert np.abs(got - want).max() <= 1e-10 * np.abs(want).max()
+
+
+def test_order2_ordered_is_the_papers_block_formula(basis_0, basis_13):
+    b1, b2 = basis_0.truncate(5), basis_13.truncate(6)
+    C = np.random.default_rng(0).normal(size=(6, 5))
+    Ct = pm.extend_fmap(C, b1, b2)
+    k1, k2 = 4, 5
+    np.testing.assert_array_equal(Ct[:6, :5], C)
+    np.testing.assert_array_equal(Ct[k2 + 1:, :k1 + 1], 0)
+    np.testing.assert_allclose(Ct[k2 + 1:, k1 + 1:], np.kron(C[1:, 1:], C[1:, 1:]))
+
+
+def test_ground_truth_identity_map(basis_0):
+    p = np.arange(basis_0.n)
+    C = pm.fmap_from_p2p(p, basis_0, basis_0)
+    np.testing.assert_allclose(C, np.eye(basis_0.k), atol=1e-10)
+
+
+def test_identity_transfer_is_approximation(basis_0):
+    b = basis_0.truncate(10)
+    C = np.eye(10)
+    F = np.random.default_rng(1).normal(size=(b.n, 2))
+    ext = pm.product_basis(b, 2, "ordered")
+    approx = ext.evaluate(pm.approximate(F, ext, "svd"))
+    np.testing.assert_allclose(pm.transfer(F, C, b, b, "prod"), approx, atol=1e-10)
+    np.testing.assert_allclose(pm.transfer(F, C, b, b, "std"), b.vecs @ b.project(F), atol=1e-12)
+
+
+def test_products_beat_std_for_hks_transfer(human_0, human_13):
+    """Same triangulation -> identity ground truth; HKS transfer with products is far better."""
+    b1 = pm.eigenbasis(human_0, 10)
+    b2 = pm.eigenbasis(human_13, 30)
+    p2p = np.arange(human_13.n_vertices)
+    C = pm.fmap_from_p2p(p2p, b1, b2)
+    F = (b1.vecs**2) @ np.exp(-np.outer(b1.evals, [0.01, 0.05]))
+    G_true = F[p2p]
+    e_std = pm.relative_error(pm.transfer(F, C, b1, b2, "std"), G_true, b2.mass)
+    e_prod = pm.relative_error(pm.transfer(F, C, b1, b2, "prod"), G_true, b2.mass)
+    assert np.all(e_prod < 0.5 * e_std), (e_std, e_prod)
+
+
+def test_mismatched_shapes_are_rejected(basis_0, basis_13):
+    b1, b2 = basis_0.truncate(10), basis_13.truncate(12)
+    with pytest.raises(ValueError, match=r"\(12, 10\)"):
+        pm.extend_fmap(np.zeros((10, 12)), b1, b2)
+    with pytest.raises(ValueError, match="non-finite"):
+        pm.transfer(np.zeros(b1.n), np.full((12, 10), np.nan), b1, b2)
+    with pytest.raises(ValueError, match="p2p_21"):
+        pm.fmap_from_p2p(np.arange(5), b1, b2)
+    with pytest.raises(ValueError, match="indices"):
+        pm.fmap_from_p2p(np.full(b2.n, b1.n), b1, b2)
+    with pytest.raises(ValueError, match="method"):
+        pm.transfer(np.zeros(b1.n), np.zeros((12, 10)), b1, b2, "nearest")
+
+
+def test_relative_error_and_area_curve():
+    mass = np.array([1.0, 1.0, 2.0])
+    g = np.array([1.0, 1.0, 1.0])
+    assert pm.relative_error(g, g, mass) == 0
+    np.testing.assert_allclose(pm.relative_error(2 * g, g, mass), 1.0)
+    curve = pm.area_fraction_curve(np.array([1.0, 1.0, 3.0]), g, mass, [0.0, 1.0, 3.0])
+    # (f-g)² = [0, 0, 4] ; sqrt(∫g²) = 2 -> threshold γ·2
+    np.testing.assert_allclose(curve, [0.0, 0.5, 1.0])
+    with pytest.raises(ValueError, match="zero"):
+        pm.relative_error(g, 0 * g, mass)
