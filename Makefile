@@ -29,7 +29,7 @@ bench: venv
 	$(PY) benchmarks/run.py --out benchmarks/results
 
 strip-notebooks: venv
-	$(PY) -m prodmaps.notebook_tools strip notebooks/*.ipynb
+	$(PY) -m prodmaps.nbtools strip notebooks/*.ipynb
 
 clean-venv:
 	rm -rf $(VENV)

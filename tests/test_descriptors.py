@@ -1,0 +1,290 @@
+"""Tests for prodmaps.descriptors: HKS, WKS, heat kernels, SHOT, AWFT."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import prodmaps as pm
+import prodmaps.descriptors as D
+
+ROOT = Path(__file__).resolve().parents[1]
+ANNY = ROOT / "data" / "anny_humans" / "shapes" / "anny_000.ply"
+
+
+def icosphere(subdiv: int = 2, radius: float = 1.0) -> pm.Mesh:
+    t = (1.0 + 5**0.5) / 2
+    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
+                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
+    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
+                  [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
+                  [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
+    for _ in range(subdiv):
+        e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+        uniq, inv = np.unique(e, axis=0, return_inverse=True)
+        mid = (v[uniq[:, 0]] + v[uniq[:, 1]]) / 2
+        m = f.shape[0]
+        a, b, c = (inv[:m] + len(v)), (inv[m:2 * m] + len(v)), (inv[2 * m:] + len(v))
+        v = np.vstack([v, mid])
+        f = np.concatenate([np.stack([f[:, 0], a, c], 1), np.stack([f[:, 1], b, a], 1),
+                            np.stack([f[:, 2], c, b], 1), np.stack([a, b, c], 1)])
+    v = v / np.linalg.norm(v, axis=1, keepdims=True) * radius
+    return pm.Mesh(v, f)
+
+
+def rigid(mesh: pm.Mesh, seed: int = 3, scale: float = 1.0) -> pm.Mesh:
+    rng = np.random.default_rng(seed)
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    if np.linalg.det(q) < 0:
+        q[:, 0] *= -1
+    return pm.Mesh(scale * mesh.vertices @ q.T + rng.normal(size=3) * 5.0, mesh.faces)
+
+
+@pytest.fixture(scope="module")
+def anny():
+    return pm.load_mesh(ANNY)
+
+
+@pytest.fixture(scope="module")
+def anny_moved(anny):
+    return rigid(anny)
+
+
+@pytest.fixture(scope="module")
+def sphere():
+    return icosphere(3)  # 642 vertices
+
+
+# ----------------------------------------------------------------------------- HKS / WKS / heat kernel
+def test_hks_is_heat_kernel_diagonal(sphere):
+    b = pm.eigenbasis(sphere, 30)
+    times = D.hks_times(b, 7)
+    H = D.hks(b, times)
+    assert H.shape == (sphere.n_vertices, 7)
+    idx = np.arange(0, sphere.n_vertices, 5)
+    for j, t in enumerate(times):
+        K = D.heat_kernel(b, idx, t)  # (n, s)
+        np.testing.assert_allclose(K[idx, np.arange(idx.size)], H[idx, j], rtol=1e-12)
+
+
+def test_heat_kernel_symmetric_and_conserves_heat(sphere):
+    b = pm.eigenbasis(sphere, 40)
+    idx = np.array([0, 10, 100, 300])
+    K = D.heat_kernel(b, idx, 0.05)
+    assert K.shape == (sphere.n_vertices, 4)
+    np.testing.assert_allclose(K[idx], K[idx].T, atol=1e-12)
+    # ∫ h_t(x_s, y) dy = 1 (only the constant mode carries mass)
+    np.testing.assert_allclose(b.mass @ K, np.ones(4), rtol=1e-10)
+    # truncating the basis changes the kernel (test can fail if k is ignored)
+    K10 = D.heat_kernel(b.truncate(10), idx, 0.05)
+    assert np.abs(K10 - K).max() > 1e-3 * np.abs(K).max()
+
+
+def test_default_sampling_matches_definitions(sphere):
+    b = pm.eigenbasis(sphere, 20)
+    t = D.hks_times(b, 5)
+    lam = b.evals[1:]
+    np.testing.assert_allclose([t[0], t[-1]], [4 * np.log(10) / lam.max(), 4 * np.log(10) / lam.min()])
+    np.testing.assert_allclose(np.diff(np.log(t)), np.diff(np.log(t))[0])
+    e, sigma = D.wks_energies(b, 100)
+    emin, emax = np.log(lam.min()), np.log(lam.max())
+    assert sigma == pytest.approx(7 * (emax - emin) / 100)
+    assert e[0] == pytest.approx(emin + 2 * sigma) and e[-1] == pytest.approx(emax - 2 * sigma)
+    with pytest.raises(ValueError, match="empty energy range"):
+        D.wks_energies(b, 10)  # 10 energies cannot hold 2x2 sigma margins with variance 7
+
+
+def test_wks_scaling_and_formula(sphere):
+    b = pm.eigenbasis(sphere, 25)
+    e, sigma = D.wks_energies(b, 50)
+    W = D.wks(b, e, sigma)
+    Wn = D.wks(b, e, sigma, scaled=False)
+    lam, phi = b.evals[1:], b.vecs[:, 1:]
+    filt = np.exp(-((e[None] - np.log(lam)[:, None]) ** 2) / (2 * sigma**2))  # (k-1, E)
+    np.testing.assert_allclose(Wn, phi**2 @ filt, rtol=1e-12)
+    np.testing.assert_allclose(W, Wn / filt.sum(0), rtol=1e-12)
+    # ∫ WKS dA = 1 for the scaled version (each φ_i² integrates to 1)
+    np.testing.assert_allclose(b.mass @ W, 1.0, rtol=1e-10)
+
+
+def test_hks_wks_exactly_in_product_span(anny):
+    b = pm.eigenbasis(anny, 10)
+    k = b.k
+    l, m = np.triu_indices(k)
+    P = b.vecs[:, l] * b.vecs[:, m]  # (n, k(k+1)/2): all φ_l φ_m, l <= m, constant included
+    sq = np.sqrt(b.mass)[:, None]
+    e, s = D.wks_energies(b, 40)
+    for F in (D.hks(b, D.hks_times(b, 5)), D.wks(b, e[::8], s)):
+        coef, *_ = np.linalg.lstsq(sq * P, sq * F, rcond=None)
+        res = np.linalg.norm(sq * (P @ coef - F), axis=0) / np.linalg.norm(sq * F, axis=0)
+        assert res.max() < 1e-10
+        # ...whereas the plain basis leaves a residual (this is the point of the paper)
+        res_b = np.linalg.norm(sq * (b.vecs @ b.project(F) - F), axis=0) / np.linalg.norm(sq * F, axis=0)
+        assert res_b.max() > 1e-3
+    # a non-product function is not in the span
+    x = anny.vertices[:, :1] ** 3
+    coef, *_ = np.linalg.lstsq(sq * P, sq * x, rcond=None)
+    assert np.linalg.norm(sq * (P @ coef - x)) / np.linalg.norm(sq * x) > 1e-2
+
+
+def test_hks_wks_rigid_and_scale_invariance(anny, anny_moved):
+    b0 = pm.eigenbasis(anny, 30)
+    b1 = pm.eigenbasis(anny_moved, 30)
+    s = 2.5
+    b2 = pm.eigenbasis(rigid(anny, seed=5, scale=s), 30)
+    H0 = D.hks(b0, D.hks_times(b0, 8))
+    e0, s0 = D.wks_energies(b0, 40)
+    W0 = D.wks(b0, e0, s0)
+    for bb, fac in ((b1, 1.0), (b2, s**2)):
+        H = fac * D.hks(bb, D.hks_times(bb, 8))
+        e, sg = D.wks_energies(bb, 40)
+        W = fac * D.wks(bb, e, sg)
+        np.testing.assert_allclose(H, H0, rtol=1e-8, atol=1e-8 * np.abs(H0).max())
+        np.testing.assert_allclose(W, W0, rtol=1e-8, atol=1e-8 * np.abs(W0).max())
+    # unscaled-sampling HKS is NOT scale invariant: the test can tell
+    H_fixed = D.hks(b2, D.hks_times(b0, 8))
+    assert np.abs(s**2 * H_fixed - H0).max() > 1e-2 * np.abs(H0).max()
+
+
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda b: D.hks(b, [0.1, 0.0]), "times must be > 0"),
+        (lambda b: D.hks(b, [0.1, -1.0]), "times must be > 0"),
+        (lambda b: D.hks(b, [np.nan]), "non-finite"),
+        (lambda b: D.hks(b, []), "non-empty"),
+        (lambda b: D.wks(b, [1.0], 0.0), "sigma"),
+        (lambda b: D.wks(b, [np.inf], 1.0), "non-finite"),
+        (lambda b: D.wks(b.truncate(1), [1.0], 1.0), "no non-zero eigenvalue"),
+        (lambda b: D.heat_kernel(b, [0, 10_000], 0.1), "vertex indices"),
+        (lambda b: D.heat_kernel(b, [0], 0.0), "t must be"),
+        (lambda b: D.heat_kernel(b, [0.5], 0.1), "integer"),
+        (lambda b: D.hks_times(b, 0), "num"),
+    ],
+)
+def test_spectral_bad_input(sphere, call, match):
+    b = pm.eigenbasis(sphere, 10)
+    with pytest.raises(ValueError, match=match):
+        call(b)
+
+
+def test_spectral_type_errors(sphere):
+    with pytest.raises(TypeError, match="Basis"):
+        D.hks(np.zeros((3, 3)), [1.0])
+    with pytest.raises(TypeError, match="Mesh"):
+        D.shot(np.zeros((3, 3)))
+
+
+# ----------------------------------------------------------------------------- SHOT
+@pytest.fixture(scope="module")
+def shot_anny(anny):
+    return D.shot(anny)
+
+
+def test_shot_shape_and_normalisation(anny, shot_anny):
+    S = shot_anny
+    assert S.shape == (anny.n_vertices, 352) == (anny.n_vertices, D.SHOT_DIM)
+    assert np.all(np.isfinite(S)) and np.all(S >= 0)
+    np.testing.assert_allclose(np.linalg.norm(S, axis=1), 1.0, rtol=1e-12)
+    # descriptors discriminate: rows are not all alike
+    assert np.std(S, axis=0).max() > 0.05
+    # other layouts give the product of the grid sizes
+    S2 = D.shot(anny, n_bins=5, n_azimuth=4, n_elevation=1, n_radial=1, radius_frac=0.05)
+    assert S2.shape == (anny.n_vertices, 20)
+
+
+def test_shot_votes_sum_and_interpolation():
+    # a flat grid: every neighbour normal equals the LRF z up to sign -> all mass in the end bins
+    xs, ys = np.meshgrid(np.linspace(0, 1, 25), np.linspace(0, 1, 25))
+    V = np.stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)], 1)
+    idx = np.arange(625).reshape(25, 25)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    F = np.concatenate([np.stack([a, b, d], 1), np.stack([a, d, c], 1)])
+    mesh = pm.Mesh(V, F)
+    S = D.shot(mesh, radius=0.2)
+    H = S.reshape(625, 32, 11).sum(axis=1)  # (n, bins): cosine histogram over all sectors
+    assert np.allclose(H[:, 1:-1], 0.0)  # cos = ±1 exactly
+    centre = 12 * 25 + 12
+    # centre vertex: planar support -> elevation exactly 0 -> votes split equally between hemispheres
+    Sc = S[centre].reshape(8, 2, 2, 11)
+    np.testing.assert_allclose(Sc[:, 0], Sc[:, 1], atol=1e-12)
+
+
+def test_shot_rigid_and_scale_invariance(anny, anny_moved, shot_anny):
+    for other in (D.shot(anny_moved), D.shot(rigid(anny, seed=7, scale=0.3))):
+        diff = np.abs(other - shot_anny).max(axis=1)  # (n,)
+        # all but a handful of vertices (a neighbour exactly at distance R) agree to round-off
+        assert np.mean(diff > 1e-8) < 0.005
+        assert np.median(diff) < 1e-10
+
+
+def test_shot_bad_input(anny):
+    with pytest.raises(ValueError, match="radius"):
+        D.shot(anny, radius=-1.0)
+    with pytest.raises(ValueError, match="n_bins"):
+        D.shot(anny, n_bins=0)
+    with pytest.raises(ValueError, match="normals"):
+        D.shot(anny, normals=np.full((anny.n_vertices, 3), np.nan))
+
+
+# ----------------------------------------------------------------------------- curvature / AWFT
+def test_principal_curvatures_on_sphere():
+    m = icosphere(4, radius=2.0)
+    c = D.principal_curvatures(m)
+    np.testing.assert_allclose(np.median(c["mean"]), 0.5, rtol=0.02)
+    np.testing.assert_allclose(np.median(c["gauss"]), 0.25, rtol=0.04)
+    assert np.abs(c["mean"] - 0.5).max() < 0.05
+    # principal directions are unit and tangent to their face
+    fn = np.cross(m.vertices[m.faces[:, 1]] - m.vertices[m.faces[:, 0]], m.vertices[m.faces[:, 2]] - m.vertices[m.faces[:, 0]])
+    fn /= np.linalg.norm(fn, axis=1, keepdims=True)
+    np.testing.assert_allclose(np.linalg.norm(c["dir_max"], axis=1), 1.0, rtol=1e-12)
+    assert np.abs(np.einsum("ij,ij->i", c["dir_max"], fn)).max() < 1e-10
+    assert np.abs(np.einsum("ij,ij->i", c["dir_max"], c["dir_min"])).max() < 1e-10
+
+
+def test_anisotropic_laplacian_properties(anny):
+    W0, A0 = pm.laplacian(anny)
+    Wi, Ai = D.anisotropic_laplacian(anny, 0.7, 0.0)
+    assert abs(Wi - W0).max() < 1e-10 * abs(W0).max()  # alpha = 0 is the cotangent Laplacian
+    np.testing.assert_allclose(Ai, A0)
+    Wa, _ = D.anisotropic_laplacian(anny, 0.0, 10.0)
+    assert abs(Wa - W0).max() > 0.1 * abs(W0).max()
+    assert abs(Wa - Wa.T).max() == 0
+    np.testing.assert_allclose(Wa @ np.ones(anny.n_vertices), 0.0, atol=1e-9 * abs(Wa).max())
+    x = np.random.default_rng(0).normal(size=(anny.n_vertices, 5))
+    assert np.all(np.einsum("ij,ij->j", x, Wa @ x) > 0)  # PSD (on random vectors)
+    # rotating by π gives the same operator (D depends on w wᵀ)
+    Wpi, _ = D.anisotropic_laplacian(anny, np.pi, 10.0)
+    assert abs(Wpi - Wa).max() < 1e-10 * abs(Wa).max()
+
+
+AWFT_KW = dict(k=40)
+
+
+def test_awft_shape_invariance(anny, anny_moved):
+    A0 = D.awft(anny, **AWFT_KW)
+    assert A0.shape == (anny.n_vertices, 30)
+    assert np.all(np.isfinite(A0)) and np.all(A0 >= 0)
+    mass = pm.laplacian(anny)[1]
+    np.testing.assert_allclose(mass @ A0**2, mass.sum(), rtol=1e-10)
+    # different operators give different columns (anisotropy matters)
+    assert np.abs(A0[:, 0] - A0[:, 4]).max() > 1e-3 * A0[:, 0].max()
+    for other, _ in ((anny_moved, "rigid"), (rigid(anny, seed=11, scale=3.0), "scaled")):
+        A1 = D.awft(other, **AWFT_KW)
+        np.testing.assert_allclose(A1, A0, rtol=1e-8, atol=1e-8 * np.abs(A0).max())
+
+
+def test_awft_options_and_errors(anny):
+    A = D.awft(anny, k=20, angles_deg=(0.0, 90.0), include_isotropic=False, taus=(0.01,), freqs0=(3,),
+               functions=("constant", "mean_curvature", "hks"))
+    assert A.shape == (anny.n_vertices, 1 * 2 * 3)
+    with pytest.raises(ValueError, match="functions"):
+        D.awft(anny, k=20, functions=("nope",))
+    with pytest.raises(ValueError, match="freqs0"):
+        D.awft(anny, k=20, taus=(0.01, 0.02), freqs0=(0,))
+    with pytest.raises(ValueError, match="k must be"):
+        D.awft(anny, k=1)
+    with pytest.raises(ValueError, match="taus"):
+        D.awft(anny, k=20, taus=(-0.1,), freqs0=(0,))
+    with pytest.raises(ValueError, match="alpha"):
+        D.anisotropic_laplacian(anny, 0.0, -1.0)

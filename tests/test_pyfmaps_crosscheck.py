@@ -1,0 +1,121 @@
+"""Cross-checks against an independent implementation: pyFM (PyPI ``pyfmaps``, checked with 1.3.1).
+
+pyFM uses the same discretisation as prodmaps' defaults: cotangent stiffness and the lumped
+(barycentric, a third of each incident triangle) mass, eigenpairs of ``W φ = λ A φ``. These
+tests compare eigenvalues, HKS/WKS under matching sampling, the NO17 demo descriptors, and the
+NO17 energy, its gradient and the fitted map (pyFM's ``normalize_weights=True`` "canonical"
+weighting with the resolvent Laplacian mask equals our ``normalize="expected"``,
+``lap="resolvent"``). Optional dependency: the whole module is skipped without pyFM.
+"""
+
+import numpy as np
+import pytest
+
+import prodmaps as pm
+from prodmaps import fmaps
+
+pyFM = pytest.importorskip("pyFM", reason="optional cross-check dependency pyfmaps (pyFM) is not installed")
+from pyFM.functional import FunctionalMapping  # noqa: E402
+from pyFM.mesh import TriMesh  # noqa: E402
+
+K = 40
+
+
+@pytest.fixture(scope="module")
+def pair(human_0, human_13):
+    tm1 = TriMesh(human_0.vertices.copy(), human_0.faces.copy())
+    tm2 = TriMesh(human_13.vertices.copy(), human_13.faces.copy())
+    tm1.process(K)
+    tm2.process(K)
+    return human_0, human_13, tm1, tm2, pm.eigenbasis(human_0, K), pm.eigenbasis(human_13, K)
+
+
+def test_operators_and_eigenvalues_agree(pair):
+    m1, _, tm1, _, b1, _ = pair
+    W, A = pm.laplacian(m1, kind="cotan", mass="lumped")
+    assert np.allclose(tm1.mass.diagonal(), A, rtol=1e-12)
+    assert abs(W - tm1.stiffness).max() < 1e-10 * abs(W).max()
+    ev = np.sort(tm1.eigenvalues)
+    assert abs(ev[0]) < 1e-8 * ev[-1]
+    assert np.allclose(b1.evals[1:], ev[1:], rtol=1e-8)
+
+
+def test_hks_wks_agree(pair):
+    _, _, tm1, _, b1, _ = pair
+    descriptors = pytest.importorskip("prodmaps.descriptors")
+    from pyFM.signatures import HKS_functions as H, WKS_functions as Wf
+
+    times = descriptors.hks_times(b1, 20)
+    ours = descriptors.hks(b1, times, scaled=True)
+    theirs = H.HKS(tm1.eigenvalues, tm1.eigenvectors, times, scaled=True)
+    assert np.allclose(ours, theirs, rtol=1e-6, atol=1e-9 * np.abs(theirs).max())
+    energies, sigma = descriptors.wks_energies(b1, 50)
+    ours = descriptors.wks(b1, energies, sigma)
+    theirs = Wf.mesh_WKS(tm1, 50, k=K)  # pyFM's automatic sampling
+    assert np.allclose(ours, theirs, rtol=1e-6, atol=1e-9 * np.abs(theirs).max())
+
+
+def test_demo_descriptors_agree(pair):
+    m1, m2, tm1, tm2, b1, b2 = pair
+    lm = fmaps.farthest_point_landmarks(m1.vertices, 5)
+    d1, d2 = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=30, subsample_step=5, k_descr=K)
+    model = FunctionalMapping(tm1, tm2)
+    model.compute_spectral_descriptors(n_descr=30, descr_type="WKS", k_descr=K, landmarks=lm, subsample_step=5)
+    n1 = d1 / np.sqrt(np.sum(b1.mass[:, None] * d1**2, axis=0))
+    assert n1.shape == model.descr1.shape
+    assert np.allclose(n1, model.descr1, rtol=1e-6, atol=1e-8 * np.abs(n1).max())
+
+
+def _pyfm_energy_args(model, k1, k2, w):
+    """pyFM's own pieces of the energy (weights normalised, canonical taus, resolvent mask)."""
+    from pyFM.optimize.weights import canonical_taus, resolvent_mask
+
+    model._set_k((k1, k2))
+    w = np.array(w, float) / np.sum(w)
+    D1 = model.mesh1.project(model.descr1, k=k1)
+    D2 = model.mesh2.project(model.descr2, k=k2)
+    ops = model._compute_descr_op()
+    mask = resolvent_mask(model.mesh1.eigenvalues[:k1], model.mesh2.eigenvalues[:k2], gamma=0.5)
+    t = canonical_taus(D1, D2, ops, [], mask)
+    return (w[0] / t[0], w[1] / t[1], w[2] / t[2], 0.0, D1, D2, ops, [], mask)
+
+
+def test_no17_energy_and_gradient_agree(pair):
+    m1, m2, tm1, tm2, b1, b2 = pair
+    from pyFM.optimize.base_functions import energy_and_grad_std
+
+    lm = fmaps.farthest_point_landmarks(m1.vertices, 5)
+    d1, d2 = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=30, subsample_step=5, k_descr=K)
+    k1, k2 = 20, 25
+    model = FunctionalMapping(tm1, tm2)
+    # give pyFM our eigenpairs so that only the energy code differs (its signs differ from ours)
+    for mesh, b in ((model.mesh1, b1), (model.mesh2, b2)):
+        mesh.eigenvalues, mesh.eigenvectors = b.evals.copy(), b.vecs.copy()
+    model.add_descriptors(d1, d2, normalize=True)
+    w = (1.0, 1e-2, 1e-1)
+    args = _pyfm_energy_args(model, k1, k2, w)
+    terms = fmaps.no17_terms(b1.truncate(k1), b2.truncate(k2), d1, d2, w_descr=w[0], w_lap=w[1], w_dcomm=w[2])
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        C = rng.normal(size=(k2, k1))
+        E_ours, G_ours = fmaps.energy_and_gradient(C, terms)
+        E_py, G_py = energy_and_grad_std(C.ravel(), *args)
+        G_py = G_py.reshape(k2, k1)
+        assert E_ours == pytest.approx(E_py, rel=1e-10)
+        # pyFM zeroes the gradient of the fixed first column; compare the free columns
+        assert np.allclose(G_ours[:, 1:], G_py[:, 1:], rtol=1e-10, atol=1e-12 * np.abs(G_py).max())
+
+
+def test_no17_fit_agrees(pair):
+    m1, m2, tm1, tm2, b1, b2 = pair
+    lm = fmaps.farthest_point_landmarks(m1.vertices, 5)
+    d1, d2 = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=30, subsample_step=5, k_descr=K)
+    k1 = k2 = 20
+    model = FunctionalMapping(tm1, tm2)
+    for mesh, b in ((model.mesh1, b1), (model.mesh2, b2)):
+        mesh.eigenvalues, mesh.eigenvectors = b.evals.copy(), b.vecs.copy()
+    model.add_descriptors(d1, d2, normalize=True)
+    model.fit(K=(k1, k2), w_descr=1.0, w_lap=1e-2, w_dcomm=1e-1, w_orient=0)
+    C = fmaps.fit_no17(b1.truncate(k1), b2.truncate(k2), d1, d2, w_descr=1.0, w_lap=1e-2, w_dcomm=1e-1)
+    assert C[0, 0] == pytest.approx(model.FM_12[0, 0], rel=1e-12)
+    assert np.linalg.norm(C - model.FM_12) < 1e-3 * np.linalg.norm(model.FM_12)
