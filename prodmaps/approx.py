@@ -59,11 +59,14 @@ def check_functions(F, n: int, what: str = "f") -> np.ndarray:
 
 
 def _solver_parts(basis):
-    """(B_s, mass, expand Sᵀ or None, K) for a Basis or ProductBasis."""
+    """(B_s or None, base Basis, expand Sᵀ or None, K) for a Basis or ProductBasis.
+
+    For a ProductBasis ``B_s`` is None: use :func:`_gram` / :func:`_rmatmul`, which are
+    blocked for large meshes, or ``basis.solver_basis()`` when the matrix is really needed.
+    """
     if isinstance(basis, ProductBasis):
-        B_s, _ = basis.solver_basis()
         E = None if basis.pairs == "unique" else basis.expand()
-        return B_s, basis.base, E, basis.K
+        return None, basis.base, E, basis.K
     if isinstance(basis, Basis):
         return basis.vecs, basis, None, basis.k
     raise TypeError(f"expected a prodmaps.Basis or ProductBasis, got {type(basis).__name__}")
@@ -102,9 +105,10 @@ class ApproximationOperator:
             return _fista(self, F)
         AF = base.apply_mass(F)
         if self._M is not None:
-            a = self._M @ (B_s.T @ AF)
-        else:  # SVD route: U_rᵀ sqrt(A) f = U_rᵀ A f / sqrt(A)
-            a = self._P @ (self._U.T @ (AF / np.sqrt(base.mass)[:, None] if F.ndim == 2 else AF / np.sqrt(base.mass)))
+            a = self._M @ _rmatmul(self.basis, AF)
+        else:  # SVD route: U_rᵀ sqrt(A) f, written as U_rᵀ (A f / sqrt(A))
+            sqrt_mass = np.sqrt(base.mass)
+            a = self._P @ (self._U.T @ (AF / (sqrt_mass[:, None] if F.ndim == 2 else sqrt_mass)))
         return a if E is None else E @ a
 
     __call__ = coefficients
@@ -154,6 +158,8 @@ def operator(basis, method: str = "svd", *, rtol: float = 1e-3, eps: float = 1e-
         if route == "svd":
             if not base.mass_is_diagonal:
                 raise ValueError("route='svd' needs a lumped (diagonal) mass; use route='gram'")
+            if B_s is None:
+                B_s = basis.solver_basis()[0]
             X = np.sqrt(base.mass)[:, None] * B_s  # (n, K_u)
             U, s, Vt = sla.svd(X, full_matrices=False, lapack_driver="gesdd")
             r = int(np.sum(s > rtol * s[0]))
@@ -163,7 +169,7 @@ def operator(basis, method: str = "svd", *, rtol: float = 1e-3, eps: float = 1e-
             )
         if route != "gram":
             raise ValueError(f"route must be 'auto', 'svd' or 'gram', got {route!r}")
-        G = _gram(B_s, base)
+        G = _gram(basis)
         w, V = sla.eigh(G)  # ascending
         w, V = w[::-1], V[:, ::-1]
         s = np.sqrt(np.maximum(w, 0.0))
@@ -173,7 +179,7 @@ def operator(basis, method: str = "svd", *, rtol: float = 1e-3, eps: float = 1e-
             basis, method, params | {"route": "gram"},
             _M=(Vr / s[:r] ** 2) @ Vr.T, _sV=s[:r, None] * Vr.T,
         )
-    G = _gram(B_s, base)
+    G = _gram(basis)
     if method == "ridge":
         if eps <= 0:
             raise ValueError(f"ridge needs eps > 0, got {eps}")
@@ -186,8 +192,18 @@ def operator(basis, method: str = "svd", *, rtol: float = 1e-3, eps: float = 1e-
     return ApproximationOperator(basis, method, params, _G=G)
 
 
-def _gram(B_s: np.ndarray, base: Basis) -> np.ndarray:
-    """``B_sᵀ A B_s`` (symmetric, computed with one GEMM)."""
+def _rmatmul(basis, Y):
+    """``B_sᵀ Y`` for a Basis or ProductBasis."""
+    if isinstance(basis, ProductBasis):
+        return basis.solver_rmatmul(Y)
+    return basis.vecs.T @ Y
+
+
+def _gram(basis) -> np.ndarray:
+    """``B_sᵀ A B_s`` (symmetric) for a Basis or ProductBasis (cached and blocked there)."""
+    if isinstance(basis, ProductBasis):
+        return basis.solver_gram()
+    B_s, base = basis.vecs, basis
     if base.mass_is_diagonal:
         X = np.sqrt(base.mass)[:, None] * B_s
         G = X.T @ X
@@ -208,7 +224,7 @@ def _fista(op: ApproximationOperator, F: np.ndarray) -> np.ndarray:
     G_s = op._G
     one = F.ndim == 1
     F2 = F[:, None] if one else F
-    b_s = B_s.T @ base.apply_mass(F2)  # (K_u, m)
+    b_s = _rmatmul(basis, base.apply_mass(F2))  # (K_u, m)
     if E is None:
         def gram(x):
             return G_s @ x

@@ -275,7 +275,8 @@ def shot(
       (centred at ``p`` itself, weights ``R - d_i``): ``x`` the largest, ``z`` the smallest
       eigenvector, ``y = z × x``. Sign disambiguation as in TSDS10: ``x`` (resp. ``z``) is flipped
       when more neighbours satisfy ``(q_i - p)·x < 0`` than ``>= 0``. Simplification: exact ties
-      keep the eigensolver's sign (TSDS10 breaks ties with the median-neighbour subset).
+      are broken by the sign of ``Σ_i (R - d_i)(q_i - p)·x`` (TSDS10 break them with the
+      median-neighbour subset); both are rotation-invariant.
     * Grid: ``n_azimuth`` (8) azimuth sectors of the LRF xy-plane, ``n_elevation`` (2) hemispheres
       (``z`` sign), ``n_radial`` (2) shells split at ``R/2``; 32 volumes.
     * Histogram in each volume: ``n_bins`` (11) bins of ``cos θ_i = n_i · z`` over ``[-1, 1]``,
@@ -331,7 +332,8 @@ def shot(
         s = np.einsum("ij,ij->i", diff, ax[I])  # (P,)
         pos = np.bincount(I, weights=(s >= 0).astype(float), minlength=n)
         neg = np.bincount(I, weights=(s < 0).astype(float), minlength=n)
-        ax[neg > pos] *= -1.0
+        wsgn = np.bincount(I, weights=w * s, minlength=n)  # tie-break: weighted projection
+        ax[(neg > pos) | ((neg == pos) & (wsgn < 0))] *= -1.0
     y_ax = np.cross(z_ax, x_ax)  # (n, 3)
 
     lx = np.einsum("ij,ij->i", diff, x_ax[I])
@@ -387,8 +389,10 @@ def principal_curvatures(mesh: Mesh, smooth: int = 1):
     For every face, the symmetric 2x2 second fundamental form ``S`` in the face frame ``(u, v)``
     is the least-squares solution of ``S [e·u, e·v]ᵀ = [Δn·u, Δn·v]ᵀ`` over its three edges ``e``
     (``Δn`` the difference of the area-weighted vertex normals along the edge). The tensors are
-    embedded in 3-D (``T = [u v] S [u v]ᵀ``) and smoothed ``smooth`` times by averaging
-    face -> vertex (area-weighted, projected on the vertex tangent plane) -> face.
+    embedded in 3-D (``T = [u v] S [u v]ᵀ``), averaged to the vertices (area-weighted, projected
+    on the vertex tangent plane), then smoothed by ``smooth`` rounds of vertex -> face (mean of
+    the 3 corners, projected on the face plane) -> vertex averaging. Face directions come from
+    the (smoothed) face tensors, vertex curvatures from the vertex tensors.
 
     Returns a dict with per-face ``dir_max``/``dir_min`` ``(m, 3)`` unit principal directions
     (tangent to the face), ``k_max``/``k_min`` ``(m,)`` and per-vertex ``mean``/``gauss``
@@ -427,6 +431,7 @@ def principal_curvatures(mesh: Mesh, smooth: int = 1):
     vsum = np.asarray(inc.sum(axis=1)).ravel()
     Pn = np.eye(3)[None] - N[:, :, None] * N[:, None, :]  # (n, 3, 3) tangent projectors
     Pf = np.eye(3)[None] - fn[:, :, None] * fn[:, None, :]
+
     def to_vertices(Tf):
         Tv_ = (inc @ Tf.reshape(m, 9)).reshape(n, 3, 3) / vsum[:, None, None]
         return np.einsum("vab,vbc,vcd->vad", Pn, Tv_, Pn)
@@ -558,8 +563,9 @@ def awft(
        ``Sf(x, j) = sqrt(area) · <f φ_j, g_x>_A = sqrt(area) · Σ_l c_l(x) (Φᵀ A diag(f) Φ)_{jl}``,
        one ``(n, k) @ (k, k)`` product per operator -- no per-vertex loop.
     4. Descriptor (total weighted power, as in the authors' description):
-       ``desc(x) = Σ_j (λ_j² / Σ_i λ_i²) Sf(x, j)²``, normalised to unit area-weighted L2 norm
-       over the shape (``∫ desc² dA = 1``).
+       ``desc(x) = Σ_j (λ_j² / Σ_i λ_i²) Sf(x, j)²``, normalised to unit area-weighted RMS
+       over the shape (``∫ desc² dA = area``; the authors normalise the vertex vector to unit
+       Euclidean norm, which depends on the vertex count).
 
     ``functions`` (the signals being analysed, evaluated once on the mesh): ``"mean_curvature"``
     (per-vertex mean curvature, scaled by ``sqrt(area)`` to be scale-free), ``"hks"`` (the
@@ -621,5 +627,5 @@ def awft(
                 M = vecs.T @ ((A * fmat[:, fi])[:, None] * vecs)  # (k, k) Φᵀ A diag(f) Φ
                 Sf = rho * (c @ M.T)  # (n, k): Sf[x, j] = Σ_l c_l(x) M[j, l]
                 d = (Sf**2) @ wpow  # (n,)
-                cols.append(d / np.sqrt(np.sum(A * d * d)))
+                cols.append(d / np.sqrt(np.sum(A * d * d) / area))  # unit area-RMS
     return np.stack(cols, axis=1)

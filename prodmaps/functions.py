@@ -13,7 +13,8 @@ depend on the source basis size, computed from ``basis_1.truncate(k_M + 1)``; th
 =========== ==== ===== =================================================================
 name         m   k_M   definition
 =========== ==== ===== =================================================================
-hk_k         10  yes   heat kernels ``h_t(x, ·)`` at ``m`` random distinct vertices ``x``,
+hk_k         10  yes   heat kernels ``h_t(x, ·)`` at ``m`` random distinct vertices ``x``
+                       (``rng.choice(n1, m, replace=False)``, the first draw),
                        from the ``k_M + 1`` eigenpairs (so in the span of the basis)
 hk_K         10  no    the same kernels from 200 eigenpairs (constant included)
 HKS          10  yes   HKS at 10 random times, log-uniform in ``[4 ln10/λ_max, 4 ln10/λ_1]``
@@ -28,7 +29,9 @@ Random       10  yes   ``B a`` with ``B`` the order-2 extended basis of the ``k_
 XYZ           3  no    the x, y, z vertex coordinates of the source
 Indicator    10  no    indicators of geodesic balls (edge-graph Dijkstra distance) around
                        random vertices, the radius chosen so the ball covers a random
-                       fraction ``U[0.05, 0.25]`` of the area
+                       fraction ``U[0.1, 0.5]`` of the area (the region size is not
+                       stated in the paper; up to half the surface, beyond which the
+                       complement is the smaller region)
 SHOT         10  no    10 random columns of :func:`prodmaps.descriptors.shot` (352 dims,
                        default radius ``0.1·sqrt(area)``), chosen among columns non-zero on
                        at least 1 % of the vertices (the others have no meaningful
@@ -36,6 +39,10 @@ SHOT         10  no    10 random columns of :func:`prodmaps.descriptors.shot` (3
 AWFT         10  no    10 random columns of :func:`prodmaps.descriptors.awft` (30 dims with
                        the defaults)
 =========== ==== ===== =================================================================
+
+HKS and WKS use the ``k_M + 1`` source eigenpairs by default, as Section 5.2 describes them
+(``h_t(x,x) = Σ_{i<=k_M} α_i φ_i²``, exactly in the product span); the option ``n_eig``
+computes them from more eigenpairs instead (then they are no longer in that span).
 
 Heat kernel time (not stated in the paper): ``t = t_rel · area`` with ``t_rel = 1e-3`` by
 default (a localised kernel, Gaussian width ``~sqrt(4t) ≈ 0.06·sqrt(area)``); a parameter.
@@ -131,15 +138,24 @@ def _big_basis(ctx, n_eig: int) -> Basis:
     return cache[key]
 
 
-def _gen_hks(ctx, rng, m, *, factor: float = 4.0 * np.log(10.0)):
-    b = ctx["basis_k"]
+def _spectral_basis(ctx, n_eig):
+    if n_eig is None:
+        return ctx["basis_k"]
+    if int(n_eig) != n_eig or n_eig < 2:
+        raise ValueError(f"n_eig must be an integer >= 2 (eigenpairs, constant included), got {n_eig!r}")
+    return _big_basis(ctx, int(n_eig))
+
+
+def _gen_hks(ctx, rng, m, *, factor: float = 4.0 * np.log(10.0), n_eig: int | None = None):
+    b = _spectral_basis(ctx, n_eig)
     lo_hi = _d.hks_times(b, 2, factor=factor)  # [t_min, t_max]
     t = np.sort(np.exp(rng.uniform(np.log(lo_hi[0]), np.log(lo_hi[1]), size=m)))
     return _d.hks(b, t)
 
 
-def _gen_wks(ctx, rng, m, *, num_grid: int = 100, variance: float = 7.0, margin: float = 2.0):
-    b = ctx["basis_k"]
+def _gen_wks(ctx, rng, m, *, num_grid: int = 100, variance: float = 7.0, margin: float = 2.0,
+             n_eig: int | None = None):
+    b = _spectral_basis(ctx, n_eig)
     grid, sigma = _d.wks_energies(b, num_grid, variance=variance, margin=margin)
     e = np.sort(rng.uniform(grid[0], grid[-1], size=m))
     return _d.wks(b, e, sigma, scaled=True)
@@ -160,7 +176,7 @@ def _gen_xyz(ctx, rng, m):
     return np.array(ctx["mesh"].vertices, dtype=np.float64, copy=True)
 
 
-def _gen_indicator(ctx, rng, m, *, min_frac: float = 0.05, max_frac: float = 0.25, method: str = "graph"):
+def _gen_indicator(ctx, rng, m, *, min_frac: float = 0.1, max_frac: float = 0.5, method: str = "graph"):
     from .geodesics import distances
 
     if not 0 < min_frac <= max_frac < 1:
@@ -246,7 +262,7 @@ def make_family(
     m : number of functions (default ``FAMILIES[name].m``; XYZ always has 3).
     cache : optional dict, one per source mesh, reused for SHOT/AWFT/200-eigenpair bases.
     options : family parameters (``t_rel``, ``n_eig_K`` for the heat kernels; ``num_grid``,
-        ``variance``, ``margin`` for WKS; ``factor`` for HKS; ``min_frac``, ``max_frac``,
+        ``variance``, ``margin``, ``n_eig`` for WKS; ``factor``, ``n_eig`` for HKS; ``min_frac``, ``max_frac``,
         ``method`` for Indicator; :func:`~prodmaps.descriptors.shot` /
         :func:`~prodmaps.descriptors.awft` keywords for SHOT / AWFT).
 

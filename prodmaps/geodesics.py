@@ -195,7 +195,8 @@ def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=N
     p2p_21, p2p_21_true : (n2,) int arrays of vertex indices of shape 1.
     method : distance method used when ``dist`` is not given (see :func:`distances`).
     dist : optional precomputed ``(n1, n1)`` distance matrix of shape 1 (e.g. from
-        :func:`all_pairs`); then no distance is computed.
+        :func:`all_pairs`; pass it when evaluating many maps onto the same shape); then no
+        distance is computed.
     batch : number of sources per solver batch (memory ``batch * n1`` floats).
 
     Returns
@@ -203,6 +204,11 @@ def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=N
     (n2,) float64: ``d_1(p2p_21[i], p2p_21_true[i]) / sqrt(area_1)``. Only the distinct true
     images are used as sources, so a sparse evaluation is cheap. Heat-method distances are
     not exactly zero at the source; entries where the map is exactly right are set to 0.
+
+    Accuracy: the heat method smooths at the scale of about one edge, so it underestimates
+    very short distances (measured on a flat grid: 0.84 x the true distance for one edge,
+    0.94 for four, 0.97 for eight edges; within ~2 % beyond). Use ``method="exact"`` (slow)
+    or ``"graph"`` (upper bound) to bracket small errors when that matters.
     """
     p = np.asarray(p2p_21)
     q = np.asarray(p2p_21_true)

@@ -88,14 +88,20 @@ def _n_orderings(index: np.ndarray) -> np.ndarray:
 
 
 def evaluate_products(vecs: np.ndarray, index: np.ndarray) -> np.ndarray:
-    """Columns ``Π_t vecs[:, index[j, t]]`` (0 = no factor), the constant column kept as is."""
+    """Columns ``Π_t vecs[:, index[j, t]]`` (0 = no factor), the constant column kept as is.
+
+    Returns an ``(n, K)`` Fortran-ordered array: the products are formed on contiguous rows of
+    the transposed basis, which is several times faster than gathering columns.
+    """
     n = vecs.shape[0]
-    padded = np.concatenate([np.ones((n, 1)), vecs[:, 1:]], axis=1)  # factor 0 -> 1
-    out = padded[:, index[:, 0]].copy()
+    padded_T = np.empty((vecs.shape[1], n))  # (k+1, n), factor 0 -> 1
+    padded_T[0] = 1.0
+    padded_T[1:] = vecs[:, 1:].T
+    out_T = padded_T[index[:, 0]]  # (K, n)
     for t in range(1, index.shape[1]):
-        out *= padded[:, index[:, t]]
-    out[:, 0] = vecs[:, 0]  # the constant column is φ0 itself
-    return out
+        out_T *= padded_T[index[:, t]]
+    out_T[0] = vecs[:, 0]  # the constant column is φ0 itself
+    return out_T.T
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,6 +117,7 @@ class ProductBasis:
     pairs: str
     index: np.ndarray = field(repr=False)
     _cache: dict = field(default_factory=dict, repr=False)
+    max_bytes: int = field(default=1 << 30, repr=False)  # above: blocked, never materialised
 
     @property
     def k(self) -> int:
@@ -196,16 +203,75 @@ class ProductBasis:
                 self._cache["fold"] = _ordered_to_unique(self.index, self.unique_index)
         return self._cache["fold"]
 
+    # ----------------------------------------------------- blocked products with B_s
+    # The solvers only need B_sᵀ A B_s, B_sᵀ Y and B_s X. Below ``max_bytes`` they use the
+    # cached matrix; above it they evaluate the product columns block of rows by block of
+    # rows, so the extended basis is never held in memory at once (100k vertices, k = 69:
+    # 2 GB avoided per shape).
+    def _materialize_solver(self) -> bool:
+        K_u = self.unique_index.shape[0]
+        return "solver" in self._cache or self.n * K_u * 8 <= self.max_bytes
+
+    def _solver_blocks(self):
+        """Yield ``(rows slice, B_s[rows])`` blocks (about 128 MB each)."""
+        uidx = self.unique_index
+        scale = None if self.pairs == "unique" else np.sqrt(_n_orderings(uidx))
+        step = max(1, int((128 << 20) // (8 * uidx.shape[0])))
+        for i0 in range(0, self.n, step):
+            rows = slice(i0, min(self.n, i0 + step))
+            block = evaluate_products(self.base.vecs[rows], uidx)
+            yield rows, (block if scale is None else block * scale)
+
+    def solver_gram(self) -> np.ndarray:
+        """``G_s = B_sᵀ A B_s`` ``(K_u, K_u)`` (cached), blocked for large meshes."""
+        if "gram" not in self._cache:
+            base = self.base
+            if self._materialize_solver() or not base.mass_is_diagonal:
+                B_s, _ = self.solver_basis()
+                if base.mass_is_diagonal:
+                    X = np.sqrt(base.mass)[:, None] * B_s
+                    G = X.T @ X
+                else:
+                    G = B_s.T @ (base.mass @ B_s)
+            else:
+                K_u = self.unique_index.shape[0]
+                G = np.zeros((K_u, K_u))
+                sq = np.sqrt(base.mass)
+                for rows, Bb in self._solver_blocks():
+                    X = sq[rows, None] * Bb
+                    G += X.T @ X
+            self._cache["gram"] = 0.5 * (G + G.T)
+        return self._cache["gram"]
+
+    def solver_rmatmul(self, Y: np.ndarray) -> np.ndarray:
+        """``B_sᵀ Y`` for ``Y`` ``(n,)`` or ``(n, m)``."""
+        if self._materialize_solver():
+            return self.solver_basis()[0].T @ Y
+        out = None
+        for rows, Bb in self._solver_blocks():
+            part = Bb.T @ Y[rows]
+            out = part if out is None else out + part
+        return out
+
+    def solver_matmul(self, X: np.ndarray) -> np.ndarray:
+        """``B_s X`` for ``X`` ``(K_u,)`` or ``(K_u, m)``."""
+        if self._materialize_solver():
+            return self.solver_basis()[0] @ X
+        out = np.empty((self.n,) + X.shape[1:])
+        for rows, Bb in self._solver_blocks():
+            out[rows] = Bb @ X
+        return out
+
     def evaluate(self, coefs: np.ndarray) -> np.ndarray:
         """The function(s) ``B @ coefs`` ``(n,)``/``(n, m)``, computed through the unique basis."""
         coefs = np.asarray(coefs, dtype=np.float64)
         if coefs.shape[0] != self.K:
             raise ValueError(f"coefficients have {coefs.shape[0]} rows, the basis has {self.K} columns")
         if self.pairs == "unique":
-            return self.matrix @ coefs
-        B_s, scale = self.solver_basis()
+            return self.solver_matmul(coefs)
+        scale = np.sqrt(_n_orderings(self.unique_index))
         cu = self.fold() @ coefs  # (K_u,) or (K_u, m)
-        return B_s @ (cu / (scale if cu.ndim == 1 else scale[:, None]))
+        return self.solver_matmul(cu / (scale if cu.ndim == 1 else scale[:, None]))
 
     def operator(self, method: str = "svd", **params):
         """A cached reusable approximation operator (see :func:`prodmaps.approx.operator`)."""

@@ -55,9 +55,14 @@ def sphere():
     return icosphere(3)  # 642 vertices
 
 
+@pytest.fixture(scope="module")
+def sb(sphere):
+    return pm.eigenbasis(sphere, 40)
+
+
 # ----------------------------------------------------------------------------- HKS / WKS / heat kernel
-def test_hks_is_heat_kernel_diagonal(sphere):
-    b = pm.eigenbasis(sphere, 30)
+def test_hks_is_heat_kernel_diagonal(sphere, sb):
+    b = sb.truncate(30)
     times = D.hks_times(b, 7)
     H = D.hks(b, times)
     assert H.shape == (sphere.n_vertices, 7)
@@ -67,8 +72,8 @@ def test_hks_is_heat_kernel_diagonal(sphere):
         np.testing.assert_allclose(K[idx, np.arange(idx.size)], H[idx, j], rtol=1e-12)
 
 
-def test_heat_kernel_symmetric_and_conserves_heat(sphere):
-    b = pm.eigenbasis(sphere, 40)
+def test_heat_kernel_symmetric_and_conserves_heat(sphere, sb):
+    b = sb
     idx = np.array([0, 10, 100, 300])
     K = D.heat_kernel(b, idx, 0.05)
     assert K.shape == (sphere.n_vertices, 4)
@@ -80,8 +85,8 @@ def test_heat_kernel_symmetric_and_conserves_heat(sphere):
     assert np.abs(K10 - K).max() > 1e-3 * np.abs(K).max()
 
 
-def test_default_sampling_matches_definitions(sphere):
-    b = pm.eigenbasis(sphere, 20)
+def test_default_sampling_matches_definitions(sb):
+    b = sb.truncate(20)
     t = D.hks_times(b, 5)
     lam = b.evals[1:]
     np.testing.assert_allclose([t[0], t[-1]], [4 * np.log(10) / lam.max(), 4 * np.log(10) / lam.min()])
@@ -94,8 +99,8 @@ def test_default_sampling_matches_definitions(sphere):
         D.wks_energies(b, 10)  # 10 energies cannot hold 2x2 sigma margins with variance 7
 
 
-def test_wks_scaling_and_formula(sphere):
-    b = pm.eigenbasis(sphere, 25)
+def test_wks_scaling_and_formula(sb):
+    b = sb.truncate(25)
     e, sigma = D.wks_energies(b, 50)
     W = D.wks(b, e, sigma)
     Wn = D.wks(b, e, sigma, scaled=False)
@@ -162,8 +167,8 @@ def test_hks_wks_rigid_and_scale_invariance(anny, anny_moved):
         (lambda b: D.hks_times(b, 0), "num"),
     ],
 )
-def test_spectral_bad_input(sphere, call, match):
-    b = pm.eigenbasis(sphere, 10)
+def test_spectral_bad_input(sb, call, match):
+    b = sb.truncate(10)
     with pytest.raises(ValueError, match=match):
         call(b)
 

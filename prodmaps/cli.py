@@ -1,0 +1,152 @@
+"""Command line: ``prodmaps reproduce | diff | report`` (also ``python -m prodmaps ...``).
+
+Examples::
+
+    prodmaps reproduce                                   # every run, paper profile, into results/
+    prodmaps reproduce --profile smoke --jobs 2          # fast versions, two at a time
+    prodmaps reproduce --only fig04 tab02 -p seed=3 --force
+    prodmaps reproduce --dataset faust --out results_faust
+    prodmaps reproduce --scheduler tcp://host:8786       # one task per run on a Dask cluster
+    prodmaps reproduce --profile smoke --update-baselines   # refresh paper/baselines/smoke/
+    prodmaps diff results/smoke/fig03 paper/baselines/smoke/fig03
+    prodmaps report results/paper                        # paper/REPORT.md and .html
+
+Exit status: 0 on success; 1 if a run failed or a diff found drift; 2 for usage errors.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["main", "build_parser"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="prodmaps", description="Reproduce the paper's figures and tables.")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("reproduce", help="run the registered notebooks (resumable, parallel)",
+                       description="Run the notebooks of paper/runs.toml with papermill. Unchanged runs "
+                                   "whose outputs exist are skipped; failures are isolated and summarised.")
+    r.add_argument("--only", nargs="+", metavar="RUN", help="run only these registry entries")
+    r.add_argument("--profile", choices=("smoke", "paper"), default="paper",
+                   help="smoke: small and fast (CI); paper: the paper's sizes (default)")
+    r.add_argument("--dataset", help="set the notebooks' `dataset` parameter (e.g. anny_humans, faust)")
+    r.add_argument("-p", "--param", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a notebook parameter; VALUE is read as JSON/TOML, else a string (repeatable)")
+    r.add_argument("--jobs", "-j", type=int, default=1, help="notebooks run at once in a local process pool")
+    r.add_argument("--out", default="results", help="output root; runs go to OUT/<profile>/<run>/ (default results/)")
+    r.add_argument("--force", action="store_true", help="rerun even if inputs are unchanged")
+    r.add_argument("--scheduler", metavar="ADDRESS", help="Dask distributed scheduler address (needs prodmaps[dask])")
+    r.add_argument("--update-baselines", action="store_true",
+                   help="copy results.json and PNGs of the runs into paper/baselines/<profile>/<run>/ (smoke only)")
+    r.add_argument("--registry", help="run registry file (default $PRODMAPS_RUNS or paper/runs.toml)")
+    r.add_argument("--timeout", type=float, default=None, help="per-cell timeout in seconds")
+    r.add_argument("--kernel", default="python3", help="Jupyter kernel name (default python3)")
+    r.add_argument("--report", metavar="PATH", help="where to write the report (default: paper/REPORT.md "
+                   "for the paper profile of the default registry, else OUT/<profile>/REPORT.md)")
+    r.add_argument("--no-report", action="store_true", help="do not write the report")
+    r.add_argument("--no-progress", action="store_true", help="plain lines instead of a progress bar")
+    r.add_argument("--list", action="store_true", help="list the registered runs and exit")
+
+    d = sub.add_parser("diff", help="compare a run folder with a baseline folder",
+                       description="Compare results.json (per-key tolerances) and PNGs (pixel RMS).")
+    d.add_argument("run_dir")
+    d.add_argument("baseline_dir")
+    d.add_argument("--run", help="registry entry whose [tolerances] apply (default: the baseline folder's name)")
+    d.add_argument("--registry", help="run registry file")
+    d.add_argument("--png-threshold", type=float, default=None, help="pixel RMS threshold (0-255, default 2.0)")
+    d.add_argument("--diff-dir", help="where side-by-side images go (default RUN_DIR/diff)")
+
+    rp = sub.add_parser("report", help="write paper/REPORT.md and REPORT.html from a results folder")
+    rp.add_argument("results_dir", nargs="?", default="results/paper", help="e.g. results/paper (default)")
+    rp.add_argument("--out", help="Markdown path (default paper/REPORT.md); HTML goes beside it")
+    rp.add_argument("--registry", help="run registry file")
+    rp.add_argument("--published", help="published tables CSV (default paper/published_tables.csv)")
+    return p
+
+
+def _cmd_reproduce(a) -> int:
+    from . import reproduce as rp
+
+    if a.list:
+        for name, run in rp.load_registry(a.registry).items():
+            print(f"{name:<28} {run.reproduces:<14} {run.notebook.relative_to(rp.REPO_ROOT) if rp.REPO_ROOT in run.notebook.parents else run.notebook}")
+        return 0
+    if a.jobs < 1:
+        raise ValueError("--jobs must be >= 1")
+    if a.update_baselines and a.profile != "smoke":
+        raise ValueError("--update-baselines refreshes the smoke baselines: add --profile smoke")
+    overrides = rp.parse_params(a.param)
+    t0 = time.perf_counter()
+    results = rp.reproduce(registry=a.registry, only=a.only, profile=a.profile, dataset=a.dataset,
+                           overrides=overrides, out=a.out, jobs=a.jobs, force=a.force,
+                           scheduler=a.scheduler, kernel_name=a.kernel, timeout=a.timeout,
+                           progress=not a.no_progress)
+    wall = time.perf_counter() - t0
+    print(rp.summary(results))
+    out_root = Path(a.out).resolve() / a.profile
+    print(f"wall time {wall:.1f} s; outputs in {out_root}")
+    if a.update_baselines:
+        dest = rp.baselines_dir(a.registry, a.profile)
+        done = rp.update_baselines(results, dest)
+        print(f"baselines updated for {len(done)} run(s) in {dest}: {' '.join(done)}")
+    if not a.no_report:
+        from .report import build_report
+
+        default_registry = rp.registry_path(a.registry) == rp.REPO_ROOT / "paper" / "runs.toml"
+        if a.report:
+            md = Path(a.report)
+        elif a.profile == "paper" and default_registry:
+            md = rp.REPO_ROOT / "paper" / "REPORT.md"
+        else:
+            md = out_root / "REPORT.md"
+        md, html = build_report(out_root, md, registry=a.registry)
+        print(f"report: {md} and {html}")
+    return 1 if any(r.status == "failed" for r in results) else 0
+
+
+def _cmd_diff(a) -> int:
+    from .diffing import DEFAULT_PNG_THRESHOLD, diff_runs
+    from .reproduce import load_registry
+
+    name = a.run or Path(a.baseline_dir).resolve().name
+    tolerances = {}
+    try:
+        runs = load_registry(a.registry)
+    except Exception:
+        runs = {}
+    if name in runs:
+        tolerances = runs[name].tolerances
+    elif a.run:
+        raise ValueError(f"run {a.run!r} is not in the registry")
+    thr = DEFAULT_PNG_THRESHOLD if a.png_threshold is None else a.png_threshold
+    rep = diff_runs(a.run_dir, a.baseline_dir, tolerances, png_threshold=thr, diff_dir=a.diff_dir)
+    print(rep.to_markdown())
+    return 0 if rep.ok else 1
+
+
+def _cmd_report(a) -> int:
+    from .report import build_report
+
+    md, html = build_report(a.results_dir, a.out, registry=a.registry, published=a.published)
+    print(f"report: {md} and {html}")
+    return 0
+
+
+def main(argv=None) -> int:
+    """Entry point of the ``prodmaps`` command; returns the exit status."""
+    parser = build_parser()
+    a = parser.parse_args(argv)
+    try:
+        return {"reproduce": _cmd_reproduce, "diff": _cmd_diff, "report": _cmd_report}[a.command](a)
+    except (ValueError, FileNotFoundError, ModuleNotFoundError) as exc:
+        print(f"prodmaps {a.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,286 @@
+"""Compare a run's outputs with a baseline: numbers with per-key tolerances, PNGs by pixel RMS.
+
+``diff_runs(run_dir, baseline_dir, tolerances)`` compares
+
+* ``results.json`` key by key. Nested dicts and lists are flattened to dotted keys from the
+  document root (``results.errors.std.k9``, ``results.curve.3``). Numbers pass when
+  ``|new - base| <= atol + rtol * |base|`` (default ``rtol = 1e-6``, ``atol = 1e-9``); strings,
+  booleans and nulls must be equal; a key present on one side only is a failure.
+  ``tolerances`` maps dotted-key globs (:mod:`fnmatch`, ``*`` also crosses dots) to
+  ``{"rtol": .., "atol": ..}`` or ``{"ignore": true}``; the longest matching glob wins.
+  Ignored by default: ``parameters.out_dir`` (where the run wrote), ``prodmaps_version`` and
+  ``versions.*`` (version differences are listed as notes, not failures).
+* every ``*.png`` at the top level of both folders by the RMS of the pixel difference over all
+  RGB channels (0-255 scale, default threshold 2.0). A size mismatch or a PNG present on one
+  side only is a failure. For each failing image a side-by-side picture
+  ``baseline | new | |difference| x amplify`` is written into the diff folder
+  (default ``<run_dir>/diff/``), together with ``report.md``.
+
+Pillow and numpy are imported inside the image functions.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["DEFAULT_RTOL", "DEFAULT_ATOL", "DEFAULT_PNG_THRESHOLD", "DEFAULT_IGNORE", "Finding",
+           "DiffReport", "diff_runs", "diff_results", "diff_images", "flatten", "tolerance_for",
+           "image_rms"]
+
+DEFAULT_RTOL = 1e-6
+DEFAULT_ATOL = 1e-9
+DEFAULT_PNG_THRESHOLD = 2.0
+DEFAULT_IGNORE = ("parameters.out_dir", "prodmaps_version", "versions", "versions.*")
+
+
+@dataclass
+class Finding:
+    """One compared item. ``kind`` is ``"number"``, ``"value"``, ``"key"`` or ``"image"``."""
+
+    kind: str
+    key: str
+    ok: bool
+    baseline: object = None
+    new: object = None
+    detail: str = ""
+    image: str = ""  # diff image path (failing images)
+
+
+@dataclass
+class DiffReport:
+    run_dir: str
+    baseline_dir: str
+    findings: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+    diff_dir: str = ""
+
+    @property
+    def failures(self) -> list:
+        return [f for f in self.findings if not f.ok]
+
+    @property
+    def ok(self) -> bool:
+        return not self.failures
+
+    def counts(self) -> dict:
+        nums = [f for f in self.findings if f.kind != "image"]
+        imgs = [f for f in self.findings if f.kind == "image"]
+        return {"values": len(nums), "values_failed": sum(not f.ok for f in nums),
+                "images": len(imgs), "images_failed": sum(not f.ok for f in imgs)}
+
+    def to_markdown(self, max_rows: int = 50) -> str:
+        c = self.counts()
+        verdict = "PASS" if self.ok else "FAIL"
+        lines = [f"## diff {verdict}: `{self.run_dir}` vs baseline `{self.baseline_dir}`", "",
+                 f"{c['values']} values compared, {c['values_failed']} drifted; "
+                 f"{c['images']} images compared, {c['images_failed']} drifted.", ""]
+        bad = [f for f in self.failures if f.kind != "image"]
+        if bad:
+            lines += ["| key | baseline | new | detail |", "|---|---|---|---|"]
+            for f in bad[:max_rows]:
+                lines.append(f"| `{f.key}` | {_fmt(f.baseline)} | {_fmt(f.new)} | {f.detail} |")
+            if len(bad) > max_rows:
+                lines.append(f"| ... {len(bad) - max_rows} more | | | |")
+            lines.append("")
+        bad = [f for f in self.failures if f.kind == "image"]
+        if bad:
+            lines += ["| image | detail | side by side |", "|---|---|---|"]
+            for f in bad:
+                lines.append(f"| `{f.key}` | {f.detail} | {f'`{f.image}`' if f.image else ''} |")
+            lines.append("")
+        for n in self.notes:
+            lines.append(f"- note: {n}")
+        return "\n".join(lines).rstrip() + "\n"
+
+    def __str__(self) -> str:
+        return self.to_markdown()
+
+
+def _fmt(v) -> str:
+    if v is None:
+        return "(missing)"
+    if isinstance(v, float):
+        return f"{v:.10g}"
+    s = json.dumps(v) if not isinstance(v, str) else repr(v)
+    return s if len(s) < 60 else s[:57] + "..."
+
+
+_MISSING = object()
+
+
+def flatten(obj, prefix: str = "") -> dict:
+    """Nested dicts/lists -> ``{dotted.key: leaf}``; empty containers are kept as leaves."""
+    out = {}
+    if isinstance(obj, dict) and obj:
+        for k, v in obj.items():
+            out.update(flatten(v, f"{prefix}.{k}" if prefix else str(k)))
+    elif isinstance(obj, list) and obj:
+        for i, v in enumerate(obj):
+            out.update(flatten(v, f"{prefix}.{i}" if prefix else str(i)))
+    else:
+        out[prefix] = obj
+    return out
+
+
+def tolerance_for(key: str, tolerances: dict | None) -> dict:
+    """``{"rtol", "atol", "ignore"}`` for ``key``: the longest matching glob, else the defaults."""
+    tol = {"rtol": DEFAULT_RTOL, "atol": DEFAULT_ATOL, "ignore": False}
+    globs = {g: {"ignore": True} for g in DEFAULT_IGNORE}
+    globs.update(tolerances or {})
+    best = None
+    for g in globs:
+        if fnmatch.fnmatchcase(key, g) and (best is None or len(g) > len(best)):
+            best = g
+    if best is not None:
+        spec = globs[best]
+        if not isinstance(spec, dict):
+            raise ValueError(f"tolerance for {best!r} must be a table like {{rtol = 1e-6, atol = 1e-9}}")
+        unknown = set(spec) - {"rtol", "atol", "ignore"}
+        if unknown:
+            raise ValueError(f"tolerance for {best!r}: unknown keys {sorted(unknown)} (use rtol, atol, ignore)")
+        tol.update({k: spec[k] for k in spec})
+    return tol
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def diff_results(new: dict, base: dict, tolerances: dict | None = None) -> list[Finding]:
+    """Compare two results documents (already parsed) key by key."""
+    fn, fb = flatten(new), flatten(base)
+    findings = []
+    for key in list(fb) + [k for k in fn if k not in fb]:
+        tol = tolerance_for(key, tolerances)
+        if tol["ignore"]:
+            continue
+        b, n = fb.get(key, _MISSING), fn.get(key, _MISSING)
+        if b is _MISSING:
+            findings.append(Finding("key", key, False, None, n, "extra key (not in the baseline)"))
+        elif n is _MISSING:
+            findings.append(Finding("key", key, False, b, None, "missing key (in the baseline only)"))
+        elif _is_number(b) and _is_number(n):
+            d = abs(float(n) - float(b))
+            allowed = float(tol["atol"]) + float(tol["rtol"]) * abs(float(b))
+            ok = d <= allowed and math.isfinite(float(n)) == math.isfinite(float(b))
+            findings.append(Finding("number", key, ok, b, n,
+                                    f"|diff| {d:.3g} {'<=' if ok else '>'} {allowed:.3g} "
+                                    f"(rtol {tol['rtol']:g}, atol {tol['atol']:g})"))
+        else:
+            ok = type(b) is type(n) and b == n
+            findings.append(Finding("value", key, ok, b, n, "" if ok else "values differ"))
+    return findings
+
+
+def image_rms(a, b) -> float:
+    """RMS of the pixel difference of two equally sized RGB uint8 arrays (0-255 scale)."""
+    import numpy as np
+
+    d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
+    return float(np.sqrt(np.mean(d * d)))
+
+
+def _load_rgb(path: Path):
+    import numpy as np
+    from PIL import Image
+
+    with Image.open(path) as im:
+        if im.mode in ("RGBA", "LA", "P"):
+            im = im.convert("RGBA")
+            bg = Image.new("RGBA", im.size, (255, 255, 255, 255))
+            im = Image.alpha_composite(bg, im)
+        return np.asarray(im.convert("RGB"), dtype=np.uint8)
+
+
+def _side_by_side(base, new, out: Path, amplify: float) -> None:
+    """Write ``baseline | new | |diff| * amplify`` (padded to a common height with grey)."""
+    import numpy as np
+    from PIL import Image
+
+    h = max(base.shape[0], new.shape[0])
+    w = max(base.shape[1], new.shape[1])
+
+    def pad(img):
+        canvas = np.full((h, w, 3), 128, dtype=np.uint8)
+        canvas[: img.shape[0], : img.shape[1]] = img
+        return canvas
+
+    pb, pn = pad(base), pad(new)
+    diff = np.clip(np.abs(pb.astype(np.int16) - pn.astype(np.int16)) * amplify, 0, 255).astype(np.uint8)
+    sep = np.zeros((h, 4, 3), dtype=np.uint8)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(np.concatenate([pb, sep, pn, sep, diff], axis=1)).save(out)
+
+
+def diff_images(run_dir, baseline_dir, *, threshold: float = DEFAULT_PNG_THRESHOLD,
+                diff_dir=None, amplify: float = 10.0) -> list[Finding]:
+    """Compare the top-level PNGs of two folders; write side-by-side images for failures."""
+    run_dir, baseline_dir = Path(run_dir), Path(baseline_dir)
+    diff_dir = Path(diff_dir) if diff_dir is not None else run_dir / "diff"
+    new = {p.name for p in run_dir.glob("*.png")}
+    base = {p.name for p in baseline_dir.glob("*.png")}
+    findings = []
+    for name in sorted(base | new):
+        if name not in new:
+            findings.append(Finding("image", name, False, detail="missing image (in the baseline only)"))
+            continue
+        if name not in base:
+            findings.append(Finding("image", name, False, detail="extra image (not in the baseline)"))
+            continue
+        a, b = _load_rgb(baseline_dir / name), _load_rgb(run_dir / name)
+        out = diff_dir / (Path(name).stem + "_diff.png")
+        if a.shape != b.shape:
+            _side_by_side(a, b, out, amplify)
+            findings.append(Finding("image", name, False, a.shape[:2], b.shape[:2],
+                                    f"size mismatch: baseline {a.shape[1]}x{a.shape[0]}, "
+                                    f"new {b.shape[1]}x{b.shape[0]}", str(out)))
+            continue
+        rms = image_rms(a, b)
+        ok = rms <= threshold
+        if not ok:
+            _side_by_side(a, b, out, amplify)
+        findings.append(Finding("image", name, ok, None, rms,
+                                f"pixel RMS {rms:.3f} {'<=' if ok else '>'} {threshold:g}", "" if ok else str(out)))
+    return findings
+
+
+def diff_runs(run_dir, baseline_dir, tolerances: dict | None = None, *,
+              png_threshold: float = DEFAULT_PNG_THRESHOLD, diff_dir=None,
+              write_report: bool = True) -> DiffReport:
+    """Compare ``run_dir`` with ``baseline_dir`` (see the module doc); returns a :class:`DiffReport`.
+
+    ``report.ok`` is False if any number drifted beyond its tolerance, a key or image is missing
+    or extra, or an image's pixel RMS exceeds ``png_threshold``. When there are failures the
+    side-by-side images and ``report.md`` are written into ``diff_dir``
+    (default ``<run_dir>/diff``).
+    """
+    run_dir, baseline_dir = Path(run_dir), Path(baseline_dir)
+    if not baseline_dir.is_dir():
+        raise FileNotFoundError(
+            f"baseline folder {baseline_dir} does not exist; create it deliberately with "
+            "`prodmaps reproduce --profile smoke --update-baselines --only RUN`")
+    if not run_dir.is_dir():
+        raise FileNotFoundError(f"run folder {run_dir} does not exist")
+    diff_dir = Path(diff_dir) if diff_dir is not None else run_dir / "diff"
+    rep = DiffReport(str(run_dir), str(baseline_dir), diff_dir=str(diff_dir))
+    rn, rb = run_dir / "results.json", baseline_dir / "results.json"
+    if rn.is_file() and rb.is_file():
+        new, base = json.loads(rn.read_text()), json.loads(rb.read_text())
+        rep.findings += diff_results(new, base, tolerances)
+        vn, vb = flatten(new.get("versions", {})), flatten(base.get("versions", {}))
+        for k in sorted(set(vn) | set(vb)):
+            if vn.get(k) != vb.get(k):
+                rep.notes.append(f"version of {k}: baseline {vb.get(k)}, new {vn.get(k)}")
+    else:
+        for p, side in ((rb, "baseline"), (rn, "run")):
+            if not p.is_file():
+                rep.findings.append(Finding("key", "results.json", False, detail=f"no results.json in the {side} folder"))
+    rep.findings += diff_images(run_dir, baseline_dir, threshold=png_threshold, diff_dir=diff_dir)
+    if write_report and not rep.ok:
+        diff_dir.mkdir(parents=True, exist_ok=True)
+        (diff_dir / "report.md").write_text(rep.to_markdown())
+    return rep

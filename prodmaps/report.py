@@ -1,0 +1,414 @@
+"""The reproduction report: ``paper/REPORT.md`` and ``paper/REPORT.html`` from a results folder.
+
+``build_report(results_dir)`` reads every run folder ``results_dir/<run>/`` written by
+``prodmaps reproduce`` (``results.json``, PNGs, ``manifest.json``) and writes a report with,
+per run: what it reproduces, status and run time, every figure (relative image links), the
+parameters, the package versions and the data it ran on; and per paper table: the published
+value, ours and the difference.
+
+Table values: how a notebook reports them
+-----------------------------------------
+A notebook that reproduces (part of) a paper table puts a list under ``"table"`` in its
+results (``nbtools.write_results(out_dir, {"table": [...], ...}, params)``), one entry per
+number, in the long format of ``paper/published_tables.csv``
+(columns ``table,fmap,k_M,k_N,function,stage,method,value``)::
+
+    {"table": 1, "function": "HKS", "stage": "transfer", "method": "std", "value": 0.5412,
+     "fmap": "ground_truth", "k_M": 9, "k_N": 9}
+
+* ``table``: the paper's table number (``1``, ``"1"``, ``"T1"`` and ``"Table 1"`` all work);
+* ``function``: exactly as in the CSV (case matters: ``"hk k"`` and ``"hk K"`` differ):
+  ``hk k``, ``hk K``, ``HKS``, ``WKS``, ``Random``, ``XYZ``, ``Indicator``, ``SHOT``, ``AWFT``;
+* ``stage``: ``"approx"`` or ``"transfer"``; ``method``: ``std``, ``our_l1``, ``our_l2``,
+  ``our_A``, ``our_B`` (as in the CSV); instead of ``stage`` and ``method`` a single
+  ``"column": "transfer_our_B"`` (``<stage>_<method>``) is accepted;
+* ``value``: our number (float, same normalisation as the paper: the relative error);
+* ``fmap`` (``ground_truth`` / ``computed_NO17``), ``k_M``, ``k_N`` (the paper's k, constant
+  not counted): optional, but needed where a table has several settings (Table 3 has both
+  ``k_M=6, k_N=7`` and ``k_M=27, k_N=35``). Given values must agree with the CSV row.
+
+An entry is matched to the CSV row that agrees on every field it gives (table, function,
+stage, method and whichever of fmap, k_M, k_N are present). Entries matching no row, or
+several, are listed in the report as unmatched. The difference is ``ours - published``;
+the paper prints two decimals, so ``|difference| <= 0.005`` is "as published".
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as _dt
+import html
+import json
+import os
+import platform
+import re
+import subprocess
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["PUBLISHED_CSV", "TABLE_KEYS", "load_published", "normalize_entry", "match_entries",
+           "collect_runs", "build_report"]
+
+from .reproduce import REPO_ROOT, load_registry
+
+PUBLISHED_CSV = REPO_ROOT / "paper" / "published_tables.csv"
+TABLE_KEYS = ("table", "fmap", "k_M", "k_N", "function", "stage", "method")
+_OPTIONAL = ("fmap", "k_M", "k_N")
+_PACKAGES = ("numpy", "scipy", "matplotlib", "pyvista", "vtk", "pymeshlab", "potpourri3d",
+             "robust-laplacian", "papermill", "nbclient", "ipykernel", "dask", "distributed")
+
+
+# ------------------------------------------------------------------------ published values
+def load_published(path=None) -> list[dict]:
+    """Rows of the published-tables CSV; ``value`` as float, the key columns as strings."""
+    path = Path(path) if path is not None else PUBLISHED_CSV
+    with open(path, newline="", encoding="utf-8") as fh:
+        rows = list(csv.DictReader(fh))
+    missing = set(TABLE_KEYS + ("value",)) - set(rows[0] if rows else ())
+    if missing:
+        raise ValueError(f"{path}: missing columns {sorted(missing)}")
+    for r in rows:
+        r["value"] = float(r["value"])
+    return rows
+
+
+def _table_id(v) -> str:
+    m = re.search(r"\d+", str(v))
+    if not m:
+        raise ValueError(f"table {v!r}: give the paper's table number, e.g. 1 or 'T1'")
+    return str(int(m.group(0)))
+
+
+def normalize_entry(entry: dict) -> dict:
+    """Validate one ``table`` entry and bring it to the CSV's key format (strings)."""
+    if not isinstance(entry, dict):
+        raise ValueError(f"table entry {entry!r} must be a dict")
+    e = dict(entry)
+    if "column" in e and ("stage" not in e or "method" not in e):
+        stage, _, method = str(e.pop("column")).partition("_")
+        e.setdefault("stage", stage)
+        e.setdefault("method", method)
+    missing = [k for k in ("table", "function", "stage", "method", "value") if k not in e]
+    if missing:
+        raise ValueError(f"table entry {entry!r} misses {missing}")
+    out = {"table": _table_id(e["table"]), "function": str(e["function"]),
+           "stage": str(e["stage"]), "method": str(e["method"]), "value": float(e["value"])}
+    for k in _OPTIONAL:
+        if e.get(k) is not None:
+            out[k] = str(int(e[k])) if k != "fmap" else str(e[k])
+    return out
+
+
+def match_entries(entries: list[dict], published: list[dict]):
+    """``(matches, unmatched)``: matches are ``(published_row, entry)``; unmatched ``(entry, reason)``."""
+    matches, unmatched = [], []
+    for raw in entries:
+        try:
+            e = normalize_entry(raw)
+        except (ValueError, TypeError) as exc:
+            unmatched.append((raw, str(exc)))
+            continue
+        keys = [k for k in TABLE_KEYS if k in e]
+        cands = [r for r in published if all(r[k] == e[k] for k in keys)]
+        if len(cands) == 1:
+            matches.append((cands[0], dict(e, run=raw.get("run", ""))))
+        elif not cands:
+            unmatched.append((raw, "no published value with these keys"))
+        else:
+            unmatched.append((raw, f"{len(cands)} published values match; add fmap/k_M/k_N"))
+    return matches, unmatched
+
+
+# ------------------------------------------------------------------------------ runs
+@dataclass
+class RunInfo:
+    name: str
+    folder: Path
+    reproduces: str = ""
+    title: str = ""
+    status: str = "missing"
+    seconds: float | None = None
+    doc: dict = field(default_factory=dict)
+    manifest: dict = field(default_factory=dict)
+    figures: list = field(default_factory=list)
+
+
+def _read_json(p: Path) -> dict:
+    try:
+        return json.loads(p.read_text())
+    except (OSError, ValueError):
+        return {}
+
+
+def collect_runs(results_dir, registry=None) -> list[RunInfo]:
+    """Registered runs (registry order) plus any other run folders found in ``results_dir``."""
+    results_dir = Path(results_dir)
+    try:
+        runs = load_registry(registry)
+    except Exception:
+        runs = {}
+    names = list(runs)
+    if results_dir.is_dir():
+        names += sorted(p.name for p in results_dir.iterdir()
+                        if p.is_dir() and not p.name.startswith(".") and p.name not in runs
+                        and ((p / "results.json").is_file() or (p / "manifest.json").is_file()))
+    infos = []
+    for n in names:
+        folder = results_dir / n
+        info = RunInfo(n, folder)
+        if n in runs:
+            info.reproduces, info.title = runs[n].reproduces, runs[n].title
+        info.doc = _read_json(folder / "results.json")
+        info.manifest = _read_json(folder / "manifest.json")
+        if info.manifest:
+            info.status = info.manifest.get("status", "?")
+            info.seconds = info.manifest.get("seconds")
+        elif info.doc:
+            info.status = "ok"
+        if folder.is_dir():
+            info.figures = sorted(folder.glob("*.png"))
+        infos.append(info)
+    return infos
+
+
+def _entries_of(info: RunInfo) -> list:
+    res = info.doc.get("results", {})
+    tab = res.get("table") if isinstance(res, dict) else None
+    tab = tab if tab is not None else info.doc.get("table")
+    if not isinstance(tab, list):
+        return []
+    return [dict(e, run=info.name) if isinstance(e, dict) else e for e in tab]
+
+
+# ------------------------------------------------------------------------------ rendering
+class _Doc:
+    """Tiny block document rendered to Markdown and to standalone HTML."""
+
+    def __init__(self):
+        self.blocks = []
+
+    def h(self, level, text):
+        self.blocks.append(("h", level, text))
+
+    def p(self, text):
+        self.blocks.append(("p", text))
+
+    def table(self, header, rows):
+        self.blocks.append(("table", header, rows))
+
+    def img(self, src, alt):
+        self.blocks.append(("img", src, alt))
+
+    def code(self, text):
+        self.blocks.append(("code", text))
+
+    def ul(self, items):
+        self.blocks.append(("ul", items))
+
+    def markdown(self) -> str:
+        out = []
+        for b in self.blocks:
+            if b[0] == "h":
+                out.append("#" * b[1] + " " + b[2])
+            elif b[0] == "p":
+                out.append(b[1])
+            elif b[0] == "table":
+                out.append("| " + " | ".join(b[1]) + " |")
+                out.append("|" + "---|" * len(b[1]))
+                out += ["| " + " | ".join(str(c).replace("|", "\\|") for c in r) + " |" for r in b[2]]
+            elif b[0] == "img":
+                out.append(f"![{b[2]}]({b[1]})")
+            elif b[0] == "code":
+                out.append("```\n" + b[1].rstrip() + "\n```")
+            elif b[0] == "ul":
+                out += [f"- {i}" for i in b[1]]
+            out.append("")
+        return "\n".join(out).rstrip() + "\n"
+
+    @staticmethod
+    def _inline(text: str) -> str:
+        s = html.escape(str(text))
+        s = re.sub(r"`([^`]+)`", r"<code>\1</code>", s)
+        return re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", s)
+
+    def html(self, title: str) -> str:
+        out = ["<!DOCTYPE html>", "<html><head><meta charset=\"utf-8\">", f"<title>{html.escape(title)}</title>",
+               "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em}"
+               "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:2px 8px;"
+               "text-align:right}th{background:#eee}td:first-child,th:first-child{text-align:left}"
+               "img{max-width:100%;border:1px solid #ddd;margin:.3em 0}pre{background:#f6f6f6;padding:.5em;"
+               "overflow-x:auto}.bad{color:#b00}</style></head><body>"]
+        for b in self.blocks:
+            if b[0] == "h":
+                out.append(f"<h{b[1]}>{self._inline(b[2])}</h{b[1]}>")
+            elif b[0] == "p":
+                out.append(f"<p>{self._inline(b[1])}</p>")
+            elif b[0] == "table":
+                out.append("<table><tr>" + "".join(f"<th>{self._inline(c)}</th>" for c in b[1]) + "</tr>")
+                out += ["<tr>" + "".join(f"<td>{self._inline(c)}</td>" for c in r) + "</tr>" for r in b[2]]
+                out.append("</table>")
+            elif b[0] == "img":
+                out.append(f"<p><img src=\"{html.escape(b[1])}\" alt=\"{html.escape(b[2])}\"></p>")
+            elif b[0] == "code":
+                out.append(f"<pre>{html.escape(b[1])}</pre>")
+            elif b[0] == "ul":
+                out.append("<ul>" + "".join(f"<li>{self._inline(i)}</li>" for i in b[1]) + "</ul>")
+        out.append("</body></html>")
+        return "\n".join(out) + "\n"
+
+
+def _git_commit() -> str:
+    try:
+        r = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO_ROOT, capture_output=True,
+                           text=True, timeout=10)
+        return r.stdout.strip() if r.returncode == 0 else "unknown"
+    except (OSError, subprocess.TimeoutExpired):
+        return "unknown"
+
+
+def _installed_versions() -> list[str]:
+    from importlib import metadata
+
+    out = []
+    for p in _PACKAGES:
+        try:
+            out.append(f"{p} {metadata.version(p)}")
+        except metadata.PackageNotFoundError:
+            pass
+    return out
+
+
+def _rel(path: Path, start: Path) -> str:
+    return Path(os.path.relpath(Path(path).resolve(), Path(start).resolve())).as_posix()
+
+
+def _show(path: Path) -> str:
+    """Path relative to the repository when inside it, else absolute."""
+    try:
+        return Path(path).resolve().relative_to(REPO_ROOT).as_posix()
+    except ValueError:
+        return str(path)
+
+
+def _num(v, signed=False) -> str:
+    return "" if v is None else (f"{v:+.3f}" if signed else f"{v:.3f}")
+
+
+def build_report(results_dir, out=None, *, registry=None, published=None, html_out=None):
+    """Write the Markdown and HTML reports for ``results_dir`` (e.g. ``results/paper``).
+
+    ``out`` defaults to ``paper/REPORT.md``; the HTML goes beside it (``.html``). Image links
+    are relative to the report's folder. Returns ``(md_path, html_path)``.
+    """
+    results_dir = Path(results_dir).resolve()
+    out = Path(out) if out is not None else REPO_ROOT / "paper" / "REPORT.md"
+    out = out.resolve()
+    html_out = Path(html_out) if html_out is not None else out.with_suffix(".html")
+    base = out.parent
+    infos = collect_runs(results_dir, registry)
+    pub_path = Path(published) if published is not None else PUBLISHED_CSV
+    published_rows = load_published(pub_path) if pub_path.is_file() else []
+    entries = [e for i in infos for e in _entries_of(i)]
+    matches, unmatched = match_entries(entries, published_rows)
+
+    d = _Doc()
+    d.h(1, "Reproduction report: Improved Functional Mappings via Product Preservation")
+    d.p("Nogneng, Melzi, Rodolà, Castellani, Bronstein, Ovsjanikov, Eurographics 2018. "
+        f"Generated by `prodmaps report` from `{_show(results_dir)}` on "
+        f"{_dt.datetime.now(_dt.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}, "
+        f"code at commit `{_git_commit()}`.")
+    d.p(f"Environment: Python {platform.python_version()} on {platform.system()} {platform.machine()}; "
+        + ", ".join(_installed_versions()) + ".")
+
+    d.h(2, "Runs")
+    rows = []
+    for i in infos:
+        n_tab = len(_entries_of(i))
+        rows.append([f"`{i.name}`", i.reproduces, i.status,
+                     "" if i.seconds is None else f"{i.seconds:.1f}", len(i.figures), n_tab or ""])
+    d.table(["run", "reproduces", "status", "time (s)", "figures", "table values"], rows)
+    failed = [i.name for i in infos if i.status not in ("ok",)]
+    if failed:
+        d.p("**Not reproduced (failed or not run):** " + ", ".join(f"`{n}`" for n in failed)
+            + ". A failed run keeps `error.txt` and `executed.ipynb` in its folder.")
+
+    if published_rows:
+        d.h(2, "Tables: published vs ours")
+        d.p("Relative errors (the paper's area-weighted normalised L2). Difference = ours − published; "
+            "the paper prints two decimals, so |difference| ≤ 0.005 is as published.")
+        by_key = {tuple(r[k] for k in TABLE_KEYS): e for r, e in matches}
+        for t in sorted({r["table"] for r in published_rows}, key=int):
+            prow = [r for r in published_rows if r["table"] == t]
+            got = [(r, by_key.get(tuple(r[k] for k in TABLE_KEYS))) for r in prow]
+            n_got = sum(e is not None for _, e in got)
+            settings = sorted({(r["fmap"], r["k_M"], r["k_N"]) for r in prow})
+            d.h(3, f"Table {t}")
+            desc = "; ".join(f"{f}, k_M = {a}, k_N = {b}" for f, a, b in settings)
+            diffs = [abs(e["value"] - r["value"]) for r, e in got if e is not None]
+            stat = (f" Mean |difference| {sum(diffs) / len(diffs):.3f}, max {max(diffs):.3f}; "
+                    f"{sum(x <= 0.005 for x in diffs)} of {len(diffs)} as published.") if diffs else ""
+            d.p(f"{desc}. {n_got} of {len(prow)} published values reproduced.{stat}")
+            multi = len(settings) > 1
+            header = (["k_M", "k_N"] if multi else []) + ["function", "stage", "method", "published", "ours",
+                                                          "difference", "run"]
+            trows = []
+            for r, e in got:
+                trows.append(([r["k_M"], r["k_N"]] if multi else []) + [
+                    r["function"], r["stage"], r["method"], f"{r['value']:.2f}",
+                    _num(e["value"]) if e else "—", _num(e["value"] - r["value"], True) if e else "",
+                    e["run"] if e else ""])
+            d.table(header, trows)
+    if unmatched:
+        d.h(3, "Table values that match no published number")
+        d.table(["run", "entry", "reason"],
+                [[e.get("run", "") if isinstance(e, dict) else "",
+                  "`" + json.dumps({k: v for k, v in e.items() if k != "run"} if isinstance(e, dict) else e) + "`",
+                  why] for e, why in unmatched])
+
+    d.h(2, "Figures and runs")
+    for i in infos:
+        d.h(3, f"{i.name}" + (f" — {i.reproduces}" if i.reproduces else ""))
+        if i.title:
+            d.p(i.title)
+        if i.status == "missing":
+            d.p(f"No outputs in `{_show(i.folder)}`: run `prodmaps reproduce --only {i.name}`.")
+            continue
+        line = f"Status **{i.status}**"
+        if i.seconds is not None:
+            line += f", {i.seconds:.1f} s"
+        if i.manifest.get("finished"):
+            line += f", finished {i.manifest['finished']}"
+        d.p(line + f"; outputs in `{_rel(i.folder, base)}`.")
+        if i.status == "failed":
+            err = (i.folder / "error.txt")
+            if err.is_file():
+                d.code("\n".join(err.read_text().splitlines()[:15]))
+        for fig in i.figures:
+            d.p(f"`{fig.name}`")
+            d.img(_rel(fig, base), f"{i.name} {fig.stem}")
+        params = i.doc.get("parameters", i.manifest.get("inputs", {}).get("parameters", {}))
+        if params:
+            d.p("Parameters:")
+            d.code(json.dumps(params, indent=1, sort_keys=True, default=str))
+        vers = dict(i.doc.get("versions", {}))
+        if i.doc.get("prodmaps_version"):
+            vers["prodmaps"] = i.doc["prodmaps_version"]
+        if i.manifest.get("python"):
+            vers["python"] = i.manifest["python"]
+        if vers:
+            d.p("Versions: " + ", ".join(f"{k} {v}" for k, v in sorted(vers.items())) + ".")
+        ds = params.get("dataset") if isinstance(params, dict) else None
+        fp = i.manifest.get("inputs", {}).get("data")
+        if ds or fp:
+            d.p(f"Data: `{ds or '(notebook default)'}`" + (f", fingerprint `{fp[:32]}`" if fp else "")
+                + " (the dataset's SHA256SUMS hash; see `data/<dataset>/SOURCE.md`).")
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    html_out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".tmp")
+    tmp.write_text(d.markdown(), encoding="utf-8")
+    os.replace(tmp, out)
+    tmp = html_out.with_name(html_out.name + ".tmp")
+    tmp.write_text(d.html("prodmaps reproduction report"), encoding="utf-8")
+    os.replace(tmp, html_out)
+    return out, html_out
