@@ -105,9 +105,11 @@ class Basis:
         return self.vecs @ coefs
 
     def truncate(self, k: int) -> "Basis":
-        """The first ``k`` columns (constant included) as a new basis."""
+        """The first ``k`` columns (constant included); ``self`` when ``k == self.k`` (keeps caches)."""
         if not 1 <= k <= self.k:
             raise ValueError(f"k must be in [1, {self.k}], got {k}")
+        if k == self.k:
+            return self
         return Basis(self.vecs[:, :k], self.evals[:k], self.mass, name=self.name)
 
     def __repr__(self) -> str:

@@ -40,6 +40,7 @@ __all__ = [
     "remove_degenerate_faces",
     "remove_duplicate_faces",
     "repair",
+    "subdivide_midpoint",
 ]
 
 
@@ -298,3 +299,24 @@ def repair(vertices, faces, *, name: str = "") -> tuple[Mesh, np.ndarray]:
     v, f, _ = remove_duplicate_faces(v, f)
     v, f, kept = largest_component(v, f)
     return Mesh(v, f, name=name), kept
+
+
+def subdivide_midpoint(vertices, faces, levels: int = 1):
+    """1-to-4 midpoint subdivision, ``levels`` times (the surface is unchanged).
+
+    Returns ``(vertices, faces)``; the first ``n`` vertices are the input vertices, so a
+    point map onto the coarse mesh stays valid for them. A closed mesh grows from ``n`` to
+    about ``4**levels * n`` vertices.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    for _ in range(levels):
+        e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)  # (3m, 2)
+        uniq, inv = np.unique(e, axis=0, return_inverse=True)
+        mid = v.shape[0] + inv.reshape(3, -1).T  # (m, 3): midpoints of edges 01, 12, 20
+        v = np.vstack([v, 0.5 * (v[uniq[:, 0]] + v[uniq[:, 1]])])
+        a, b, c = f.T
+        ab, bc, ca = mid.T
+        f = np.concatenate([np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1),
+                            np.stack([ca, bc, c], 1), np.stack([ab, bc, ca], 1)])
+    return v, f

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import prodmaps as pm
+from prodmaps.mesh import subdivide_midpoint
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "data" / "anny_humans"
@@ -20,15 +21,7 @@ def icosphere(subdivisions: int = 2) -> pm.Mesh:
     f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
                   [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
                   [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
-    for _ in range(subdivisions):
-        e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-        uniq, inv = np.unique(e, axis=0, return_inverse=True)
-        mid = v.shape[0] + inv.reshape(3, -1).T  # (m, 3) midpoints of edges 01, 12, 20
-        v = np.vstack([v, 0.5 * (v[uniq[:, 0]] + v[uniq[:, 1]])])
-        a, b, c = f.T
-        ab, bc, ca = mid.T
-        f = np.concatenate([np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1),
-                            np.stack([ca, bc, c], 1), np.stack([ab, bc, ca], 1)])
+    v, f = subdivide_midpoint(v, f, levels=subdivisions)
     v /= np.linalg.norm(v, axis=1, keepdims=True)
     return pm.Mesh(v, f, name="icosphere")
 
