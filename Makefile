@@ -8,7 +8,7 @@ OUT    ?= results
 PROFILE ?= paper
 JOBS   ?= 1
 
-.PHONY: reproduce test bench venv clean-venv strip-notebooks
+.PHONY: reproduce reproduce-smoke update-baselines report test bench venv clean-venv strip-notebooks
 
 venv: $(VENV)/.installed
 
@@ -21,6 +21,15 @@ $(VENV)/.installed: pyproject.toml
 
 reproduce: venv
 	$(PY) -m prodmaps reproduce --profile $(PROFILE) --out $(OUT) --jobs $(JOBS)
+
+reproduce-smoke: venv
+	$(PY) -m prodmaps reproduce --profile smoke --out $(OUT) --jobs $(JOBS)
+
+update-baselines: venv
+	$(PY) -m prodmaps reproduce --profile smoke --out $(OUT) --jobs $(JOBS) --update-baselines --force
+
+report: venv
+	$(PY) -m prodmaps report $(OUT)/paper
 
 test: venv
 	$(PY) -m pytest -q

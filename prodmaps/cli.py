@@ -49,6 +49,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--report", metavar="PATH", help="where to write the report (default: paper/REPORT.md "
                    "for the paper profile of the default registry, else OUT/<profile>/REPORT.md)")
     r.add_argument("--no-report", action="store_true", help="do not write the report")
+    r.add_argument("--copy-figures", action="store_true",
+                   help="copy the PNGs next to the report (report_figures/) instead of linking into OUT")
     r.add_argument("--no-progress", action="store_true", help="plain lines instead of a progress bar")
     r.add_argument("--list", action="store_true", help="list the registered runs and exit")
 
@@ -66,6 +68,8 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("--out", help="Markdown path (default paper/REPORT.md); HTML goes beside it")
     rp.add_argument("--registry", help="run registry file")
     rp.add_argument("--published", help="published tables CSV (default paper/published_tables.csv)")
+    rp.add_argument("--copy-figures", action="store_true",
+                    help="copy the PNGs into <report folder>/report_figures/ and link those")
     return p
 
 
@@ -104,7 +108,7 @@ def _cmd_reproduce(a) -> int:
             md = rp.REPO_ROOT / "paper" / "REPORT.md"
         else:
             md = out_root / "REPORT.md"
-        md, html = build_report(out_root, md, registry=a.registry)
+        md, html = build_report(out_root, md, registry=a.registry, copy_figures=a.copy_figures)
         print(f"report: {md} and {html}")
     return 1 if any(r.status == "failed" for r in results) else 0
 
@@ -132,7 +136,8 @@ def _cmd_diff(a) -> int:
 def _cmd_report(a) -> int:
     from .report import build_report
 
-    md, html = build_report(a.results_dir, a.out, registry=a.registry, published=a.published)
+    md, html = build_report(a.results_dir, a.out, registry=a.registry, published=a.published,
+                            copy_figures=a.copy_figures)
     print(f"report: {md} and {html}")
     return 0
 

@@ -8,8 +8,10 @@
   booleans and nulls must be equal; a key present on one side only is a failure.
   ``tolerances`` maps dotted-key globs (:mod:`fnmatch`, ``*`` also crosses dots) to
   ``{"rtol": .., "atol": ..}`` or ``{"ignore": true}``; the longest matching glob wins.
-  Ignored by default: ``parameters.out_dir`` (where the run wrote), ``prodmaps_version`` and
-  ``versions.*`` (version differences are listed as notes, not failures).
+  Ignored by default: ``parameters.out_dir`` (where the run wrote), ``prodmaps_version``,
+  ``versions.*`` (version differences are listed as notes, not failures) and wall times:
+  any key named ``seconds`` or ending in ``_seconds`` (with everything below it) — notebook
+  authors, name timings that way.
 * every ``*.png`` at the top level of both folders by the RMS of the pixel difference over all
   RGB channels (0-255 scale, default threshold 2.0). A size mismatch or a PNG present on one
   side only is a failure. For each failing image a side-by-side picture
@@ -34,7 +36,9 @@ __all__ = ["DEFAULT_RTOL", "DEFAULT_ATOL", "DEFAULT_PNG_THRESHOLD", "DEFAULT_IGN
 DEFAULT_RTOL = 1e-6
 DEFAULT_ATOL = 1e-9
 DEFAULT_PNG_THRESHOLD = 2.0
-DEFAULT_IGNORE = ("parameters.out_dir", "prodmaps_version", "versions", "versions.*")
+DEFAULT_IGNORE = ("parameters.out_dir", "prodmaps_version", "versions", "versions.*",
+                  # wall times are never reproducible: keys named `seconds` or ending in `_seconds`
+                  "*.seconds", "*.seconds.*", "*_seconds", "*_seconds.*")
 
 
 @dataclass

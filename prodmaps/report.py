@@ -42,6 +42,7 @@ import json
 import os
 import platform
 import re
+import shutil
 import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -171,6 +172,15 @@ def collect_runs(results_dir, registry=None) -> list[RunInfo]:
     return infos
 
 
+_MAX_NUMBERS = 40
+
+
+def _flatten(obj, prefix=""):
+    from .diffing import flatten
+
+    return flatten(obj, prefix) if obj else {}
+
+
 def _entries_of(info: RunInfo) -> list:
     res = info.doc.get("results", {})
     tab = res.get("table") if isinstance(res, dict) else None
@@ -294,11 +304,14 @@ def _num(v, signed=False) -> str:
     return "" if v is None else (f"{v:+.3f}" if signed else f"{v:.3f}")
 
 
-def build_report(results_dir, out=None, *, registry=None, published=None, html_out=None):
+def build_report(results_dir, out=None, *, registry=None, published=None, html_out=None,
+                 copy_figures: bool = False):
     """Write the Markdown and HTML reports for ``results_dir`` (e.g. ``results/paper``).
 
     ``out`` defaults to ``paper/REPORT.md``; the HTML goes beside it (``.html``). Image links
-    are relative to the report's folder. Returns ``(md_path, html_path)``.
+    are relative to the report's folder. ``copy_figures=True`` copies the PNGs into
+    ``<report folder>/report_figures/<run>/`` and links those instead (so a committed report
+    shows its figures although ``results/`` is not committed). Returns ``(md_path, html_path)``.
     """
     results_dir = Path(results_dir).resolve()
     out = Path(out) if out is not None else REPO_ROOT / "paper" / "REPORT.md"
@@ -385,11 +398,25 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
                 d.code("\n".join(err.read_text().splitlines()[:15]))
         for fig in i.figures:
             d.p(f"`{fig.name}`")
+            if copy_figures:
+                dest = base / "report_figures" / i.name / fig.name
+                dest.parent.mkdir(parents=True, exist_ok=True)
+                shutil.copyfile(fig, dest)
+                fig = dest
             d.img(_rel(fig, base), f"{i.name} {fig.stem}")
+        res = i.doc.get("results", {})
+        nums = [(k, v) for k, v in _flatten(res).items()
+                if not k.startswith("table.") and isinstance(v, (int, float)) and not isinstance(v, bool)]
+        if nums:
+            shown = nums[:_MAX_NUMBERS]
+            d.p("Numbers" + (f" (first {_MAX_NUMBERS} of {len(nums)}; all in `results.json`)"
+                             if len(nums) > _MAX_NUMBERS else "") + ":")
+            d.table(["result", "value"], [[f"`{k}`", f"{v:.6g}" if isinstance(v, float) else v] for k, v in shown])
         params = i.doc.get("parameters", i.manifest.get("inputs", {}).get("parameters", {}))
         if params:
             d.p("Parameters:")
-            d.code(json.dumps(params, indent=1, sort_keys=True, default=str))
+            d.table(["parameter", "value"],
+                    [[f"`{k}`", f"`{json.dumps(v, default=str)}`"] for k, v in sorted(params.items())])
         vers = dict(i.doc.get("versions", {}))
         if i.doc.get("prodmaps_version"):
             vers["prodmaps"] = i.doc["prodmaps_version"]
@@ -399,9 +426,11 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
             d.p("Versions: " + ", ".join(f"{k} {v}" for k, v in sorted(vers.items())) + ".")
         ds = params.get("dataset") if isinstance(params, dict) else None
         fp = i.manifest.get("inputs", {}).get("data")
-        if ds or fp:
-            d.p(f"Data: `{ds or '(notebook default)'}`" + (f", fingerprint `{fp[:32]}`" if fp else "")
-                + " (the dataset's SHA256SUMS hash; see `data/<dataset>/SOURCE.md`).")
+        if fp == "none" and not ds:
+            d.p("Data: none (synthetic domain, no dataset files).")
+        elif ds or fp:
+            d.p(f"Data: `{ds or '(notebook default)'}`" + (f", fingerprint `{fp[:40]}`" if fp else "")
+                + f" (hash of `data/{ds or '<dataset>'}/SHA256SUMS`; provenance in `data/{ds or '<dataset>'}/SOURCE.md`).")
 
     out.parent.mkdir(parents=True, exist_ok=True)
     html_out.parent.mkdir(parents=True, exist_ok=True)

@@ -25,11 +25,14 @@ given), then the ``-p key=value`` overrides, and always ``profile`` and ``out_di
 Outputs and resumability
 ------------------------
 Run ``X`` of profile ``P`` writes into ``OUT/P/X/``: whatever the notebook writes
-(``results.json``, PNGs), the executed notebook ``executed.ipynb`` and ``manifest.json``.
+(``results.json``, PNGs), the executed notebook ``executed.ipynb``, the kernel's stderr
+``kernel.log`` (local runs) and ``manifest.json``.
 The manifest records a hash over the notebook's bytes, the parameters, the library code
 (every ``prodmaps/*.py``), the input data (the dataset's ``SHA256SUMS`` file, or the sizes and
 modification times of its files) and the kernel name. A run whose hash is unchanged, whose
 last execution succeeded and whose outputs still exist is skipped (``force=True`` redoes it).
+Hashes are over contents, not modification times: ``touch`` alone reruns nothing, an edit
+(or a fresh clone with other bytes) does. Editing any ``prodmaps/*.py`` reruns every run.
 
 Each run executes into a temporary folder beside its target (``OUT/P/.X.tmp-*``) which is then
 renamed into place, so ``OUT/P/X`` is never half written. A failing run keeps its executed
@@ -320,9 +323,7 @@ def _relocate_out_dir(results: Path, tmp: Path, final: Path) -> None:
 def _mkdtemp_beside(target: Path, name: str) -> Path:
     """A fresh hidden folder next to ``target`` with the usual (umask) permissions."""
     tmp = Path(tempfile.mkdtemp(prefix=f".{name}.tmp-", dir=target.parent))
-    mask = os.umask(0)
-    os.umask(mask)
-    os.chmod(tmp, 0o777 & ~mask)
+    os.chmod(tmp, 0o755)  # mkdtemp makes it 0700
     return tmp
 
 
@@ -367,6 +368,8 @@ def _execute_task(task: dict) -> dict:
     target.parent.mkdir(parents=True, exist_ok=True)
     for env, val in (task.get("env") or {}).items():
         os.environ.setdefault(env, val)
+    for stale in target.parent.glob(f".{name}.tmp-*"):  # left by an interrupted invocation
+        shutil.rmtree(stale, ignore_errors=True)
     tmp = _mkdtemp_beside(target, name)
     t0 = time.perf_counter()
     error = ""
@@ -377,7 +380,10 @@ def _execute_task(task: dict) -> dict:
         _relocate_out_dir(tmp / "results.json", tmp, target)
         if not (tmp / "results.json").is_file():
             raise RuntimeError("the notebook finished but wrote no results.json into out_dir")
-    except Exception as exc:  # failure isolation: record everything, never raise
+    except BaseException as exc:  # failure isolation: record everything, never raise
+        if not isinstance(exc, Exception):  # Ctrl-C / SystemExit: leave no temporary folder behind
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
         if exc.__class__.__name__ == "PapermillExecutionError":
             tb = "\n".join(getattr(exc, "traceback", []) or [])
             error = f"{getattr(exc, 'ename', 'Error')}: {getattr(exc, 'evalue', exc)}\n\n{_ANSI.sub('', tb)}"
@@ -519,7 +525,7 @@ def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None,
                 bar.done(r)
         elif jobs <= 1 or len(todo) <= 1:
             for t in todo:
-                r = _execute_task(t)
+                r = _safe_execute(t)
                 results[r["name"]] = r
                 bar.done(r)
         else:
@@ -537,6 +543,15 @@ def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None,
         if own_stream is not None:
             own_stream.close()
     return [RunResult(**results[t["name"]]) for t in tasks]
+
+
+def _safe_execute(task) -> dict:
+    """:func:`_execute_task` in this process; an unexpected error fails that run only."""
+    try:
+        return _execute_task(task)
+    except Exception as exc:  # e.g. the output folder is not writable
+        msg = f"could not run: {type(exc).__name__}: {exc}"
+        return RunResult(task["name"], "failed", 0.0, task["run_dir"], msg).to_dict()
 
 
 def _collect(fut, task) -> dict:

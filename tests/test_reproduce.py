@@ -1,0 +1,380 @@
+"""The reproduction pipeline: registry, CLI, resumability, --force, failure isolation, atomic
+outputs, baselines, Dask, and the report. Uses tiny throwaway notebooks in tmp_path."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import nbformat
+import pytest
+
+from prodmaps import cli, reproduce as rp
+from prodmaps.diffing import diff_runs
+from prodmaps.report import build_report, match_entries, normalize_entry, load_published
+
+ROOT = Path(__file__).resolve().parents[1]
+PY = sys.executable
+
+TINY_PARAMS = """profile = "smoke"
+out_dir = "results/tiny"
+dataset = "tinyset"
+seed = 0
+value = 1.0
+fail = False
+"""
+
+TINY_BODY = """import numpy as np
+from PIL import Image
+from prodmaps import nbtools
+if fail:
+    raise RuntimeError("injected failure for the test")
+rng = np.random.default_rng(seed)
+x = rng.standard_normal(5)
+results = {"value_twice": 2 * value, "draws": x, "sum": float(x.sum() * value)}
+nbtools.write_results(out_dir, results, {"profile": profile, "seed": seed, "value": value, "dataset": dataset})
+img = (np.outer(np.linspace(0, 255, 24), np.ones(32)) * value % 256).astype(np.uint8)
+Image.fromarray(np.stack([img, img[::-1], img], axis=-1)).save(f"{out_dir}/ramp.png")
+print("tiny done", results["sum"])
+"""
+
+
+def write_tiny_notebook(path: Path, extra: str = "") -> Path:
+    nb = nbformat.v4.new_notebook()
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    nb.cells = [
+        nbformat.v4.new_markdown_cell("# Tiny test notebook" + extra),
+        nbformat.v4.new_code_cell(TINY_PARAMS, metadata={"tags": ["parameters"]}),
+        nbformat.v4.new_code_cell(TINY_BODY),
+    ]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    nbformat.write(nb, str(path))
+    return path
+
+
+def write_registry(tmp: Path, entries: dict) -> Path:
+    """entries: {name: (notebook relative path, {profile: params})}."""
+    lines = ['root = ".."', ""]
+    for name, (nb, params) in entries.items():
+        lines += [f"[runs.{name}]", f'notebook = "{nb}"', f'reproduces = "Test {name}"']
+        for prof in ("smoke", "paper"):
+            lines.append(f"[runs.{name}.params.{prof}]")
+            for k, v in params.get(prof, {}).items():
+                lines.append(f"{k} = {json.dumps(v)}")
+        lines.append("")
+    reg = tmp / "paper" / "runs.toml"
+    reg.parent.mkdir(parents=True, exist_ok=True)
+    reg.write_text("\n".join(lines))
+    return reg
+
+
+@pytest.fixture()
+def project(tmp_path, monkeypatch):
+    """A throwaway project: two tiny notebooks, a registry, a data root with one dataset."""
+    write_tiny_notebook(tmp_path / "notebooks" / "tiny_a.ipynb")
+    write_tiny_notebook(tmp_path / "notebooks" / "tiny_b.ipynb")
+    reg = write_registry(tmp_path, {
+        "tiny_a": ("notebooks/tiny_a.ipynb", {"smoke": {"value": 1.5}, "paper": {"value": 3.0}}),
+        "tiny_b": ("notebooks/tiny_b.ipynb", {"smoke": {"value": 2.0}}),
+    })
+    data = tmp_path / "data" / "tinyset"
+    data.mkdir(parents=True)
+    (data / "SHA256SUMS").write_text("0000  shape.ply\n")
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    monkeypatch.setenv("PRODMAPS_DATA", str(tmp_path / "data"))
+    return tmp_path
+
+
+def _statuses(capsys_text: str) -> str:
+    return [l for l in capsys_text.splitlines() if l.startswith(("2 run", "3 run", "1 run"))][0]
+
+
+def _main(args, capsys):
+    rc = cli.main(args + ["--no-progress", "--no-report"])
+    out = capsys.readouterr()
+    return rc, out.out + out.err
+
+
+# ----------------------------------------------------------------------------- registry
+def test_registry_loads_and_resolves_paths(project):
+    runs = rp.load_registry()  # through $PRODMAPS_RUNS
+    assert list(runs) == ["tiny_a", "tiny_b"]
+    assert runs["tiny_a"].notebook == (project / "notebooks" / "tiny_a.ipynb").resolve()
+    assert runs["tiny_a"].parameters("smoke") == {"value": 1.5}
+    assert runs["tiny_b"].parameters("paper") == {}
+    assert rp.baselines_dir() == project / "paper" / "baselines" / "smoke"
+
+
+def test_default_registry_lists_the_paper_runs(monkeypatch):
+    monkeypatch.delenv("PRODMAPS_RUNS", raising=False)
+    runs = rp.load_registry()
+    assert {"fig02", "fig03"} <= set(runs)
+    for r in runs.values():
+        assert r.notebook.is_file(), f"{r.name}: {r.notebook} does not exist"
+        assert r.reproduces
+
+
+@pytest.mark.parametrize("body, message", [
+    ('[runs.x]\nreproduces = "F1"\n', "missing `notebook"),
+    ('[runs.x]\nnotebook = "a.ipynb"\ncolour = 1\n', "unknown keys"),
+    ('[runs.x]\nnotebook = "a.ipynb"\n[runs.x.params.smoke]\nout_dir = "z"\n', "must not set"),
+    ('[runs."bad name"]\nnotebook = "a.ipynb"\n', "run names"),
+    ('[runs.x\nnotebook = "a.ipynb"\n', "not valid TOML"),
+])
+def test_registry_errors_name_the_problem(tmp_path, body, message):
+    reg = tmp_path / "runs.toml"
+    reg.write_text(body)
+    with pytest.raises(rp.RegistryError, match=message):
+        rp.load_registry(reg)
+    with pytest.raises(rp.RegistryError, match="not found"):
+        rp.load_registry(tmp_path / "nope.toml")
+
+
+def test_parse_param_literals():
+    assert rp.parse_param("k=3") == ("k", 3)
+    assert rp.parse_param("rtol=1e-3") == ("rtol", 1e-3)
+    assert rp.parse_param("ks=[4, 8]") == ("ks", [4, 8])
+    assert rp.parse_param("flag=true") == ("flag", True)
+    assert rp.parse_param("name=hello world") == ("name", "hello world")
+    assert rp.parse_param("name='quoted'") == ("name", "quoted")  # TOML literal string
+    assert rp.parse_param("opts={a = 1}") == ("opts", {"a": 1})  # TOML inline table
+    assert rp.parse_param("s=a=b") == ("s", "a=b")
+    with pytest.raises(ValueError, match="key=value"):
+        rp.parse_param("novalue")
+    with pytest.raises(ValueError, match="identifier"):
+        rp.parse_param("1x=2")
+
+
+def test_run_hash_tracks_notebook_params_and_data(project):
+    runs = rp.load_registry()
+    (h0,) = [t["hash"] for t in rp.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "o")]
+    again = rp.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "elsewhere")[0]
+    assert again["hash"] == h0  # the output folder is not an input
+    assert again["inputs"]["data"].startswith("sha256sums:")
+    assert rp.plan_runs(runs, only=["tiny_a"], profile="paper", out=project / "o")[0]["hash"] != h0
+    assert rp.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "o",
+                        overrides={"seed": 1})[0]["hash"] != h0
+    (project / "data" / "tinyset" / "SHA256SUMS").write_text("1111  shape.ply\n")
+    assert rp.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "o")[0]["hash"] != h0
+    t = rp.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "o", dataset="other")[0]
+    assert t["params"]["dataset"] == "other" and t["inputs"]["data"] == "missing:other"
+    with pytest.raises(ValueError, match="unknown run"):
+        rp.plan_runs(runs, only=["nope"], profile="smoke")
+    with pytest.raises(ValueError, match="unknown profile"):
+        rp.plan_runs(runs, profile="huge")
+
+
+# ----------------------------------------------------------------------------- running
+@pytest.mark.slow
+def test_cli_runs_resumes_forces_and_reruns_only_changed(project, capsys):
+    out = project / "results"
+    (out / "smoke" / ".tiny_a.tmp-interrupted").mkdir(parents=True)  # left by a killed invocation
+    args = ["reproduce", "--profile", "smoke", "--out", str(out)]
+    rc, text = _main(args, capsys)
+    assert rc == 0, text
+    assert "2 ran, 0 skipped" in _statuses(text)
+    a = json.loads((out / "smoke" / "tiny_a" / "results.json").read_text())
+    assert a["results"]["value_twice"] == 3.0  # registry smoke params reached the notebook
+    assert a["parameters"]["profile"] == "smoke"
+    for name in ("tiny_a", "tiny_b"):
+        d = out / "smoke" / name
+        assert {"results.json", "ramp.png", "executed.ipynb", "manifest.json"} <= {p.name for p in d.iterdir()}
+        m = json.loads((d / "manifest.json").read_text())
+        assert m["status"] == "ok" and m["seconds"] > 0 and set(m["outputs"]) == {"results.json", "ramp.png"}
+    assert not [p for p in (out / "smoke").iterdir() if p.name.startswith(".")]  # no temp folders left
+
+    rc, text = _main(args, capsys)  # unchanged: everything skipped
+    assert rc == 0 and "0 ran, 2 skipped" in _statuses(text)
+
+    write_tiny_notebook(project / "notebooks" / "tiny_b.ipynb", extra=" (edited)")  # change one notebook
+    rc, text = _main(args, capsys)
+    assert rc == 0 and "1 ran, 1 skipped" in _statuses(text)
+    assert "ok       tiny_b" in text and "skipped  tiny_a" in text
+
+    (out / "smoke" / "tiny_a" / "ramp.png").unlink()  # a missing output forces a rerun
+    rc, text = _main(args + ["--only", "tiny_a"], capsys)
+    assert "1 ran, 0 skipped" in _statuses(text) and (out / "smoke" / "tiny_a" / "ramp.png").is_file()
+
+    rc, text = _main(args + ["--only", "tiny_a", "--force", "-p", "value=4"], capsys)
+    assert rc == 0 and "1 ran" in _statuses(text)
+    a = json.loads((out / "smoke" / "tiny_a" / "results.json").read_text())
+    assert a["results"]["value_twice"] == 8.0
+
+    rc, text = _main(args + ["--only", "tiny_a", "--force", "-p", "value=4"], capsys)
+    b = json.loads((out / "smoke" / "tiny_a" / "results.json").read_text())
+    assert b == a  # reruns give identical numbers
+
+
+@pytest.mark.slow
+def test_failure_is_isolated_kept_and_summarised(project, capsys):
+    write_tiny_notebook(project / "notebooks" / "tiny_c.ipynb")
+    write_registry(project, {
+        "tiny_a": ("notebooks/tiny_a.ipynb", {"smoke": {"value": 1.5}}),
+        "broken": ("notebooks/tiny_c.ipynb", {"smoke": {"fail": True}}),
+        "tiny_b": ("notebooks/tiny_b.ipynb", {"smoke": {"value": 2.0}}),
+    })
+    out = project / "results"
+    rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(out), "--jobs", "2"], capsys)
+    assert rc == 1
+    assert "2 ran, 0 skipped (unchanged), 1 failed" in text
+    assert "FAILED broken: cell" in text and "injected failure for the test" in text
+    for name in ("tiny_a", "tiny_b"):
+        assert (out / "smoke" / name / "results.json").is_file()
+    bad = out / "smoke" / "broken"
+    assert "RuntimeError: injected failure for the test" in (bad / "error.txt").read_text()
+    executed = nbformat.read(str(bad / "executed.ipynb"), as_version=4)
+    errors = [o for c in executed.cells if c.cell_type == "code" for o in c.get("outputs", [])
+              if o.get("output_type") == "error"]
+    assert errors and errors[0]["evalue"] == "injected failure for the test"
+    assert json.loads((bad / "manifest.json").read_text())["status"] == "failed"
+
+    # next invocation retries only the failure; fixing it (params) makes it pass
+    rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(out)], capsys)
+    assert rc == 1 and "0 ran, 2 skipped (unchanged), 1 failed" in text
+    rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(out), "--only", "broken",
+                      "-p", "fail=false"], capsys)
+    assert rc == 0 and (bad / "results.json").is_file() and not (bad / "error.txt").exists()
+
+
+def test_missing_notebook_fails_that_run_only(project, capsys):
+    write_registry(project, {
+        "ghost": ("notebooks/does_not_exist.ipynb", {}),
+        "tiny_a": ("notebooks/tiny_a.ipynb", {"smoke": {"value": 1.5}}),
+    })
+    out = project / "results"
+    rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(out)], capsys)
+    assert rc == 1 and "FAILED ghost" in text
+    assert "does_not_exist.ipynb" in (out / "smoke" / "ghost" / "error.txt").read_text()
+    assert (out / "smoke" / "tiny_a" / "results.json").is_file()
+
+
+def test_usage_errors_exit_2(project, capsys):
+    assert cli.main(["reproduce", "--only", "nope", "--no-progress"]) == 2
+    assert "unknown run" in capsys.readouterr().err
+    assert cli.main(["reproduce", "--profile", "paper", "--update-baselines"]) == 2
+    assert "--profile smoke" in capsys.readouterr().err
+    assert cli.main(["reproduce", "--jobs", "0"]) == 2
+
+
+def test_swap_into_place_replaces_atomically(tmp_path):
+    target = tmp_path / "run"
+    target.mkdir()
+    (target / "old.txt").write_text("old")
+    new = tmp_path / ".run.tmp-1"
+    new.mkdir()
+    (new / "new.txt").write_text("new")
+    rp._swap_into_place(new, target)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+    assert [p.name for p in target.iterdir()] == ["new.txt"]
+
+
+def test_update_baselines_then_diff_passes_and_detects_drift(project, capsys):
+    out = project / "results"
+    rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(out), "--only", "tiny_a",
+                      "--update-baselines"], capsys)
+    assert rc == 0 and "baselines updated for 1 run(s)" in text
+    base = project / "paper" / "baselines" / "smoke" / "tiny_a"
+    assert sorted(p.name for p in base.iterdir()) == ["ramp.png", "results.json"]
+    assert cli.main(["diff", str(out / "smoke" / "tiny_a"), str(base)]) == 0
+    assert "diff PASS" in capsys.readouterr().out
+    # a run with other parameters drifts: the diff names the key and the image
+    rc, _ = _main(["reproduce", "--profile", "smoke", "--out", str(out), "--only", "tiny_a",
+                   "-p", "value=1.6"], capsys)
+    assert rc == 0
+    rep = diff_runs(out / "smoke" / "tiny_a", base)
+    keys = {f.key for f in rep.failures}
+    assert {"results.value_twice", "results.sum", "parameters.value", "ramp.png"} <= keys
+    assert "results.draws.0" not in keys  # same seed, same draws
+    assert cli.main(["diff", str(out / "smoke" / "tiny_a"), str(base)]) == 1
+    assert "diff FAIL" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+def test_dask_localcluster_gives_the_local_numbers(project, capsys):
+    distributed = pytest.importorskip("distributed")  # part of prodmaps[dask], installed by `make test`
+    local = project / "local"
+    rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(local)], capsys)
+    assert rc == 0, text
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(project / "dask"),
+                          "--scheduler", cluster.scheduler_address], capsys)
+        assert rc == 0, text
+        assert "2 ran, 0 skipped" in text
+        with distributed.Client(cluster) as client:  # both workers were available
+            assert len(client.scheduler_info()["workers"]) == 2
+    for name in ("tiny_a", "tiny_b"):
+        a = json.loads((local / "smoke" / name / "results.json").read_text())
+        b = json.loads((project / "dask" / "smoke" / name / "results.json").read_text())
+        assert a["results"] == b["results"] and a["parameters"] == b["parameters"]
+        assert diff_runs(project / "dask" / "smoke" / name, local / "smoke" / name).ok
+
+
+def test_python_m_prodmaps_entry_point(project):
+    r = subprocess.run([PY, "-m", "prodmaps", "reproduce", "--list"], cwd=ROOT, capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert "tiny_a" in r.stdout and "tiny_b" in r.stdout  # PRODMAPS_RUNS is inherited
+    r = subprocess.run([PY, "-m", "prodmaps", "frobnicate"], cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 2
+
+
+# ----------------------------------------------------------------------------- report
+def test_table_entries_match_published_rows():
+    pub = load_published()
+    assert len(pub) == 306 and {"table", "fmap", "k_M", "k_N", "function", "stage", "method"} <= set(pub[0])
+    m, u = match_entries([
+        {"table": 1, "function": "HKS", "stage": "transfer", "method": "std", "value": 0.55},
+        {"table": "T1", "function": "WKS", "column": "transfer_our_B", "value": 0.04},
+        {"table": 3, "function": "HKS", "stage": "transfer", "method": "std", "value": 0.1},  # ambiguous
+        {"table": 3, "function": "HKS", "stage": "transfer", "method": "std", "value": 0.1, "k_M": 6, "k_N": 7},
+        {"table": 1, "function": "hks", "stage": "transfer", "method": "std", "value": 0.1},  # case matters
+        {"table": 1, "function": "HKS", "stage": "transfer", "method": "std", "value": 0.1, "k_M": 10},
+        {"function": "HKS"},
+    ], pub)
+    assert [(r["table"], r["function"], r["method"], r["value"]) for r, _ in m] == [
+        ("1", "HKS", "std", 0.54), ("1", "WKS", "our_B", 0.04), ("3", "HKS", "std", m[2][0]["value"])]
+    assert m[2][0]["k_M"] == "6"
+    reasons = [why for _, why in u]
+    assert "add fmap/k_M/k_N" in reasons[0] and reasons[1] == reasons[2] == "no published value with these keys"
+    assert "misses" in reasons[3]
+    assert normalize_entry({"table": "Table 2", "function": "XYZ", "stage": "approx", "method": "std",
+                            "value": 1})["table"] == "2"
+
+
+def test_report_has_figures_tables_parameters_and_data(tmp_path, monkeypatch):
+    monkeypatch.setenv("PRODMAPS_RUNS", str(write_registry(tmp_path, {
+        "tab01": ("notebooks/x.ipynb", {}), "fig09": ("notebooks/y.ipynb", {})})))
+    res = tmp_path / "results" / "paper"
+    run = res / "tab01"
+    run.mkdir(parents=True)
+    entries = [{"table": 1, "function": "HKS", "stage": "transfer", "method": "std", "value": 0.5512},
+               {"table": 1, "function": "Nope", "stage": "transfer", "method": "std", "value": 0.3}]
+    doc = {"parameters": {"dataset": "anny_humans", "k_M": 9}, "results": {"table": entries, "err": {"k9": 0.25}},
+           "prodmaps_version": "0.1.0", "versions": {"numpy": "2.4.6", "scipy": "1.17.1"}}
+    (run / "results.json").write_text(json.dumps(doc))
+    (run / "manifest.json").write_text(json.dumps({"status": "ok", "seconds": 12.5, "python": "3.11.7",
+                                                   "inputs": {"data": "sha256sums:abcdef"}}))
+    from PIL import Image
+    Image.new("RGB", (8, 8), "red").save(run / "panel.png")
+    md, html = build_report(res, tmp_path / "paper" / "REPORT.md")
+    text = md.read_text()
+    assert "| HKS | transfer | std | 0.54 | 0.551 | +0.011 | tab01 |" in text
+    assert "1 of 54 published values reproduced" in text
+    assert "Nope" in text and "no published value" in text  # unmatched entry is listed
+    assert "![tab01 panel](../results/paper/tab01/panel.png)" in text
+    assert (md.parent / "../results/paper/tab01/panel.png").resolve().is_file()
+    assert "| `k_M` | `9` |" in text and "numpy 2.4.6" in text and "`anny_humans`" in text and "sha256sums:abcdef" in text
+    assert "| `err.k9` | 0.25 |" in text and "table.0" not in text
+    assert "`fig09`" in text and "Not reproduced (failed or not run):** `fig09`" in text
+    assert cli.main(["report", str(res), "--out", str(tmp_path / "r2" / "R.md")]) == 0
+    assert "](../results/paper/tab01/panel.png)" in (tmp_path / "r2" / "R.md").read_text()
+    assert (tmp_path / "r2" / "R.html").is_file()
+    assert cli.main(["report", str(res), "--out", str(tmp_path / "r3" / "R.md"), "--copy-figures"]) == 0
+    assert "](report_figures/tab01/panel.png)" in (tmp_path / "r3" / "R.md").read_text()
+    assert (tmp_path / "r3" / "report_figures" / "tab01" / "panel.png").is_file()
+    h = html.read_text()
+    assert h.startswith("<!DOCTYPE html>") and '<img src="../results/paper/tab01/panel.png"' in h
+    assert "<td>+0.011</td>" in h
