@@ -76,6 +76,8 @@ from .basis import Basis
 __all__ = [
     "ground_truth",
     "first_column",
+    "laplacian_mask",
+    "multiplication_operators",
     "NO17Terms",
     "no17_terms",
     "energy_and_gradient",

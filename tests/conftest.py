@@ -49,3 +49,40 @@ def basis_0(human_0):
 @pytest.fixture(scope="session")
 def basis_13(human_13):
     return pm.eigenbasis(human_13, 40)
+
+
+@pytest.fixture(scope="session")
+def smoke_run(tmp_path_factory):
+    """``smoke_run(name)``: run a registered notebook's smoke profile once per test session.
+
+    Returns the run's output folder (``results.json``, PNGs, ``executed.ipynb``). The baseline
+    diff (tests/test_notebooks.py) and the claim tests share the same execution.
+    """
+    from prodmaps import reproduce as rp
+
+    runs = rp.load_registry(ROOT / "paper" / "runs.toml")
+    cache = {}
+
+    def get(name):
+        if name not in cache:
+            run = runs[name]
+            params = run.parameters("smoke")
+            params["profile"] = "smoke"
+            out = tmp_path_factory.mktemp("smoke") / name
+            try:
+                rp.run_notebook(run.notebook, out, params, kernel_name="python3", cwd=ROOT)
+                cache[name] = out
+            except Exception as exc:  # keep the failure for every test that asks
+                cache[name] = exc
+        if isinstance(cache[name], Exception):
+            pytest.fail(f"{name}: the smoke notebook failed: {cache[name]}")
+        return cache[name]
+
+    return get
+
+
+def smoke_results(smoke_run, name):
+    """The ``results`` dict of a run's smoke execution."""
+    import json
+
+    return json.loads((smoke_run(name) / "results.json").read_text())["results"]

@@ -28,19 +28,13 @@ HEAVY = ("matplotlib", "pyvista", "vtk", "pymeshlab", "potpourri3d", "robust_lap
 
 @pytest.mark.notebook
 @pytest.mark.parametrize("name", list(RUNS))
-def test_smoke_run_matches_baseline(name, tmp_path):
+def test_smoke_run_matches_baseline(name, tmp_path, smoke_run):
     run = RUNS[name]
     base = BASELINES / name
     assert base.is_dir(), (
         f"no baseline for {name} in {base.relative_to(ROOT)}; create it deliberately with "
         f"`python -m prodmaps reproduce --profile smoke --update-baselines --only {name}`")
-    params = run.parameters("smoke")
-    params["profile"] = "smoke"
-    out = tmp_path / name
-    try:
-        rp.run_notebook(run.notebook, out, params, kernel_name="python3", cwd=ROOT)
-    except Exception as exc:  # show the failing cell, not papermill's wrapper only
-        pytest.fail(f"{name}: the smoke notebook failed: {exc}\n(executed copy: {out / 'executed.ipynb'})")
+    out = smoke_run(name)  # executed once per session, shared with the claim tests
     rep = diff_runs(out, base, run.tolerances, diff_dir=tmp_path / "diff")
     assert rep.ok, f"{name} drifted from its baseline:\n{rep.to_markdown()}"
     if name in EXTRA_CHECKS:
