@@ -169,15 +169,20 @@ def operator(basis, method: str = "svd", *, rtol: float = 1e-3, eps: float = 1e-
             )
         if route != "gram":
             raise ValueError(f"route must be 'auto', 'svd' or 'gram', got {route!r}")
-        G = _gram(basis)
-        w, V = sla.eigh(G)  # ascending
-        w, V = w[::-1], V[:, ::-1]
+        w, V, side = _gram_eig(basis)
         s = np.sqrt(np.maximum(w, 0.0))
         r = int(np.sum(s > rtol * s[0]))
         Vr = V[:, :r]
+        if side == "primal":  # V: right singular vectors (K_u, K_u)
+            return ApproximationOperator(
+                basis, method, params | {"route": "gram"},
+                _M=(Vr / s[:r] ** 2) @ Vr.T, _sV=s[:r, None] * Vr.T,
+            )
+        X = np.sqrt(base.mass)[:, None] * basis.solver_basis()[0]  # (n, K_u); V: left vectors (n, n)
+        XtU = X.T @ Vr  # (K_u, r) = V_r Σ_r
         return ApproximationOperator(
-            basis, method, params | {"route": "gram"},
-            _M=(Vr / s[:r] ** 2) @ Vr.T, _sV=s[:r, None] * Vr.T,
+            basis, method, params | {"route": "gram", "side": "dual"},
+            _P=XtU / s[:r] ** 2, _U=np.ascontiguousarray(Vr), _sV=XtU.T.copy(),
         )
     G = _gram(basis)
     if method == "ridge":
@@ -190,6 +195,29 @@ def operator(basis, method: str = "svd", *, rtol: float = 1e-3, eps: float = 1e-
     if eps <= 0:
         raise ValueError(f"lasso needs eps > 0, got {eps}")
     return ApproximationOperator(basis, method, params, _G=G)
+
+
+def _gram_eig(basis):
+    """Eigenpairs, descending, of the smaller Gram matrix of ``X = sqrt(A) B_s``.
+
+    Returns ``(w, V, side)``: ``side="primal"``: ``XᵀX = V diag(w) Vᵀ`` (``K_u x K_u``);
+    ``side="dual"`` when ``K_u > n`` (e.g. order-4 products): ``XXᵀ = U diag(w) Uᵀ``
+    (``n x n``), far cheaper than the ``K_u x K_u`` problem. The eigenpairs do not depend on
+    ``rtol``, so a ProductBasis caches them and every threshold reuses one decomposition.
+    """
+    cache = basis._cache if isinstance(basis, ProductBasis) else {}
+    if "gram_eig" not in cache:
+        base = basis.base if isinstance(basis, ProductBasis) else basis
+        K_u = basis.unique_index.shape[0] if isinstance(basis, ProductBasis) else basis.k
+        if isinstance(basis, ProductBasis) and K_u > base.n and base.mass_is_diagonal:
+            X = np.sqrt(base.mass)[:, None] * basis.solver_basis()[0]
+            w, V = sla.eigh(X @ X.T)
+            side = "dual"
+        else:
+            w, V = sla.eigh(_gram(basis))
+            side = "primal"
+        cache["gram_eig"] = (w[::-1], V[:, ::-1], side)
+    return cache["gram_eig"]
 
 
 def _rmatmul(basis, Y):

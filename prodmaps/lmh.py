@@ -1,7 +1,7 @@
 """Localized Manifold Harmonics (LMH) and the "MH + LMH" bases of Figure 10.
 
 Reference: S. Melzi, E. Rodolà, U. Castellani, M. M. Bronstein, "Localized Manifold Harmonics
-for Spectral Shape Analysis", Computer Graphics Forum 37(6), 2018 (arXiv 1707.02596).
+for Spectral Shape Analysis", Computer Graphics Forum 2018, doi:10.1111/cgf.13309 (arXiv 1707.02596).
 
 Formulation (as implemented here)
 ---------------------------------

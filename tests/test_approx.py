@@ -126,3 +126,24 @@ def test_wrong_length_is_rejected(b10):
         pm.approximate(np.zeros(b10.n + 1), b10, "std")
     with pytest.raises(ValueError, match="method"):
         pm.approximate(np.zeros(b10.n), b10, "magic")
+
+
+def test_dual_gram_route_when_more_columns_than_points():
+    """K_u > n (order-4 products on a coarse sphere): the n x n route equals the SVD route."""
+    from conftest import icosphere
+
+    sphere = icosphere(2)  # 162 vertices
+    b = pm.eigenbasis(sphere, 9)
+    ext = pm.product_basis(b, 4, "unique")  # 495 columns > 162 points
+    assert ext.K > b.n
+    F = np.column_stack([sphere.vertices, np.random.default_rng(8).normal(size=(b.n, 2))])
+    op_gram = pm.operator(ext, "svd", rtol=1e-3, route="gram")
+    assert op_gram.params.get("side") == "dual"
+    op_svd = pm.operator(ext, "svd", rtol=1e-3, route="svd")
+    a_g, a_s = op_gram.coefficients(F), op_svd.coefficients(F)
+    assert np.abs(a_g - a_s).max() <= 1e-8 * np.abs(a_s).max()
+    a = np.random.default_rng(9).normal(size=(ext.K, 2))
+    # canonical coefficients are defined up to a rotation within repeated singular values:
+    # compare what is invariant, their norms and their Gram matrix
+    cg, cs = op_gram.canonical(a), op_svd.canonical(a)
+    np.testing.assert_allclose(cg.T @ cg, cs.T @ cs, rtol=1e-8)
