@@ -21,7 +21,7 @@ from .products import ProductBasis, product_basis
 from .approx import ApproximationOperator, approximate, operator
 from .transfer import extend_fmap, fmap_from_p2p, transfer
 from .metrics import area_fraction_curve, relative_error
-from . import mesh, io, basis, products, approx, metrics, datasets, geodesics, descriptors, functions, fmaps, p2p, lmh
+from . import mesh, io, basis, products, approx, metrics, datasets, geodesics, descriptors, functions, fmaps, p2p, lmh, truncation
 
 __all__ = [
     "Mesh", "MeshError", "load_mesh", "save_mesh", "laplacian", "Basis", "eigenbasis",

@@ -1,0 +1,191 @@
+"""Claims of Tables 1-6, Figure 8 and the truncation study on the smoke results.
+
+Each notebook's smoke profile runs once through papermill (module-scoped fixtures, temporary
+folders); the tests read its ``results.json``.
+
+Asserted as the paper states them (they reproduce on the embedded data, Table 1 setting:
+ground-truth map, ``k_M = k_N = 9``, Approach B with the paper's ``rtol = 1e-3``):
+
+* WKS and Random functions (in or near the span of the products) are transferred with
+  products at less than half the standard error; approximations with products are better
+  than the standard ones for WKS, Random, XYZ and Indicator; ``hk k`` lies in the span of the
+  basis (standard approximation exact).
+* Figure 8: the approximation curves (dashed) with products lie above the standard ones for the
+  indicator.
+
+Asserted as *our* findings (the truncation study; not claims of the paper): on the default data
+the paper's ``rtol = 1e-3`` keeps singular directions whose transfer gain is far above 1, and
+``rtol = 1e-2`` transfers coordinates and indicators better; the map-based "gain" rule does at
+least as well as the fixed threshold there, the source-only cross-validation does not.
+
+Not asserted (measured and shown in the notebooks and the report, whatever the outcome): HKS
+(our HKS family is smooth: the standard transfer is already near exact), products beating the
+standard transfer for XYZ, Indicator, SHOT, AWFT, hk K at ``rtol = 1e-3``, and every claim
+with computed maps (Tables 2 and 4, Figure 8's transfer curves).
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from prodmaps import nbtools
+from prodmaps.report import load_published, match_entries
+
+ROOT = Path(__file__).resolve().parents[1]
+TABLES_NB = ROOT / "notebooks" / "tables_transfer.ipynb"
+FIG08_NB = ROOT / "notebooks" / "fig08_area_curves.ipynb"
+STUDY_NB = ROOT / "notebooks" / "study_truncation.ipynb"
+
+pytestmark = pytest.mark.notebook
+
+
+def _run(smoke_run, name):
+    """The registered run's smoke execution, shared with the baseline diff (conftest.smoke_run)."""
+    d = smoke_run(name)
+    doc = nbtools.read_results(d)
+    assert doc["parameters"]["profile"] == "smoke"
+    return d, doc["results"]
+
+
+@pytest.fixture(scope="module")
+def tab01(smoke_run):
+    return _run(smoke_run, "tab01")
+
+
+@pytest.fixture(scope="module")
+def tab02(smoke_run):
+    return _run(smoke_run, "tab02")
+
+
+@pytest.fixture(scope="module")
+def fig08(smoke_run):
+    return _run(smoke_run, "fig08")
+
+
+@pytest.fixture(scope="module")
+def study(smoke_run):
+    return _run(smoke_run, "study_truncation")
+
+
+@pytest.mark.parametrize("nb", [TABLES_NB, FIG08_NB, STUDY_NB], ids=lambda p: p.stem)
+def test_notebook_committed_clean_with_parameters_cell(nb):
+    import json
+
+    assert not nbtools.notebook_has_outputs(nb), f"{nb.name}: strip outputs before committing"
+    cells = json.loads(nb.read_text())["cells"]
+    assert cells[0]["cell_type"] == "markdown"
+    assert cells[1]["metadata"].get("tags") == ["parameters"]
+    src = "".join(cells[1]["source"])
+    for key in ("profile", "dataset", "out_dir", "seed"):
+        assert f"{key} =" in src
+
+
+# ------------------------------------------------------------------------------ Table 1
+def test_table1_outputs_well_formed(tab01):
+    d, res = tab01
+    for f in ("T1_ours.csv", "T1_vs_published.csv", "table.json", "T1_vs_published.png"):
+        assert (d / f).is_file(), f
+    assert len(res["pairs"]) == 2 and res["fmap"] == "ground_truth"
+    matches, unmatched = match_entries(res["table"], load_published())
+    assert not unmatched, unmatched
+    # every published T1 cell of the smoke families is filled, with a finite error
+    labels = set(res["errors"]["k9_9"]["transfer"]["std"])
+    assert len(matches) == 6 * len(labels)
+    assert all(np.isfinite(e["value"]) and e["value"] >= 0 for e in res["table"])
+    assert res["map_deviation_from_gt"]["k9_9"]["mean"] < 1e-12  # the ground-truth map
+
+
+def test_table1_hkk_in_span(tab01):
+    _, res = tab01
+    e = res["errors"]["k9_9"]
+    assert e["approx"]["std"]["hk k"] < 1e-8  # the heat kernels from k_M + 1 eigenpairs lie in the basis
+
+
+@pytest.mark.parametrize("fam", ["WKS", "Random"])
+@pytest.mark.parametrize("method", ["our_l1", "our_l2", "our_B"])
+def test_table1_products_far_below_std_transfer(tab01, fam, method):
+    _, res = tab01
+    t = res["errors"]["k9_9"]["transfer"]
+    assert t[method][fam] < 0.5 * t["std"][fam], (fam, method, t[method][fam], t["std"][fam])
+
+
+@pytest.mark.parametrize("fam", ["WKS", "Random", "XYZ", "Indicator"])
+def test_table1_products_improve_approximation(tab01, fam):
+    _, res = tab01
+    a = res["errors"]["k9_9"]["approx"]
+    for method in ("our_l1", "our_l2", "our_B"):
+        assert a[method][fam] < a["std"][fam], (fam, method)
+
+
+# ------------------------------------------------------------------------------ Table 2
+@pytest.mark.slow
+def test_table2_computed_maps_well_formed(tab02):
+    _, res = tab02
+    assert res["fmap"] == "computed_NO17" and res["settings"] == [[29, 39]]
+    matches, unmatched = match_entries(res["table"], load_published())
+    assert not unmatched and len(matches) == len(res["table"]) > 0
+    dev = res["map_deviation_from_gt"]["k29_39"]["per_pair"]
+    assert all(0.0 < v < 1.0 for v in dev)  # a computed map: close to, not equal to, the ground truth
+    for st in ("approx", "transfer"):
+        for m, row in res["errors"]["k29_39"][st].items():
+            assert all(np.isfinite(v) and v >= 0 for v in row.values()), (st, m)
+
+
+# ------------------------------------------------------------------------------ Figure 8
+@pytest.mark.slow
+def test_fig08_curves_are_area_fractions(fig08):
+    d, res = fig08
+    assert (d / "fig08_area_curves.png").is_file()
+    g = np.asarray(res["gamma"])
+    assert g[0] == 0.0 and g[-1] == 1.0
+    for crit in res["curves"].values():
+        for st in crit.values():
+            for m in st.values():
+                for c in m.values():
+                    c = np.asarray(c)
+                    assert c.shape == g.shape
+                    assert np.all(np.diff(c) >= -1e-12) and c.min() >= 0 and c.max() <= 1 + 1e-12
+
+
+@pytest.mark.slow
+def test_fig08_products_improve_indicator_approximation(fig08):
+    _, res = fig08
+    for crit in ("paper", "scale_free"):
+        auc = res["auc"][crit]["approx"]
+        assert auc["B"]["Indicator"] > auc["std"]["Indicator"]
+        assert auc["l2"]["Indicator"] > auc["std"]["Indicator"]
+
+
+# ------------------------------------------------------------------------------ truncation study
+@pytest.mark.slow
+def test_study_gains_explain_the_threshold(study):
+    _, res = study
+    for key, g in res["median_max_gain_of_kept_directions"].items():
+        assert g["0.001"] > 5.0, key    # 1e-3 keeps directions amplified several times by the transfer
+        assert g["0.1"] < 2.0, key      # the leading directions are transferred with gain about 1
+        assert g["0.0001"] >= g["0.001"] >= g["0.01"] >= g["0.1"], key
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fam", ["XYZ", "Indicator"])
+def test_study_1e2_beats_paper_threshold_and_gain_rule_helps(study, fam):
+    _, res = study
+    rt = [float(r) for r in res["rtols"]]
+    for key, summ in res["summary"].items():
+        s = summ[fam]
+        err = s["rtol"]["transfer"]
+        assert err[rt.index(1e-2)] < err[rt.index(1e-3)], key
+        ch = s["chosen"]
+        assert ch["gain"]["transfer"] <= ch["paper"]["transfer"] + 1e-12, key
+        assert ch["gain"]["transfer"] < ch["cv"]["transfer"], key   # source-only CV keeps too much
+        # the map part dominates the error at the paper's threshold
+        assert s["rtol"]["map_part"][rt.index(1e-3)] > s["rtol"]["approx"][rt.index(1e-3)], key
+
+
+@pytest.mark.slow
+def test_study_wks_products_far_below_std_at_every_threshold(study):
+    _, res = study
+    for key, summ in res["summary"].items():
+        s = summ["WKS"]
+        assert max(s["rtol"]["transfer"]) < 0.5 * s["std_transfer"], key
