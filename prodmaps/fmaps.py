@@ -72,6 +72,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .basis import Basis
+from .transfer import check_fmap, fmap_from_p2p
 
 __all__ = [
     "ground_truth",
@@ -102,33 +103,7 @@ def _check_basis(basis, name: str) -> Basis:
 
 
 def _check_fmap(C, basis_1: Basis, basis_2: Basis) -> np.ndarray:
-    C = np.asarray(C, dtype=np.float64)
-    if C.ndim != 2:
-        raise ValueError(f"C_12 must be a 2D array (k2, k1); got shape {C.shape}")
-    k2, k1 = C.shape
-    if k1 > basis_1.k or k2 > basis_2.k:
-        raise ValueError(
-            f"C_12 has shape (k2, k1) = {C.shape} but basis_1 has {basis_1.k} and basis_2 "
-            f"{basis_2.k} columns; C_12 must be (k2 <= {basis_2.k}, k1 <= {basis_1.k}) "
-            "(rows index shape 2, columns shape 1)"
-        )
-    if not np.all(np.isfinite(C)):
-        raise ValueError("C_12 contains non-finite values")
-    return C
-
-
-def _check_p2p(p2p, n_target: int, n_source: int, name: str = "p2p_21") -> np.ndarray:
-    p2p = np.asarray(p2p)
-    if p2p.ndim != 1 or p2p.shape[0] != n_target:
-        raise ValueError(
-            f"{name} must have shape ({n_target},) (one source vertex per vertex of shape 2); "
-            f"got {p2p.shape}"
-        )
-    if not np.issubdtype(p2p.dtype, np.integer):
-        raise ValueError(f"{name} must hold integer vertex indices, got dtype {p2p.dtype}")
-    if p2p.size and (p2p.min() < 0 or p2p.max() >= n_source):
-        raise ValueError(f"{name} holds indices outside [0, {n_source}) (shape 1 has {n_source} vertices)")
-    return p2p.astype(np.int64, copy=False)
+    return check_fmap(C, basis_1, basis_2, allow_truncation=True)
 
 
 def ground_truth(p2p_21, basis_1: Basis, basis_2: Basis) -> np.ndarray:
@@ -140,8 +115,7 @@ def ground_truth(p2p_21, basis_1: Basis, basis_2: Basis) -> np.ndarray:
     """
     _check_basis(basis_1, "basis_1")
     _check_basis(basis_2, "basis_2")
-    p2p = _check_p2p(p2p_21, basis_2.n, basis_1.n)
-    return basis_2.project(basis_1.vecs[p2p])  # (k2, k1)
+    return fmap_from_p2p(p2p_21, basis_1, basis_2)  # (k2, k1)
 
 
 def first_column(basis_1: Basis, basis_2: Basis, k2: int | None = None) -> np.ndarray:

@@ -88,22 +88,9 @@ def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None
 
 
 def _check_inputs(C_12, basis_1, basis_2) -> np.ndarray:
-    for b, name in ((basis_1, "basis_1"), (basis_2, "basis_2")):
-        if not isinstance(b, Basis):
-            raise TypeError(f"{name} must be a prodmaps.Basis, got {type(b).__name__}")
-    C = np.asarray(C_12, dtype=np.float64)
-    if C.ndim != 2:
-        raise ValueError(f"C_12 must be 2D (k2, k1); got shape {C.shape}")
-    k2, k1 = C.shape
-    if k1 > basis_1.k or k2 > basis_2.k:
-        raise ValueError(
-            f"C_12 has shape (k2, k1) = {C.shape} but basis_1 has {basis_1.k} columns and basis_2 "
-            f"{basis_2.k}: rows of C_12 index shape 2, columns index shape 1 (transpose it or "
-            "pass the bases in the other order?)"
-        )
-    if not np.all(np.isfinite(C)):
-        raise ValueError("C_12 contains non-finite values")
-    return C
+    from .transfer import check_fmap
+
+    return check_fmap(C_12, basis_1, basis_2, allow_truncation=True)
 
 
 def heat_square_coefficients(basis: Basis, t: float, n_eig: int, pairs: str = "unique", points=None) -> np.ndarray:

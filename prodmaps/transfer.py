@@ -40,10 +40,26 @@ def check_p2p(p2p_21, n1: int, n2: int) -> np.ndarray:
     return p.astype(np.int64)
 
 
-def check_fmap(C_12, basis_1: Basis, basis_2: Basis) -> np.ndarray:
-    """Validate ``C_12`` against the bases: shape ``(k2, k1)``, finite."""
+def check_fmap(C_12, basis_1: Basis, basis_2: Basis, allow_truncation: bool = False) -> np.ndarray:
+    """Validate ``C_12`` against the bases: shape ``(k2, k1)``, finite.
+
+    With ``allow_truncation`` the map may be smaller than the bases (``k1 <= basis_1.k``,
+    ``k2 <= basis_2.k``): callers then use the first ``k1`` / ``k2`` columns.
+    """
+    for b, name in ((basis_1, "basis_1"), (basis_2, "basis_2")):
+        if not isinstance(b, Basis):
+            raise TypeError(f"{name} must be a prodmaps.Basis, got {type(b).__name__}")
     C = np.asarray(C_12, dtype=np.float64)
-    if C.shape != (basis_2.k, basis_1.k):
+    if C.ndim != 2:
+        raise ValueError(f"C_12 must be a 2D array (k2, k1); got shape {C.shape}")
+    if allow_truncation:
+        if C.shape[1] > basis_1.k or C.shape[0] > basis_2.k:
+            raise ValueError(
+                f"C_12 has shape (k2, k1) = {C.shape} but basis_1 has {basis_1.k} columns and basis_2 "
+                f"{basis_2.k}: rows of C_12 index shape 2, columns index shape 1 (transpose it or "
+                "pass the bases in the other order?)"
+            )
+    elif C.shape != (basis_2.k, basis_1.k):
         raise ValueError(
             f"C_12 must have shape (basis_2.k, basis_1.k) = ({basis_2.k}, {basis_1.k}); got {C.shape}. "
             "C_12 maps coefficients on shape 1 to shape 2"
