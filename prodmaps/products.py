@@ -117,7 +117,7 @@ class ProductBasis:
     pairs: str
     index: np.ndarray = field(repr=False)
     _cache: dict = field(default_factory=dict, repr=False)
-    max_bytes: int = field(default=1 << 30, repr=False)  # above: blocked, never materialised
+    block_bytes: int = field(default=32 << 20, repr=False)  # row blocks of the blocked products
 
     @property
     def k(self) -> int:
@@ -170,7 +170,7 @@ class ProductBasis:
             if self.pairs == "unique":
                 self._cache["solver"] = (self.matrix, np.ones(self.K))
             else:
-                scale = np.sqrt(_n_orderings(self.unique_index))
+                scale = self._solver_scale()
                 B = evaluate_products(self.base.vecs, self.unique_index) * scale
                 self._cache["solver"] = (B, scale)
         return self._cache["solver"]
@@ -204,19 +204,25 @@ class ProductBasis:
         return self._cache["fold"]
 
     # ----------------------------------------------------- blocked products with B_s
-    # The solvers only need B_sᵀ A B_s, B_sᵀ Y and B_s X. Below ``max_bytes`` they use the
-    # cached matrix; above it they evaluate the product columns block of rows by block of
-    # rows, so the extended basis is never held in memory at once (100k vertices, k = 69:
-    # 2 GB avoided per shape).
+    # The solvers only need B_sᵀ A B_s, B_sᵀ Y and B_s X. Unless the matrix was asked for
+    # (``matrix``, ``solver_basis``), they evaluate the product columns block of rows by block
+    # of rows (``block_bytes``, 32 MB: small enough for the allocator to reuse the memory, so
+    # no page faults), so the extended basis is never held at once: 100k vertices at k = 69
+    # never allocate the 2 GB matrix, and a 5k mesh computes its operator faster than with
+    # the materialised matrix.
     def _materialize_solver(self) -> bool:
-        K_u = self.unique_index.shape[0]
-        return "solver" in self._cache or self.n * K_u * 8 <= self.max_bytes
+        return "solver" in self._cache
+
+    def _solver_scale(self):
+        if "scale" not in self._cache:
+            self._cache["scale"] = None if self.pairs == "unique" else np.sqrt(_n_orderings(self.unique_index))
+        return self._cache["scale"]
 
     def _solver_blocks(self):
-        """Yield ``(rows slice, B_s[rows])`` blocks (about 128 MB each)."""
+        """Yield ``(rows slice, B_s[rows])`` blocks of about ``block_bytes``."""
         uidx = self.unique_index
-        scale = None if self.pairs == "unique" else np.sqrt(_n_orderings(uidx))
-        step = max(1, int((128 << 20) // (8 * uidx.shape[0])))
+        scale = self._solver_scale()
+        step = max(1, int(self.block_bytes // (8 * uidx.shape[0])))
         for i0 in range(0, self.n, step):
             rows = slice(i0, min(self.n, i0 + step))
             block = evaluate_products(self.base.vecs[rows], uidx)
@@ -269,7 +275,7 @@ class ProductBasis:
             raise ValueError(f"coefficients have {coefs.shape[0]} rows, the basis has {self.K} columns")
         if self.pairs == "unique":
             return self.solver_matmul(coefs)
-        scale = np.sqrt(_n_orderings(self.unique_index))
+        scale = self._solver_scale()
         cu = self.fold() @ coefs  # (K_u,) or (K_u, m)
         return self.solver_matmul(cu / (scale if cu.ndim == 1 else scale[:, None]))
 

@@ -76,7 +76,9 @@ def test_blocked_route_equals_materialised(basis_0, pairs):
 
     b = basis_0.truncate(15)
     full = pm.product_basis(b, 2, pairs)
-    blocked = ProductBasis(b, 2, pairs, full.index, max_bytes=1 << 16)
+    full.solver_basis()  # materialised route
+    assert full._materialize_solver()
+    blocked = ProductBasis(b, 2, pairs, full.index, block_bytes=1 << 16)  # many small blocks
     assert not blocked._materialize_solver()
     np.testing.assert_allclose(blocked.solver_gram(), full.solver_gram(), rtol=1e-12, atol=1e-12)
     F = np.random.default_rng(0).normal(size=(b.n, 3))
