@@ -81,8 +81,11 @@ def smoke_run(tmp_path_factory):
     return get
 
 
-def smoke_results(smoke_run, name):
-    """The ``results`` dict of a run's smoke execution."""
+def smoke_outputs(smoke_run, name):
+    """``(output folder, results dict)`` of a run's smoke execution (shared, see smoke_run)."""
     import json
 
-    return json.loads((smoke_run(name) / "results.json").read_text())["results"]
+    d = smoke_run(name)
+    doc = json.loads((d / "results.json").read_text())
+    assert doc["parameters"]["profile"] == "smoke"
+    return d, doc["results"]

@@ -30,6 +30,8 @@ import numpy as np
 import pytest
 
 from prodmaps import nbtools
+
+from conftest import smoke_outputs
 from prodmaps.report import load_published, match_entries
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,32 +42,24 @@ STUDY_NB = ROOT / "notebooks" / "study_truncation.ipynb"
 pytestmark = pytest.mark.notebook
 
 
-def _run(smoke_run, name):
-    """The registered run's smoke execution, shared with the baseline diff (conftest.smoke_run)."""
-    d = smoke_run(name)
-    doc = nbtools.read_results(d)
-    assert doc["parameters"]["profile"] == "smoke"
-    return d, doc["results"]
-
-
 @pytest.fixture(scope="module")
 def tab01(smoke_run):
-    return _run(smoke_run, "tab01")
+    return smoke_outputs(smoke_run, "tab01")
 
 
 @pytest.fixture(scope="module")
 def tab02(smoke_run):
-    return _run(smoke_run, "tab02")
+    return smoke_outputs(smoke_run, "tab02")
 
 
 @pytest.fixture(scope="module")
 def fig08(smoke_run):
-    return _run(smoke_run, "fig08")
+    return smoke_outputs(smoke_run, "fig08")
 
 
 @pytest.fixture(scope="module")
 def study(smoke_run):
-    return _run(smoke_run, "study_truncation")
+    return smoke_outputs(smoke_run, "study_truncation")
 
 
 @pytest.mark.parametrize("nb", [TABLES_NB, FIG08_NB, STUDY_NB], ids=lambda p: p.stem)
