@@ -192,7 +192,9 @@ def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=N
     ----------
     mesh_1 : pm.Mesh, the **target of the point map** (shape 1; ``p2p_21`` maps vertices of
         shape 2 to vertices of shape 1).
-    p2p_21, p2p_21_true : (n2,) int arrays of vertex indices of shape 1.
+    p2p_21 : (n2,) int array of vertex indices of shape 1, or (m, n2) for m maps evaluated
+        against the same truth (the distances are then computed once for all of them).
+    p2p_21_true : (n2,) int array of vertex indices of shape 1.
     method : distance method used when ``dist`` is not given (see :func:`distances`).
     dist : optional precomputed ``(n1, n1)`` distance matrix of shape 1 (e.g. from
         :func:`all_pairs`; pass it when evaluating many maps onto the same shape); then no
@@ -212,20 +214,22 @@ def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=N
     """
     p = np.asarray(p2p_21)
     q = np.asarray(p2p_21_true)
-    if p.shape != q.shape or p.ndim != 1:
-        raise ValueError(f"p2p_21 and p2p_21_true must be 1-D of the same length; got {p.shape} and {q.shape}")
-    p = _check_sources(mesh_1, p)
+    stacked = p.ndim == 2  # several maps against the same truth: one distance computation
+    P = p if stacked else p[None, :]  # (m, n2)
+    if q.ndim != 1 or P.shape[1] != q.shape[0] or P.ndim != 2:
+        raise ValueError(f"p2p_21 ((n2,) or (m, n2)) and p2p_21_true ((n2,)) must have the same length n2; got {p.shape} and {q.shape}")
+    P = np.stack([_check_sources(mesh_1, row) for row in P])
     q = _check_sources(mesh_1, q)
-    err = np.zeros(p.size, dtype=np.float64)  # (n2,)
+    err = np.zeros(P.shape, dtype=np.float64)  # (m, n2)
     if dist is not None:
         if dist.shape != (mesh_1.n_vertices, mesh_1.n_vertices):
             raise ValueError(f"dist must be ({mesh_1.n_vertices}, {mesh_1.n_vertices}); got {dist.shape}")
-        err[:] = dist[q, p]
+        err[:] = dist[q[None, :], P]
     else:
-        wrong = p != q
+        wrong = np.any(P != q[None, :], axis=0)  # (n2,) vertices some map gets wrong
         src, inv = np.unique(q[wrong], return_inverse=True)  # sources = distinct true images
-        targets = p[wrong]
-        vals = np.empty(targets.size)
+        targets = P[:, wrong]  # (m, w)
+        vals = np.empty(targets.shape)
         order = np.argsort(inv, kind="stable")
         bounds = np.searchsorted(inv[order], np.arange(0, src.size + batch, batch))
         solver = _HeatSolver(mesh_1) if method == "heat" else None
@@ -233,10 +237,12 @@ def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=N
             chunk = src[start:start + batch]
             d = solver(chunk) if solver is not None else distances(mesh_1, chunk, method=method)  # (b, n1)
             sel = order[bounds[b]:bounds[b + 1]]
-            vals[sel] = d[inv[sel] - start, targets[sel]]
-        err[wrong] = vals
-    err[p == q] = 0.0
-    return np.maximum(err, 0.0) / np.sqrt(mesh_1.area)
+            rows = d[inv[sel] - start]  # (|sel|, n1): distances from each needed true image
+            vals[:, sel] = rows[np.arange(sel.size)[None, :], targets[:, sel]]
+        err[:, wrong] = vals
+    err[P == q[None, :]] = 0.0
+    err = np.maximum(err, 0.0) / np.sqrt(mesh_1.area)
+    return err if stacked else err[0]
 
 
 def error_curve(errors, thresholds) -> np.ndarray:

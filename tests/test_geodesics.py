@@ -162,3 +162,15 @@ def test_all_pairs_on_default_shape_fast_and_close_to_graph(cache):
     far = exact > 0.05
     assert np.all(graph[:3] >= exact - 1e-9)
     assert np.mean(np.abs(h[:3] - exact)[far] / exact[far]) < 0.05
+
+
+def test_map_error_of_several_maps_at_once(human_0):
+    """Stacked maps share one distance computation and give each map's own errors."""
+    rng = np.random.default_rng(0)
+    truth = rng.choice(human_0.n_vertices, 200, replace=False)
+    maps = np.stack([truth, rng.choice(human_0.n_vertices, 200), rng.choice(human_0.n_vertices, 200)])
+    together = pm.geodesics.map_error(human_0, maps, truth)
+    assert together.shape == (3, 200)
+    for j in range(3):
+        np.testing.assert_array_equal(together[j], pm.geodesics.map_error(human_0, maps[j], truth))
+    assert np.all(together[0] == 0) and together[1].mean() > 0.1
