@@ -144,9 +144,13 @@ def multiplication_operators(basis: Basis, descr: np.ndarray) -> np.ndarray:
     if not basis.mass_is_diagonal:
         raise ValueError("multiplication operators need a lumped (diagonal) mass; build the basis with mass='lumped'")
     n, k = basis.vecs.shape
-    PhiA = basis.vecs * basis.mass[:, None]  # (n, k)
-    pairs = (PhiA[:, :, None] * basis.vecs[:, None, :]).reshape(n, k * k)  # (n, k²): A φ_i φ_j
-    return (np.asarray(descr).T @ pairs).reshape(-1, k, k)  # (p, k, k), one GEMM
+    iu, ju = np.triu_indices(k)  # the operators are symmetric: compute i <= j only
+    pairs = (basis.vecs[:, iu] * basis.mass[:, None]) * basis.vecs[:, ju]  # (n, k(k+1)/2): A φ_i φ_j
+    upper = np.asarray(descr).T @ pairs  # (p, k(k+1)/2), one GEMM
+    out = np.empty((upper.shape[0], k, k))
+    out[:, iu, ju] = upper
+    out[:, ju, iu] = upper
+    return out  # (p, k, k)
 
 
 def laplacian_mask(evals_1: np.ndarray, evals_2: np.ndarray, lap: str = "resolvent", gamma: float = 0.5) -> np.ndarray:
