@@ -13,8 +13,8 @@ DATA = ROOT / "data" / "anny_humans"
 BROKEN = Path(__file__).resolve().parent / "data" / "broken"
 
 
-def icosphere(subdivisions: int = 2) -> pm.Mesh:
-    """A unit icosphere (closed, genus 0) built here, for fast tests."""
+def icosphere(subdivisions: int = 2, radius: float = 1.0) -> pm.Mesh:
+    """An icosphere of the given radius (closed, genus 0) built here, for fast tests."""
     t = (1 + 5**0.5) / 2
     v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
                   [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
@@ -22,7 +22,7 @@ def icosphere(subdivisions: int = 2) -> pm.Mesh:
                   [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
                   [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
     v, f = subdivide_midpoint(v, f, levels=subdivisions)
-    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    v = radius * v / np.linalg.norm(v, axis=1, keepdims=True)
     return pm.Mesh(v, f, name="icosphere")
 
 

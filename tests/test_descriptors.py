@@ -8,28 +8,10 @@ import pytest
 import prodmaps as pm
 import prodmaps.descriptors as D
 
+from conftest import icosphere  # noqa: E402  (shared test mesh)
+
 ROOT = Path(__file__).resolve().parents[1]
 ANNY = ROOT / "data" / "anny_humans" / "shapes" / "anny_000.ply"
-
-
-def icosphere(subdiv: int = 2, radius: float = 1.0) -> pm.Mesh:
-    t = (1.0 + 5**0.5) / 2
-    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
-                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
-    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
-                  [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
-                  [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
-    for _ in range(subdiv):
-        e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-        uniq, inv = np.unique(e, axis=0, return_inverse=True)
-        mid = (v[uniq[:, 0]] + v[uniq[:, 1]]) / 2
-        m = f.shape[0]
-        a, b, c = (inv[:m] + len(v)), (inv[m:2 * m] + len(v)), (inv[2 * m:] + len(v))
-        v = np.vstack([v, mid])
-        f = np.concatenate([np.stack([f[:, 0], a, c], 1), np.stack([f[:, 1], b, a], 1),
-                            np.stack([f[:, 2], c, b], 1), np.stack([a, b, c], 1)])
-    v = v / np.linalg.norm(v, axis=1, keepdims=True) * radius
-    return pm.Mesh(v, f)
 
 
 def rigid(mesh: pm.Mesh, seed: int = 3, scale: float = 1.0) -> pm.Mesh:
