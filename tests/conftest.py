@@ -89,3 +89,16 @@ def smoke_outputs(smoke_run, name):
     doc = json.loads((d / "results.json").read_text())
     assert doc["parameters"]["profile"] == "smoke"
     return d, doc["results"]
+
+
+def smoke_fixture(name):
+    """A module-scoped fixture yielding ``(output folder, results)`` of run ``name``'s smoke execution.
+
+    Use as ``fig07 = smoke_fixture("fig07")`` in a test module.
+    """
+
+    @pytest.fixture(scope="module")
+    def _outputs(smoke_run):
+        return smoke_outputs(smoke_run, name)
+
+    return _outputs

@@ -24,7 +24,7 @@ import pytest
 
 from prodmaps import nbtools
 
-from conftest import smoke_outputs
+from conftest import smoke_fixture
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = {
@@ -38,29 +38,11 @@ NOTEBOOKS = {
 pytestmark = pytest.mark.notebook
 
 
-@pytest.fixture(scope="module")
-def fig07(smoke_run):
-    return smoke_outputs(smoke_run, "fig07")
-
-
-@pytest.fixture(scope="module")
-def fig09(smoke_run):
-    return smoke_outputs(smoke_run, "fig09")
-
-
-@pytest.fixture(scope="module")
-def fig11(smoke_run):
-    return smoke_outputs(smoke_run, "fig11")
-
-
-@pytest.fixture(scope="module")
-def fig12_13(smoke_run):
-    return smoke_outputs(smoke_run, "fig12_13")
-
-
-@pytest.fixture(scope="module")
-def fig14(smoke_run):
-    return smoke_outputs(smoke_run, "fig14")
+fig07 = smoke_fixture("fig07")
+fig09 = smoke_fixture("fig09")
+fig11 = smoke_fixture("fig11")
+fig12_13 = smoke_fixture("fig12_13")
+fig14 = smoke_fixture("fig14")
 
 
 @pytest.mark.parametrize("name", list(NOTEBOOKS))

@@ -31,7 +31,7 @@ import pytest
 
 from prodmaps import nbtools
 
-from conftest import smoke_outputs
+from conftest import smoke_fixture
 from prodmaps.report import load_published, match_entries
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -42,24 +42,10 @@ STUDY_NB = ROOT / "notebooks" / "study_truncation.ipynb"
 pytestmark = pytest.mark.notebook
 
 
-@pytest.fixture(scope="module")
-def tab01(smoke_run):
-    return smoke_outputs(smoke_run, "tab01")
-
-
-@pytest.fixture(scope="module")
-def tab02(smoke_run):
-    return smoke_outputs(smoke_run, "tab02")
-
-
-@pytest.fixture(scope="module")
-def fig08(smoke_run):
-    return smoke_outputs(smoke_run, "fig08")
-
-
-@pytest.fixture(scope="module")
-def study(smoke_run):
-    return smoke_outputs(smoke_run, "study_truncation")
+tab01 = smoke_fixture("tab01")
+tab02 = smoke_fixture("tab02")
+fig08 = smoke_fixture("fig08")
+study = smoke_fixture("study_truncation")
 
 
 @pytest.mark.parametrize("nb", [TABLES_NB, FIG08_NB, STUDY_NB], ids=lambda p: p.stem)
