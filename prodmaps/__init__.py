@@ -4,27 +4,56 @@ A reproducible implementation of D. Nogneng, S. Melzi, E. Rodolà, U. Castellani
 M. Ovsjanikov, "Improved Functional Mappings via Product Preservation", Computer Graphics Forum
 (Eurographics) 2018.
 
-Conventions (see each module for details): bases are A-orthonormal (area inner product) with the
-constant first; ``k`` counts the constant (the paper's ``k_M = 9`` is ``eigenbasis(mesh, 10)``);
-``C_12`` is ``(k2, k1)`` and maps coefficients on shape 1 to shape 2; ``p2p_21`` is ``(n2,)``.
+Three layers, arrows pointing down only:
 
-Importing prodmaps loads numpy and scipy only.
+* the math library (this package's modules: meshes and I/O, spectral bases, products and
+  approximation, maps and point maps, descriptors, fields, geodesics, metrics, datasets);
+* :mod:`prodmaps.experiments`: what the paper's notebooks share (cached per-shape data, maps,
+  function families, the table protocol, claims);
+* :mod:`prodmaps.pipeline`: batch reproduction, hashing, baselines, diffing, report, CLI.
+
+The conventions (bases A-orthonormal with the constant first, ``k`` counts the constant,
+``C_12`` is ``(k2, k1)``, ``p2p_21`` is ``(n2,)``) are stated once in :mod:`prodmaps.conventions`.
+
+``pm.transfer`` and ``pm.laplacian`` are modules that can be called like their main function
+(``pm.transfer(f, C_12, b1, b2)``). Importing prodmaps loads numpy and scipy only.
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
-from .mesh import Mesh, MeshError
-from .io import load_mesh, save_mesh
-from .laplacian import laplacian
+from . import (  # noqa: F401
+               approx,
+               basis,
+               cache,
+               conventions,
+               curvature,
+               datasets,
+               descriptors,
+               eigensolver,
+               fmaps,
+               geodesics,
+               io,
+               laplacian,
+               lmh,
+               mesh,
+               metrics,
+               p2p,
+               products,
+               sampling,
+               transfer,
+               truncation,
+)
+from .approx import ApproximationOperator, approximate, approximation_operator
 from .basis import Basis, eigenbasis, fourier_basis
-from .products import ProductBasis, product_basis
-from .approx import ApproximationOperator, approximate, operator
-from .transfer import extend_fmap, fmap_from_p2p, transfer
+from .io import load_mesh, save_mesh
+from .mesh import Mesh, MeshError
 from .metrics import area_fraction_curve, relative_error
-from . import mesh, io, basis, products, approx, metrics, datasets, geodesics, descriptors, functions, fmaps, p2p, lmh, truncation
+from .products import ProductBasis, product_basis
+from .transfer import extend_fmap, fmap_from_p2p
 
 __all__ = [
     "Mesh", "MeshError", "load_mesh", "save_mesh", "laplacian", "Basis", "eigenbasis",
     "fourier_basis", "ProductBasis", "product_basis", "ApproximationOperator", "approximate",
-    "operator", "extend_fmap", "fmap_from_p2p", "transfer", "area_fraction_curve", "relative_error",
+    "approximation_operator", "extend_fmap", "fmap_from_p2p", "transfer", "area_fraction_curve",
+    "relative_error",
 ]

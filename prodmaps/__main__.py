@@ -1,8 +1,8 @@
-"""``python -m prodmaps reproduce|diff|report ...`` (see :mod:`prodmaps.cli`)."""
+"""``python -m prodmaps reproduce|diff|report ...`` (see :mod:`prodmaps.pipeline.cli`)."""
 
 import sys
 
-from .cli import main
+from .pipeline.cli import main
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -43,7 +43,7 @@ import scipy.linalg as sla
 from .basis import Basis
 from .products import ProductBasis
 
-__all__ = ["ApproximationOperator", "operator", "approximate", "check_functions"]
+__all__ = ["ApproximationOperator", "approximation_operator", "approximate", "check_functions"]
 
 METHODS = ("std", "svd", "ridge", "lasso")
 
@@ -74,7 +74,7 @@ def _solver_parts(basis):
 
 @dataclass(frozen=True, eq=False)
 class ApproximationOperator:
-    """Reusable approximation operator for one basis (build with :func:`operator`).
+    """Reusable approximation operator for one basis (build with :func:`approximation_operator`).
 
     ``coefficients(F)`` returns coefficients in the basis' own column convention; for
     Approach B, ``canonical(a)`` returns the canonical coefficients ``ã = Σ Vᵀ a`` of
@@ -130,7 +130,7 @@ class ApproximationOperator:
         return self.basis.vecs @ a
 
 
-def operator(basis, method: str = "svd", *, rtol: float = 1e-3, eps: float = 1e-4,
+def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, eps: float = 1e-4,
              route: str = "auto", tol: float = 1e-6, max_iter: int = 5000) -> ApproximationOperator:
     """Build the approximation operator of ``basis`` for ``method`` (see module doc).
 
@@ -205,8 +205,7 @@ def _gram_eig(basis):
     (``n x n``), far cheaper than the ``K_u x K_u`` problem. The eigenpairs do not depend on
     ``rtol``, so a ProductBasis caches them and every threshold reuses one decomposition.
     """
-    cache = basis._cache if isinstance(basis, ProductBasis) else {}
-    if "gram_eig" not in cache:
+    def compute():
         base = basis.base if isinstance(basis, ProductBasis) else basis
         K_u = basis.unique_index.shape[0] if isinstance(basis, ProductBasis) else basis.k
         if isinstance(basis, ProductBasis) and K_u > base.n and base.mass_is_diagonal:
@@ -216,8 +215,11 @@ def _gram_eig(basis):
         else:
             w, V = sla.eigh(_gram(basis))
             side = "primal"
-        cache["gram_eig"] = (w[::-1], V[:, ::-1], side)
-    return cache["gram_eig"]
+        return w[::-1], V[:, ::-1], side
+
+    if isinstance(basis, ProductBasis):
+        return basis.cache.get("gram_eig", compute)
+    return compute()
 
 
 def _rmatmul(basis, Y):
@@ -295,11 +297,11 @@ def approximate(F, basis, method: str = "svd", **params) -> np.ndarray:
     """Coefficients of ``F`` ``(n,)``/``(n, m)`` in ``basis`` (a Basis or ProductBasis).
 
     ``method``: ``"std"`` | ``"ridge"`` | ``"lasso"`` | ``"svd"`` (Approach B, default);
-    ``params`` as in :func:`operator` (``rtol=1e-3`` as in the paper). Operators of a
-    ProductBasis are cached on it, so repeated calls reuse the factorisation.
+    ``params`` as in :func:`approximation_operator` (``rtol=1e-3`` as in the paper). Operators
+    of a ProductBasis are cached on it, so repeated calls reuse the factorisation.
     """
     if isinstance(basis, ProductBasis):
         op = basis.operator(method, **params)
     else:
-        op = operator(basis, method, **params)
+        op = approximation_operator(basis, method, **params)
     return op.coefficients(F)

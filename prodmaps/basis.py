@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from .cache import Cache
+from .eigensolver import smallest_eigenpairs
 from .laplacian import laplacian
 from .mesh import Mesh
 
@@ -36,13 +38,15 @@ class Basis:
     evals : (k,) eigenvalues (ascending; 0 for the constant).
     mass : (n,) lumped area weights, or sparse (n, n) mass matrix.
     name : label for messages.
+    cache : a :class:`prodmaps.cache.Cache` of derived values (product bases), shared with
+        every truncation of this basis; keys name the column count they depend on.
     """
 
     vecs: np.ndarray
     evals: np.ndarray
     mass: np.ndarray | sp.spmatrix
     name: str = ""
-    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+    cache: Cache = field(default_factory=Cache, repr=False, compare=False)
 
     def __post_init__(self):
         vecs = np.asarray(self.vecs, dtype=np.float64)
@@ -105,12 +109,16 @@ class Basis:
         return self.vecs @ coefs
 
     def truncate(self, k: int) -> "Basis":
-        """The first ``k`` columns (constant included); ``self`` when ``k == self.k`` (keeps caches)."""
+        """The first ``k`` columns (constant included), sharing this basis' cache.
+
+        ``self`` when ``k == self.k``. Values cached for a column count (e.g. the product basis
+        of the first ``k`` columns) are found again by every truncation to ``k``.
+        """
         if not 1 <= k <= self.k:
             raise ValueError(f"k must be in [1, {self.k}], got {k}")
         if k == self.k:
             return self
-        return Basis(self.vecs[:, :k], self.evals[:k], self.mass, name=self.name)
+        return Basis(self.vecs[:, :k], self.evals[:k], self.mass, name=self.name, cache=self.cache)
 
     def __repr__(self) -> str:
         label = f"{self.name!r}, " if self.name else ""
@@ -128,8 +136,9 @@ def fix_signs(vecs: np.ndarray) -> np.ndarray:
 def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped") -> Basis:
     """First ``k`` Laplace–Beltrami eigenpairs of ``mesh`` (constant included).
 
-    Solves ``W φ = λ A φ`` (see :func:`prodmaps.laplacian`) by shift-invert Lanczos around a
-    small negative shift (one sparse LU factorisation), or densely for small meshes.
+    Solves ``W φ = λ A φ`` (see :func:`prodmaps.laplacian`) with the package's one eigensolver
+    (:func:`prodmaps.eigensolver.smallest_eigenpairs`: shift-invert Lanczos around a small
+    negative shift, or dense LAPACK for small meshes).
 
     Parameters
     ----------
@@ -147,25 +156,9 @@ def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped") ->
             "(k counts the constant; the paper's k_M = 9 is k = 10)"
         )
     W, A = laplacian(mesh, kind=kind, mass=mass)
-    Am = sp.diags(A).tocsc() if not sp.issparse(A) else A.tocsc()
-    if n <= 1500 or k > n // 3:
-        import scipy.linalg as sla
-
-        evals, vecs = sla.eigh(W.toarray(), Am.toarray(), subset_by_index=[0, k - 1])
-    else:
-        from scipy.sparse.linalg import eigsh
-
-        # shift slightly below 0 so that W - σA is positive definite and factorises stably
-        scale = float(W.diagonal().sum() / Am.diagonal().sum())
-        sigma = -1e-8 * scale
-        v0 = np.ones(n)  # deterministic start vector
-        evals, vecs = eigsh(W.tocsc(), k=k, M=Am, sigma=sigma, which="LM", v0=v0, tol=0)
-        order = np.argsort(evals)
-        evals, vecs = evals[order], vecs[:, order]
-    # A-normalise (eigsh already does up to round-off), fix the constant exactly, fix signs
-    norms = np.sqrt(np.einsum("ij,ij->j", vecs, Am @ vecs))
-    vecs = vecs / norms
-    area = float(Am.diagonal().sum()) if not sp.issparse(A) else float(A.sum())
+    evals, vecs = smallest_eigenpairs(W, A, k)  # ascending, A-normalised
+    # fix the constant exactly (round-off only) and the signs
+    area = float(A.sum())
     evals = np.maximum(evals, 0.0)
     evals[0] = 0.0
     vecs[:, 0] = 1.0 / np.sqrt(area)

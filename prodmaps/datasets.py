@@ -12,9 +12,13 @@ Datasets
                  triangulation per class. Prepare with
                  ``python data_scripts/prepare_tosca.py --archive toscahires-asci.zip``.
 
-Data root: ``$PRODMAPS_DATA`` if set, else the repository's ``data/`` folder. Layout read
-here (written by the preparation scripts; the shipped ``anny_humans`` has no manifest and is
-indexed from its file names)::
+Where datasets are found (:func:`dataset_dir`): ``$PRODMAPS_DATA/<name>`` if ``PRODMAPS_DATA``
+is set and holds the dataset, else, for the embedded ``anny_humans``, the copy shipped inside
+the installed package (``prodmaps/data/``, package data: editable or not, the install finds
+it), else ``<data_root()>/<name>``. :func:`data_root` is where prepared datasets live:
+``$PRODMAPS_DATA`` if set, else ``$XDG_DATA_HOME/prodmaps`` (``~/.local/share/prodmaps``); the
+preparation scripts write there by default. Layout read here (written by the preparation
+scripts; the shipped ``anny_humans`` has no manifest and is indexed from its file names)::
 
     <root>/<name>/shapes/<id>.ply                      family shapes
     <root>/<name>/manifest.json                        optional: ids, class, triangulation group
@@ -41,7 +45,7 @@ with ground truth: ``kind="intra"`` same subject/class, ``"inter"`` different su
 from __future__ import annotations
 
 import functools
-import hashlib
+import importlib.resources
 import json
 import os
 import re
@@ -50,6 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .files import sha256_file
 from .io import load_mesh
 from .mesh import Mesh
 
@@ -87,8 +92,8 @@ _REGISTRY = {
     "anny_humans": _Spec(
         "anny_humans",
         "6 synthetic subjects x 10 poses (Anny/MakeHuman, CC0), 5002 vertices, one triangulation",
-        "It ships with the project in data/anny_humans/ (restore it from the repository, "
-        "e.g. `git checkout -- data/anny_humans`, or point PRODMAPS_DATA at a folder that holds it).",
+        "It ships inside the package as prodmaps/data/anny_humans/ (reinstall prodmaps, restore it "
+        "with `git checkout -- prodmaps/data/anny_humans`, or point PRODMAPS_DATA at a folder that holds it).",
         "div10",
         True,
     ),
@@ -120,10 +125,22 @@ def names() -> list[str]:
     return list(_REGISTRY)
 
 
+EMBEDDED = ("anny_humans",)
+
+
+def embedded_root() -> Path:
+    """The folder of the datasets shipped inside the installed package (``prodmaps/data``)."""
+    return Path(str(importlib.resources.files("prodmaps") / "data"))
+
+
 def data_root() -> Path:
-    """``$PRODMAPS_DATA`` if set, else the repository's ``data/`` folder."""
+    """Where prepared datasets live: ``$PRODMAPS_DATA`` if set, else ``$XDG_DATA_HOME/prodmaps``
+    (``~/.local/share/prodmaps``). The preparation scripts write there by default."""
     env = os.environ.get("PRODMAPS_DATA")
-    return Path(env).expanduser().resolve() if env else Path(__file__).resolve().parents[1] / "data"
+    if env:
+        return Path(env).expanduser().resolve()
+    xdg = os.environ.get("XDG_DATA_HOME")
+    return (Path(xdg).expanduser() if xdg else Path.home() / ".local" / "share") / "prodmaps"
 
 
 def _spec(name: str) -> _Spec:
@@ -133,15 +150,20 @@ def _spec(name: str) -> _Spec:
 
 
 def dataset_dir(name: str) -> Path:
-    """Folder of dataset ``name`` under the current data root (may not exist)."""
+    """Folder of dataset ``name`` (see the module doc for the search order; may not exist)."""
     _spec(name)
+    env = os.environ.get("PRODMAPS_DATA")
+    if env and (Path(env).expanduser().resolve() / name).is_dir():
+        return Path(env).expanduser().resolve() / name
+    if name in EMBEDDED and (embedded_root() / name).is_dir():
+        return embedded_root() / name
     return data_root() / name
 
 
 # ----------------------------------------------------------------------------- index
 @dataclass
 class _Index:
-    root: Path
+    root: Path  # the dataset's folder
     ids: list[str]
     files: dict[str, Path]
     cls: dict[str, str]
@@ -157,16 +179,16 @@ def _class_of(rule: str, shape_id: str) -> str:
 
 
 @functools.lru_cache(maxsize=32)
-def _index_at(root_str: str, name: str) -> _Index:
+def _index_at(folder_str: str, name: str) -> _Index:
     spec = _spec(name)
-    root = Path(root_str)
-    folder = root / name
+    folder = Path(folder_str)
+    root = folder  # the dataset folder: the key of the per-folder caches below
     shapes = folder / "shapes"
     files = sorted(shapes.glob("*.ply")) if shapes.is_dir() else []
     if not files:
         raise DatasetNotPreparedError(
             f"dataset {name!r} is not prepared: no shapes/*.ply under {folder}. {spec.how_to_get} "
-            "(the data root is $PRODMAPS_DATA if set, else the repository's data/ folder)"
+            "(prepared datasets are found under $PRODMAPS_DATA if set, else ~/.local/share/prodmaps)"
         )
     manifest = folder / "manifest.json"
     if manifest.is_file():
@@ -201,7 +223,7 @@ def _index_at(root_str: str, name: str) -> _Index:
 
 def _index(name: str) -> _Index:
     _spec(name)
-    return _index_at(str(data_root()), name)
+    return _index_at(str(dataset_dir(name)), name)
 
 
 def clear_cache() -> None:
@@ -244,8 +266,8 @@ def shape_class(name: str, shape_id: str) -> str:
 
 
 @functools.lru_cache(maxsize=256)
-def _load_at(root_str: str, name: str, shape_id: str) -> Mesh:
-    idx = _index_at(root_str, name)
+def _load_at(folder_str: str, name: str, shape_id: str) -> Mesh:
+    idx = _index_at(folder_str, name)
     path = idx.files[shape_id] if shape_id in idx.files else idx.variant_files[shape_id][0]
     return load_mesh(path, name=shape_id)
 
@@ -374,11 +396,7 @@ def verify_checksums(name: str, *, strict: bool = True) -> dict[str, bool]:
         if not path.is_file():
             result[rel] = False
             continue
-        h = hashlib.sha256()
-        with open(path, "rb") as fh:
-            for chunk in iter(lambda: fh.read(1 << 20), b""):
-                h.update(chunk)
-        result[rel] = h.hexdigest() == digest.lower()
+        result[rel] = sha256_file(path) == digest.lower()
     bad = [k for k, ok in result.items() if not ok]
     if strict and bad:
         raise ValueError(f"{name}: {len(bad)} of {len(result)} files are missing or do not match "

@@ -28,7 +28,8 @@ density. (We could not consult the paper's text offline; the structure above —
 energy + region penalty + orthogonality penalty, solved as one eigenproblem — is the paper's
 construction as we know it; the exact numeric values of μ below are our choice.)
 
-Solver: ``Q`` is never formed densely. ``Q = S0 + μ_⊥ U Uᵀ`` with sparse
+Solver: ``Q`` is never formed densely; the eigenpairs come from the package's one eigensolver
+(:func:`prodmaps.eigensolver.smallest_eigenpairs`, with its shift). ``Q = S0 + μ_⊥ U Uᵀ`` with sparse
 ``S0 = W + μ_R diag(A(1-u))`` and the thin ``U = A Φ`` ``(n, k_global)``. Shift-invert
 Lanczos (:func:`scipy.sparse.linalg.eigsh`) needs ``(Q - σA)⁻¹``: with ``S = S0 - σA``
 (``σ < 0`` slightly, so ``S`` is positive definite even when ``u ≡ 1``) and one sparse LU of
@@ -85,6 +86,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from .basis import Basis, eigenbasis, fix_signs
+from .eigensolver import shift, smallest_eigenpairs
 from .laplacian import laplacian
 from .mesh import Mesh
 
@@ -167,7 +169,7 @@ def localized_harmonics(mesh: Mesh, region, k: int, *, k_global: int = 10,
     kind : Laplacian discretisation (``"cotan"`` | ``"robust"``).
     tol : ARPACK tolerance (0 = machine precision).
     """
-    from scipy.sparse.linalg import LinearOperator, eigsh, splu
+    from scipy.sparse.linalg import LinearOperator, splu
 
     if not isinstance(mesh, Mesh):
         raise TypeError(f"localized_harmonics expects a prodmaps.Mesh, got {type(mesh).__name__}")
@@ -186,9 +188,9 @@ def localized_harmonics(mesh: Mesh, region, k: int, *, k_global: int = 10,
     mu_r, mu_o = float(mu_region) / area, float(mu_orth) / area
     Phi = global_basis.vecs if global_basis is not None else np.zeros((n, 0))
     S0, U = lmh_operator_parts(W, A, u, Phi, mu_r, mu_o)
-    # shift slightly below 0: S = S0 - σA is positive definite even if the region is everything
-    scale = float(W.diagonal().sum() / area)
-    sigma = -1e-8 * scale
+    # the package's shift (prodmaps.eigensolver): S = S0 - σA is positive definite even if the
+    # region is everything
+    sigma = shift(W, A)
     S = (S0 + sp.diags(-sigma * A)).tocsc()
     lu = splu(S)
     kg = U.shape[1]
@@ -213,12 +215,7 @@ def localized_harmonics(mesh: Mesh, region, k: int, *, k_global: int = 10,
 
     Qop = LinearOperator((n, n), matvec=matvec, dtype=np.float64)
     OPinv = LinearOperator((n, n), matvec=solve, dtype=np.float64)
-    M = sp.diags(A).tocsc()
-    v0 = np.ones(n)  # deterministic start vector
-    evals, vecs = eigsh(Qop, k=int(k), M=M, sigma=sigma, which="LM", OPinv=OPinv, v0=v0, tol=tol)
-    order = np.argsort(evals)
-    evals, vecs = evals[order], vecs[:, order]
-    vecs = vecs / np.sqrt(np.einsum("ij,i,ij->j", vecs, A, vecs))
+    evals, vecs = smallest_eigenpairs(W, A, int(k), operator=Qop, opinv=OPinv, sigma=sigma, tol=tol)
     vecs = fix_signs(vecs)
     if global_basis is None:
         global_basis = Basis(np.full((n, 1), 1 / np.sqrt(area)), np.zeros(1), A, name=mesh.name)

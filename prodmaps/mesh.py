@@ -121,6 +121,12 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -
         raise MeshError(
             f"non-finite coordinates (NaN or inf) at {bad.size} vertices, first {bad[:5].tolist()}"
         )
+    vmax = float(np.max(np.abs(v)))
+    if vmax > 1e150:  # squared edge lengths (~4 vmax**2) would overflow float64
+        raise MeshError(
+            f"coordinates too large (max |x| = {vmax:.3g}): squared lengths overflow float64; "
+            "rescale the mesh"
+        )
     n = v.shape[0]
     if f.min() < 0:
         raise MeshError(f"negative face indices (min {int(f.min())}); indices must be 0-based")
@@ -134,8 +140,14 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -
             f"degenerate faces: {bad.size} faces repeat a vertex (first {bad[:5].tolist()}); "
             "use prodmaps.mesh.remove_degenerate_faces"
         )
-    diag2 = float(np.sum((v.max(0) - v.min(0)) ** 2))
-    areas = face_areas(v, f)
+    with np.errstate(over="ignore", invalid="ignore"):
+        diag2 = float(np.sum((v.max(0) - v.min(0)) ** 2))
+        areas = face_areas(v, f)
+    if not (np.isfinite(diag2) and np.all(np.isfinite(areas))):  # finite coordinates, see above
+        raise MeshError(
+            f"coordinates too large (max |x| = {vmax:.3g}): face areas overflow float64; "
+            "rescale the mesh"
+        )
     degen = np.flatnonzero(areas <= area_tol * max(diag2, np.finfo(float).tiny))
     if degen.size:
         raise MeshError(

@@ -37,6 +37,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .basis import Basis
+from .cache import Cache
 
 __all__ = ["ProductBasis", "product_basis", "multi_indices", "n_columns"]
 
@@ -109,19 +110,24 @@ class ProductBasis:
     """A basis extended by pointwise products of its non-constant functions (see module doc).
 
     Build with :func:`product_basis`. ``matrix`` is materialised lazily and cached;
-    ``operator(...)`` returns a cached, reusable approximation operator.
+    ``operator(...)`` returns a cached, reusable approximation operator. Derived values live in
+    ``cache`` (a bounded :class:`prodmaps.cache.Cache`), keyed by name and parameters.
+
+    Sizes: ``base.k`` columns of the base (constant included, as everywhere), ``n_factors =
+    base.k - 1`` non-constant functions multiplied (the paper's ``k_M``), ``K`` columns of the
+    extended basis.
     """
 
     base: Basis
     order: int
     pairs: str
     index: np.ndarray = field(repr=False)
-    _cache: dict = field(default_factory=dict, repr=False)
+    cache: Cache = field(default_factory=lambda: Cache(max_entries=32), repr=False, compare=False)
     block_bytes: int = field(default=32 << 20, repr=False)  # row blocks of the blocked products
 
     @property
-    def k(self) -> int:
-        """Number of non-constant base functions (the paper's k_M)."""
+    def n_factors(self) -> int:
+        """Number of non-constant base functions that are multiplied (the paper's ``k_M``)."""
         return self.base.k - 1
 
     @property
@@ -145,9 +151,7 @@ class ProductBasis:
     @property
     def matrix(self) -> np.ndarray:
         """The extended basis ``B`` ``(n, K)`` (materialised once and cached)."""
-        if "matrix" not in self._cache:
-            self._cache["matrix"] = evaluate_products(self.base.vecs, self.index)
-        return self._cache["matrix"]
+        return self.cache.get("matrix", lambda: evaluate_products(self.base.vecs, self.index))
 
     # ----------------------------------------------------------- unique/ordered bridge
     @property
@@ -155,9 +159,7 @@ class ProductBasis:
         """Multi-indices of the unique (multiset) columns spanning the same space."""
         if self.pairs == "unique":
             return self.index
-        if "uindex" not in self._cache:
-            self._cache["uindex"] = multi_indices(self.k, self.order, "unique")
-        return self._cache["uindex"]
+        return self.cache.get("uindex", lambda: multi_indices(self.n_factors, self.order, "unique"))
 
     def solver_basis(self) -> tuple[np.ndarray, np.ndarray]:
         """``(B_s (n, K_u), scale (K_u,))``: the unique basis the solvers work on.
@@ -166,42 +168,37 @@ class ProductBasis:
         scaled by ``sqrt(#orderings)`` so that ``B_o = B_s S`` with orthonormal-row ``S``
         (:meth:`expand`).
         """
-        if "solver" not in self._cache:
+        def compute():
             if self.pairs == "unique":
-                self._cache["solver"] = (self.matrix, np.ones(self.K))
-            else:
-                scale = self._solver_scale()
-                B = evaluate_products(self.base.vecs, self.unique_index) * scale
-                self._cache["solver"] = (B, scale)
-        return self._cache["solver"]
+                return self.matrix, np.ones(self.K)
+            scale = self._solver_scale()
+            return evaluate_products(self.base.vecs, self.unique_index) * scale, scale
+
+        return self.cache.get("solver", compute)
 
     def expand(self) -> sp.csr_matrix:
         """``Sᵀ`` ``(K, K_u)``: maps solver (scaled-unique) coefficients to this basis' coefficients.
 
         Identity for ``pairs="unique"``.
         """
-        if "expand" not in self._cache:
+        def compute():
             if self.pairs == "unique":
-                E = sp.identity(self.K, format="csr")
-            else:
-                E = _ordered_to_unique(self.index, self.unique_index).T.tocsr()  # counts -> weights
-                # S[u, o] = 1/sqrt(#orderings(u)) for every ordering o of multiset u
-                w = 1.0 / np.sqrt(_n_orderings(self.unique_index))
-                E = (E @ sp.diags(w)).tocsr()
-            self._cache["expand"] = E
-        return self._cache["expand"]
+                return sp.identity(self.K, format="csr")
+            E = _ordered_to_unique(self.index, self.unique_index).T.tocsr()  # counts -> weights
+            # S[u, o] = 1/sqrt(#orderings(u)) for every ordering o of multiset u
+            w = 1.0 / np.sqrt(_n_orderings(self.unique_index))
+            return (E @ sp.diags(w)).tocsr()
+
+        return self.cache.get("expand", compute)
 
     def fold(self) -> sp.csr_matrix:
         """``(K_u, K)`` sparse map from this basis' coefficients to unique-multiset coefficients.
 
         ``B @ a == B_unique @ (fold() @ a)``: ordered coefficients of the same multiset are summed.
         """
-        if "fold" not in self._cache:
-            if self.pairs == "unique":
-                self._cache["fold"] = sp.identity(self.K, format="csr")
-            else:
-                self._cache["fold"] = _ordered_to_unique(self.index, self.unique_index)
-        return self._cache["fold"]
+        if self.pairs == "unique":
+            return self.cache.get("fold", lambda: sp.identity(self.K, format="csr"))
+        return self.cache.get("fold", lambda: _ordered_to_unique(self.index, self.unique_index))
 
     # ----------------------------------------------------- blocked products with B_s
     # The solvers only need B_sᵀ A B_s, B_sᵀ Y and B_s X. Unless the matrix was asked for
@@ -211,12 +208,12 @@ class ProductBasis:
     # never allocate the 2 GB matrix, and a 5k mesh computes its operator faster than with
     # the materialised matrix.
     def _materialize_solver(self) -> bool:
-        return "solver" in self._cache
+        return "solver" in self.cache
 
     def _solver_scale(self):
-        if "scale" not in self._cache:
-            self._cache["scale"] = None if self.pairs == "unique" else np.sqrt(_n_orderings(self.unique_index))
-        return self._cache["scale"]
+        if self.pairs == "unique":
+            return None
+        return self.cache.get("scale", lambda: np.sqrt(_n_orderings(self.unique_index)))
 
     def _solver_blocks(self):
         """Yield ``(rows slice, B_s[rows])`` blocks of about ``block_bytes``."""
@@ -230,7 +227,7 @@ class ProductBasis:
 
     def solver_gram(self) -> np.ndarray:
         """``G_s = B_sᵀ A B_s`` ``(K_u, K_u)`` (cached), blocked for large meshes."""
-        if "gram" not in self._cache:
+        def compute():
             base = self.base
             if self._materialize_solver() or not base.mass_is_diagonal:
                 B_s, _ = self.solver_basis()
@@ -246,8 +243,9 @@ class ProductBasis:
                 for rows, Bb in self._solver_blocks():
                     X = sq[rows, None] * Bb
                     G += X.T @ X
-            self._cache["gram"] = 0.5 * (G + G.T)
-        return self._cache["gram"]
+            return 0.5 * (G + G.T)
+
+        return self.cache.get("gram", compute)
 
     def solver_rmatmul(self, Y: np.ndarray) -> np.ndarray:
         """``B_sᵀ Y`` for ``Y`` ``(n,)`` or ``(n, m)``."""
@@ -280,16 +278,15 @@ class ProductBasis:
         return self.solver_matmul(cu / (scale if cu.ndim == 1 else scale[:, None]))
 
     def operator(self, method: str = "svd", **params):
-        """A cached reusable approximation operator (see :func:`prodmaps.approx.operator`)."""
-        from .approx import operator
+        """A cached reusable approximation operator (see :func:`prodmaps.approx.approximation_operator`)."""
+        from .approx import approximation_operator
 
-        key = ("op", method, tuple(sorted(params.items())))
-        if key not in self._cache:
-            self._cache[key] = operator(self, method=method, **params)
-        return self._cache[key]
+        key = ("operator", method, tuple(sorted(params.items())))
+        return self.cache.get(key, lambda: approximation_operator(self, method=method, **params))
 
     def __repr__(self) -> str:
-        return f"ProductBasis(order={self.order}, pairs={self.pairs!r}, k={self.k}, K={self.K}, n={self.n})"
+        return (f"ProductBasis(order={self.order}, pairs={self.pairs!r}, n_factors={self.n_factors}, "
+                f"K={self.K}, n={self.n})")
 
 
 def _ordered_to_unique(index_o: np.ndarray, index_u: np.ndarray) -> sp.csr_matrix:
@@ -304,7 +301,9 @@ def _ordered_to_unique(index_o: np.ndarray, index_u: np.ndarray) -> sp.csr_matri
 def product_basis(basis: Basis, order: int = 2, pairs: str = "ordered") -> ProductBasis:
     """The extended basis of ``basis`` with products up to ``order`` (see module doc).
 
-    Cached on ``basis``: asking twice returns the same object (and so reuses its operators).
+    Cached in ``basis.cache`` under ``("product_basis", basis.k, order, pairs)``: asking twice,
+    also through another truncation of the same basis to the same ``k``, returns the same object
+    (and so reuses its operators).
 
     Parameters
     ----------
@@ -318,8 +317,6 @@ def product_basis(basis: Basis, order: int = 2, pairs: str = "ordered") -> Produ
     if not isinstance(order, (int, np.integer)) or order < 1:
         raise ValueError(f"order must be an integer >= 1, got {order!r}")
     _check_pairs(pairs)
-    key = ("product_basis", int(order), pairs)
-    if key not in basis._cache:
-        idx = multi_indices(basis.k - 1, int(order), pairs)
-        basis._cache[key] = ProductBasis(basis, int(order), pairs, idx)
-    return basis._cache[key]
+    key = ("product_basis", basis.k, int(order), pairs)
+    return basis.cache.get(key, lambda: ProductBasis(basis, int(order), pairs,
+                                                     multi_indices(basis.k - 1, int(order), pairs)))

@@ -20,6 +20,7 @@ import itertools
 import numpy as np
 import scipy.sparse as sp
 
+from ._callable import make_callable
 from .approx import check_functions
 from .basis import Basis
 from .products import _n_orderings, multi_indices, product_basis
@@ -192,3 +193,6 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, or
     ext2 = product_basis(basis_2, order, pairs)
     a = ext1.operator(approx, **params).coefficients(F)  # (K1,) or (K1, m)
     return ext2.evaluate(extend_fmap(C, basis_1, basis_2, order, pairs) @ a)
+
+
+make_callable(__name__)  # pm.transfer(...) calls transfer() above; prodmaps.transfer stays the module

@@ -137,14 +137,14 @@ def select_rtol(basis_1: Basis, F=None, *, method: str = "gain", C_12=None, basi
         if method == "cv":
             if not 0 < holdout < 1:
                 raise ValueError(f"holdout must be in (0, 1), got {holdout}")
-            key = ("select_rtol_cv_svd", float(holdout), int(seed))
-            if key not in ext._cache:  # the split and its SVD depend on the basis only: reuse them
+            def split_svd():  # the split and its SVD depend on the basis only: cached and reused
                 rng = np.random.default_rng(seed)
                 test = np.zeros(basis_1.n, dtype=bool)
                 test[rng.choice(basis_1.n, size=max(1, int(round(holdout * basis_1.n))), replace=False)] = True
                 X = sq[~test, None] * B_s[~test]  # (n_train, K_u)
-                ext._cache[key] = (test,) + tuple(np.linalg.svd(X, full_matrices=False))
-            test, U, s, Vt = ext._cache[key]
+                return (test,) + tuple(np.linalg.svd(X, full_matrices=False))
+
+            test, U, s, Vt = ext.cache.get(("select_rtol_cv_svd", float(holdout), int(seed)), split_svd)
             beta = U.T @ (sq[~test, None] * F2[~test])  # (K_u, m)
             Bt = sq[test, None] * B_s[test]  # (n_test, K_u)
             Ft = sq[test, None] * F2[test]
@@ -155,10 +155,8 @@ def select_rtol(basis_1: Basis, F=None, *, method: str = "gain", C_12=None, basi
                 a = Vt[keep].T @ (beta[keep] / s[keep, None])  # (K_u, m)
                 score.append(float(np.mean(np.sqrt(np.sum((Bt @ a - Ft) ** 2, axis=0) / den))))
         else:
-            key = ("select_rtol_gcv_svd",)
-            if key not in ext._cache:
-                ext._cache[key] = np.linalg.svd(sq[:, None] * B_s, full_matrices=False)[:2]
-            U, s = ext._cache[key]
+            U, s = ext.cache.get(("select_rtol_gcv_svd",),
+                                 lambda: np.linalg.svd(sq[:, None] * B_s, full_matrices=False)[:2])
             Y = sq[:, None] * F2
             beta = U.T @ Y
             tot = np.sum(Y**2, axis=0)

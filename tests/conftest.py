@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 import prodmaps as pm
+from prodmaps.datasets import dataset_dir as ds_dir
 from prodmaps.mesh import subdivide_midpoint
 
 ROOT = Path(__file__).resolve().parents[1]
-DATA = ROOT / "data" / "anny_humans"
+DATA = ds_dir("anny_humans")
 BROKEN = Path(__file__).resolve().parent / "data" / "broken"
 
 

@@ -40,8 +40,8 @@ def test_hks_reproduced_by_products(b10, pairs):
 def test_svd_and_gram_routes_agree(basis_0):
     ext = pm.product_basis(basis_0.truncate(20), 2, "ordered")
     F = np.random.default_rng(0).normal(size=(basis_0.n, 4))
-    a_svd = pm.operator(ext, "svd", rtol=1e-3, route="svd").coefficients(F)
-    a_gram = pm.operator(ext, "svd", rtol=1e-3, route="gram").coefficients(F)
+    a_svd = pm.approximation_operator(ext, "svd", rtol=1e-3, route="svd").coefficients(F)
+    a_gram = pm.approximation_operator(ext, "svd", rtol=1e-3, route="gram").coefficients(F)
     assert np.abs(a_svd - a_gram).max() <= 1e-8 * np.abs(a_svd).max()
 
 
@@ -101,7 +101,7 @@ def test_lasso_meets_optimality_conditions(b10):
     ext = pm.product_basis(b10, 2, "unique")
     rng = np.random.default_rng(6)
     F = ext.matrix @ rng.normal(size=(ext.K, 2)) + 0.1 * rng.normal(size=(b10.n, 2))
-    op = pm.operator(ext, "lasso", eps=1e-2, tol=1e-6)
+    op = pm.approximation_operator(ext, "lasso", eps=1e-2, tol=1e-6)
     a = op.coefficients(F)
     B = ext.matrix
     G = B.T @ (b10.mass[:, None] * B)
@@ -137,9 +137,9 @@ def test_dual_gram_route_when_more_columns_than_points():
     ext = pm.product_basis(b, 4, "unique")  # 495 columns > 162 points
     assert ext.K > b.n
     F = np.column_stack([sphere.vertices, np.random.default_rng(8).normal(size=(b.n, 2))])
-    op_gram = pm.operator(ext, "svd", rtol=1e-3, route="gram")
+    op_gram = pm.approximation_operator(ext, "svd", rtol=1e-3, route="gram")
     assert op_gram.params.get("side") == "dual"
-    op_svd = pm.operator(ext, "svd", rtol=1e-3, route="svd")
+    op_svd = pm.approximation_operator(ext, "svd", rtol=1e-3, route="svd")
     a_g, a_s = op_gram.coefficients(F), op_svd.coefficients(F)
     assert np.abs(a_g - a_s).max() <= 1e-8 * np.abs(a_s).max()
     a = np.random.default_rng(9).normal(size=(ext.K, 2))

@@ -3,10 +3,9 @@
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import BROKEN
 
 import prodmaps as pm
-
-from conftest import BROKEN
 
 
 def test_cotan_laplacian_is_psd_with_constant_kernel(sphere):

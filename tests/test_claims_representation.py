@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from prodmaps import nbtools, render
+from prodmaps.experiments import render
+from prodmaps.pipeline import notebooks as nbfiles
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = {
@@ -44,7 +45,7 @@ def res(runs, name):
 
 def test_notebooks_committed_without_outputs():
     for nb in NOTEBOOKS.values():
-        assert not nbtools.notebook_has_outputs(ROOT / nb), nb
+        assert not nbfiles.has_outputs(ROOT / nb), nb
 
 
 def test_smoke_parameters_recorded(runs):

@@ -21,9 +21,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from prodmaps import nbtools
-
 from conftest import smoke_fixture
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -50,7 +47,7 @@ def test_notebook_committed_clean_with_parameters_cell(name):
     import json
 
     path = ROOT / NOTEBOOKS[name]
-    assert not nbtools.notebook_has_outputs(path), f"{path.name}: strip outputs before committing"
+    assert not nbfiles.has_outputs(path), f"{path.name}: strip outputs before committing"
     cells = json.loads(path.read_text())["cells"]
     assert cells[0]["cell_type"] == "markdown"
     assert "parameters" in cells[1]["metadata"].get("tags", [])

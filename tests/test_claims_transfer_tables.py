@@ -28,11 +28,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from prodmaps import nbtools
-
 from conftest import smoke_fixture
-from prodmaps.report import load_published, match_entries
+
+from prodmaps.experiments.published import load_published, match_entries
 
 ROOT = Path(__file__).resolve().parents[1]
 TABLES_NB = ROOT / "notebooks" / "tables_transfer.ipynb"
@@ -52,7 +50,7 @@ study = smoke_fixture("study_truncation")
 def test_notebook_committed_clean_with_parameters_cell(nb):
     import json
 
-    assert not nbtools.notebook_has_outputs(nb), f"{nb.name}: strip outputs before committing"
+    assert not nbfiles.has_outputs(nb), f"{nb.name}: strip outputs before committing"
     cells = json.loads(nb.read_text())["cells"]
     assert cells[0]["cell_type"] == "markdown"
     assert cells[1]["metadata"].get("tags") == ["parameters"]

@@ -8,8 +8,8 @@ import pytest
 
 import prodmaps as pm
 import prodmaps.datasets as ds
+from prodmaps.datasets import dataset_dir as ds_dir
 
-ROOT = Path(__file__).resolve().parents[1]
 NAME = "anny_humans"
 VARIANT_SIZES = {"anny_000_thin": 13535, "anny_013_remesh_iso": 4154, "anny_025_remesh_nonuniform": 6644}
 
@@ -22,10 +22,16 @@ def default_root(monkeypatch):
 
 def test_registry_and_root(monkeypatch, tmp_path):
     assert ds.names() == ["anny_humans", "faust", "tosca"]
-    assert ds.data_root() == ROOT / "data"
+    # the embedded data ship inside the installed package, wherever the repository is
+    assert ds.dataset_dir(NAME) == Path(pm.__file__).resolve().parent / "data" / NAME
+    monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))
+    assert ds.data_root() == tmp_path / "xdg" / "prodmaps"  # prepared datasets, when PRODMAPS_DATA is unset
     monkeypatch.setenv("PRODMAPS_DATA", str(tmp_path))
     assert ds.data_root() == tmp_path.resolve()
     assert ds.dataset_dir("faust") == tmp_path.resolve() / "faust"
+    assert ds.dataset_dir(NAME) == ds.embedded_root() / NAME  # not under PRODMAPS_DATA: the embedded copy
+    (tmp_path / NAME / "shapes").mkdir(parents=True)
+    assert ds.dataset_dir(NAME) == tmp_path.resolve() / NAME  # a copy under PRODMAPS_DATA wins
     with pytest.raises(ValueError, match="unknown dataset 'shrec'"):
         ds.shape_ids("shrec")
 
@@ -93,7 +99,7 @@ def test_identity_ground_truth_for_all_family_pairs():
 def test_variants_map_onto_family(vid):
     base = ds.base_shape(NAME, vid)
     var, fam = ds.load_shape(NAME, vid), ds.load_shape(NAME, base)
-    text = np.loadtxt(ROOT / "data" / NAME / "remeshed" / f"{vid}.gt_to_family.txt", dtype=np.int64)
+    text = np.loadtxt(ds_dir(NAME) / "remeshed" / f"{vid}.gt_to_family.txt", dtype=np.int64)
     # family -> variant: p2p_21 (n_variant,) is the variant's gt_to_family, for any family shape
     for other in (base, "anny_042"):
         np.testing.assert_array_equal(ds.ground_truth(NAME, other, vid), text)
@@ -122,14 +128,18 @@ def test_unprepared_datasets_name_the_script(monkeypatch, tmp_path):
     assert "prepare_faust.py --archive MPI-FAUST.zip" in msg and "faust.is.tue.mpg.de" in msg
     with pytest.raises(ds.DatasetNotPreparedError, match="prepare_tosca.py --archive toscahires-asci.zip"):
         ds.load_shape("tosca", "cat0")
-    with pytest.raises(FileNotFoundError, match="ships with the project"):
+    monkeypatch.setattr(ds, "embedded_root", lambda: tmp_path / "no_package_data")
+    ds.clear_cache()
+    with pytest.raises(FileNotFoundError, match="ships inside the package"):
         list(ds.pairs("anny_humans"))
+    monkeypatch.undo()
+    ds.clear_cache()
 
 
 def test_checksums(monkeypatch, tmp_path):
     res = ds.verify_checksums(NAME)
     assert len(res) == 67 and all(res.values())
-    shutil.copytree(ROOT / "data" / NAME, tmp_path / NAME)
+    shutil.copytree(ds_dir(NAME), tmp_path / NAME)
     monkeypatch.setenv("PRODMAPS_DATA", str(tmp_path))
     p = tmp_path / NAME / "shapes" / "anny_007.ply"
     data = bytearray(p.read_bytes())

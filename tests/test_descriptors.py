@@ -4,14 +4,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import icosphere  # noqa: E402  (shared test mesh)
 
 import prodmaps as pm
 import prodmaps.descriptors as D
-
-from conftest import icosphere  # noqa: E402  (shared test mesh)
+from prodmaps.datasets import dataset_dir as ds_dir
 
 ROOT = Path(__file__).resolve().parents[1]
-ANNY = ROOT / "data" / "anny_humans" / "shapes" / "anny_000.ply"
+ANNY = ds_dir("anny_humans") / "shapes" / "anny_000.ply"
 
 
 def rigid(mesh: pm.Mesh, seed: int = 3, scale: float = 1.0) -> pm.Mesh:
@@ -217,7 +217,7 @@ def test_shot_bad_input(anny):
 # ----------------------------------------------------------------------------- curvature / AWFT
 def test_principal_curvatures_on_sphere():
     m = icosphere(4, radius=2.0)
-    c = D.principal_curvatures(m)
+    c = pm.curvature.principal_curvatures(m)
     np.testing.assert_allclose(np.median(c["mean"]), 0.5, rtol=0.02)
     np.testing.assert_allclose(np.median(c["gauss"]), 0.25, rtol=0.04)
     assert np.abs(c["mean"] - 0.5).max() < 0.05
@@ -231,17 +231,17 @@ def test_principal_curvatures_on_sphere():
 
 def test_anisotropic_laplacian_properties(anny):
     W0, A0 = pm.laplacian(anny)
-    Wi, Ai = D.anisotropic_laplacian(anny, 0.7, 0.0)
+    Wi, Ai = pm.laplacian.anisotropic_laplacian(anny, 0.7, 0.0)
     assert abs(Wi - W0).max() < 1e-10 * abs(W0).max()  # alpha = 0 is the cotangent Laplacian
     np.testing.assert_allclose(Ai, A0)
-    Wa, _ = D.anisotropic_laplacian(anny, 0.0, 10.0)
+    Wa, _ = pm.laplacian.anisotropic_laplacian(anny, 0.0, 10.0)
     assert abs(Wa - W0).max() > 0.1 * abs(W0).max()
     assert abs(Wa - Wa.T).max() == 0
     np.testing.assert_allclose(Wa @ np.ones(anny.n_vertices), 0.0, atol=1e-9 * abs(Wa).max())
     x = np.random.default_rng(0).normal(size=(anny.n_vertices, 5))
     assert np.all(np.einsum("ij,ij->j", x, Wa @ x) > 0)  # PSD (on random vectors)
     # rotating by π gives the same operator (D depends on w wᵀ)
-    Wpi, _ = D.anisotropic_laplacian(anny, np.pi, 10.0)
+    Wpi, _ = pm.laplacian.anisotropic_laplacian(anny, np.pi, 10.0)
     assert abs(Wpi - Wa).max() < 1e-10 * abs(Wa).max()
 
 
@@ -274,4 +274,4 @@ def test_awft_options_and_errors(anny):
     with pytest.raises(ValueError, match="taus"):
         D.awft(anny, k=20, taus=(-0.1,), freqs0=(0,))
     with pytest.raises(ValueError, match="alpha"):
-        D.anisotropic_laplacian(anny, 0.0, -1.0)
+        pm.laplacian.anisotropic_laplacian(anny, 0.0, -1.0)

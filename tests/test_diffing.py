@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from prodmaps import cli
-from prodmaps.diffing import diff_results, diff_runs, flatten, image_rms, tolerance_for
+from prodmaps.pipeline import cli
+from prodmaps.pipeline.diffing import diff_results, diff_runs, flatten, image_rms, tolerance_for
 
 DOC = {
     "parameters": {"profile": "smoke", "out_dir": "results/smoke/x", "ks": [4, 8]},
@@ -111,7 +111,7 @@ def test_image_rms_scale():
     assert image_rms(a, np.full_like(a, 255)) == pytest.approx(255.0)
 
 
-def test_pngs_small_noise_passes_big_change_fails_with_side_by_side(tmp_path):
+def test_pngs_small_noise_passes_big_change_fails_with_a_difference_image(tmp_path):
     base = make_run(tmp_path / "base", images={"fig.png": _img(0), "other.png": _img(1)})
     noisy = _img(0).astype(int)
     noisy[::7, ::5] = np.clip(noisy[::7, ::5] + 3, 0, 255)  # a few pixels off by 3: RMS well below 2
@@ -123,9 +123,11 @@ def test_pngs_small_noise_passes_big_change_fails_with_side_by_side(tmp_path):
     by = {f.key: f for f in rep.findings if f.kind == "image"}
     assert by["fig.png"].ok and by["fig.png"].new < 2.0
     assert not by["other.png"].ok and by["other.png"].new > 2.0
-    side = Image.open(by["other.png"].image)
-    assert side.size == (3 * 30 + 8, 40)  # baseline | new | amplified difference
-    assert not (tmp_path / "new" / "diff" / "fig_diff.png").exists()
+    diff_png = Path(by["other.png"].image)  # matplotlib.testing.compare's difference image
+    assert diff_png == tmp_path / "new" / "diff" / "other-failed-diff.png"
+    assert Image.open(diff_png).size == (30, 40)
+    assert not (tmp_path / "new" / "diff" / "fig-failed-diff.png").exists()
+    assert not list((tmp_path / "new").glob("*failed-diff*"))  # nothing written beside the run's images
     md = (tmp_path / "new" / "diff" / "report.md").read_text()
     assert "diff FAIL" in md and "other.png" in md and "pixel RMS" in md
 
@@ -137,7 +139,7 @@ def test_png_size_mismatch_missing_and_extra_fail(tmp_path):
     bad = {f.key: f.detail for f in rep.failures}
     assert set(bad) == {"a.png", "gone.png", "extra.png"}
     assert "size mismatch" in bad["a.png"] and "missing" in bad["gone.png"] and "extra" in bad["extra.png"]
-    assert Image.open(tmp_path / "dd" / "a_diff.png").size == (3 * 31 + 8, 40)
+    assert "baseline 30x40, new 31x40" in bad["a.png"]
 
 
 def test_rgba_png_compared_on_white(tmp_path):

@@ -13,7 +13,7 @@ def demo(human_0, human_13):
     """Bases with 60 columns and the NO17 demo descriptors (5 landmarks) on 000 -> 013."""
     b1, b2 = pm.eigenbasis(human_0, 60), pm.eigenbasis(human_13, 60)
     lm = fmaps.farthest_point_landmarks(human_0.vertices, 5)
-    d1, d2 = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=20, subsample_step=5, k_descr=60)
+    d1, d2 = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=30, subsample_step=5, k_descr=60)
     return b1, b2, d1, d2, lm
 
 
@@ -158,13 +158,19 @@ def test_bad_inputs(demo):
 
 def test_demo_descriptors_layout(demo):
     b1, b2, _, _, lm = demo
-    d1, d2 = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=12, subsample_step=1, k_descr=60)
-    assert d1.shape == (b1.n, 12 * 6) and d2.shape == (b2.n, 12 * 6)
+    E = 30  # energies (more than 2 * margin * variance = 28, so the energy range is not empty)
+    d1, d2 = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=E, subsample_step=1, k_descr=60)
+    assert d1.shape == (b1.n, E * 6) and d2.shape == (b2.n, E * 6)
     # the WKS is the diagonal of the wave-kernel map: WKS_e(l) == map_{l,e}(l)
     for j, l in enumerate(lm):
-        assert np.allclose(d1[l, :12], d1[l, 12 * (j + 1):12 * (j + 2)], rtol=1e-12)
-    sub, _ = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=12, subsample_step=5, k_descr=60)
+        assert np.allclose(d1[l, :E], d1[l, E * (j + 1):E * (j + 2)], rtol=1e-12)
+    # the package's one WKS: the first block is prodmaps.descriptors.wks with the automatic energies
+    energies, sigma = pm.descriptors.wks_energies(b1.truncate(60), E)
+    np.testing.assert_allclose(d1[:, :E], pm.descriptors.wks(b1.truncate(60), energies, sigma), rtol=1e-12)
+    sub, _ = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=E, subsample_step=5, k_descr=60)
     assert np.array_equal(sub, d1[:, ::5])
+    with pytest.raises(ValueError, match="empty energy range"):
+        fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=12, k_descr=60)
 
 
 def test_zoomout_keeps_exact_maps_and_grows(human_0):

@@ -6,11 +6,13 @@ import numpy as np
 import pytest
 
 import prodmaps as pm
+from prodmaps.cache import Cache
 import prodmaps.descriptors as D
-import prodmaps.functions as PF
+import prodmaps.experiments.families as PF
+from prodmaps.datasets import dataset_dir as ds_dir
 
 ROOT = Path(__file__).resolve().parents[1]
-SHAPES = ROOT / "data" / "anny_humans" / "shapes"
+SHAPES = ds_dir("anny_humans") / "shapes"
 K_M = 9
 # cheaper descriptor / kernel settings for the tests (the defaults are exercised elsewhere)
 OPTS = {"AWFT": {"k": 20, "angles_deg": (0.0, 90.0)}, "hk_K": {"n_eig_K": 60}}
@@ -19,7 +21,7 @@ OPTS = {"AWFT": {"k": 20, "angles_deg": (0.0, 90.0)}, "hk_K": {"n_eig_K": 60}}
 @pytest.fixture(scope="module")
 def src():
     mesh = pm.load_mesh(SHAPES / "anny_000.ply")
-    return mesh, pm.eigenbasis(mesh, 60), {}
+    return mesh, pm.eigenbasis(mesh, 60), Cache()
 
 
 @pytest.fixture(scope="module")

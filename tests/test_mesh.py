@@ -2,11 +2,10 @@
 
 import numpy as np
 import pytest
+from conftest import BROKEN
 
 import prodmaps as pm
 from prodmaps import mesh as pmesh
-
-from conftest import BROKEN, DATA
 
 
 @pytest.mark.parametrize(

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from prodmaps import reproduce as rp
-from prodmaps.diffing import diff_runs
+from prodmaps.pipeline.diffing import diff_runs
 
 ROOT = Path(__file__).resolve().parents[1]
 REGISTRY = ROOT / "paper" / "runs.toml"

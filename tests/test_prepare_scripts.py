@@ -5,7 +5,6 @@ has F = 2V - 4, so the convex hull of 6890 points on a sphere has exactly FAUST'
 the refusal tests use 12 shapes instead of 100 (``n_shapes`` parameter) to stay fast.
 """
 
-import importlib.util
 import json
 import subprocess
 import sys
@@ -17,23 +16,12 @@ import pytest
 from scipy.spatial import ConvexHull
 
 import prodmaps.datasets as ds
+from prodmaps.datasets import dataset_dir as ds_dir
+from prodmaps.prepare import faust, tosca
+from prodmaps.prepare import variants as variants
+from prodmaps.prepare.archive import PrepareError
 
-ROOT = Path(__file__).resolve().parents[1]
-SCRIPTS = ROOT / "data_scripts"
-
-
-def _load(name):
-    sys.path.insert(0, str(SCRIPTS))
-    spec = importlib.util.spec_from_file_location(name, SCRIPTS / f"{name}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-faust = _load("prepare_faust")
-tosca = _load("prepare_tosca")
-variants = _load("make_variants")
-PrepareError = faust.PrepareError
+SCRIPTS = Path(__file__).resolve().parents[1] / "data_scripts"  # the thin command-line wrappers
 
 
 def fib_sphere(n):
@@ -302,7 +290,7 @@ def test_tosca_class_repair(tmp_path, tosca_members, monkeypatch):
 def test_make_variants_ground_truth(tmp_path, monkeypatch):
     root = tmp_path / "data"
     (root / "anny_humans" / "shapes").mkdir(parents=True)
-    src = ROOT / "data" / "anny_humans" / "shapes"
+    src = ds_dir("anny_humans") / "shapes"
     for sid in ("anny_000", "anny_001"):
         (root / "anny_humans" / "shapes" / f"{sid}.ply").write_bytes((src / f"{sid}.ply").read_bytes())
     written = variants.make_variants("anny_humans", ["anny_000"], data_root=root, verbose=False)

@@ -86,4 +86,4 @@ def test_blocked_route_equals_materialised(basis_0, pairs):
     a_blk = blocked.operator("svd", rtol=1e-3).coefficients(F)
     np.testing.assert_allclose(a_blk, a_full, rtol=0, atol=1e-9 * np.abs(a_full).max())
     np.testing.assert_allclose(blocked.evaluate(a_blk), full.evaluate(a_full), atol=1e-9)
-    assert "solver" not in blocked._cache  # nothing materialised
+    assert "solver" not in blocked.cache  # nothing materialised

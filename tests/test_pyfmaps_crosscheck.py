@@ -43,7 +43,8 @@ def test_operators_and_eigenvalues_agree(pair):
 def test_hks_wks_agree(pair):
     _, _, tm1, _, b1, _ = pair
     descriptors = pytest.importorskip("prodmaps.descriptors")
-    from pyFM.signatures import HKS_functions as H, WKS_functions as Wf
+    from pyFM.signatures import HKS_functions as H
+    from pyFM.signatures import WKS_functions as Wf
 
     times = descriptors.hks_times(b1, 20)
     ours = descriptors.hks(b1, times, scaled=True)

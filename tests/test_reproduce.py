@@ -11,9 +11,11 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from prodmaps import cli, reproduce as rp
-from prodmaps.diffing import diff_runs
-from prodmaps.report import build_report, match_entries, normalize_entry, load_published
+from prodmaps.experiments.published import load_published, match_entries, normalize_entry
+from prodmaps.pipeline import cli
+from prodmaps.pipeline import registry as rp
+from prodmaps.pipeline.diffing import diff_runs
+from prodmaps.pipeline.report import build_report
 
 ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable

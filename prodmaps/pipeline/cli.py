@@ -31,7 +31,8 @@ def build_parser() -> argparse.ArgumentParser:
     r = sub.add_parser("reproduce", help="run the registered notebooks (resumable, parallel)",
                        description="Run the notebooks of paper/runs.toml with papermill. Unchanged runs "
                                    "whose outputs exist are skipped; failures are isolated and summarised.")
-    r.add_argument("--only", nargs="+", metavar="RUN", help="run only these registry entries")
+    r.add_argument("--only", nargs="+", action="extend", metavar="RUN",
+                   help="run only these registry entries (repeatable: every --only adds runs)")
     r.add_argument("--profile", choices=("smoke", "paper"), default="paper",
                    help="smoke: small and fast (CI); paper: the paper's sizes (default)")
     r.add_argument("--dataset", help="set the notebooks' `dataset` parameter (e.g. anny_humans, faust)")
@@ -74,38 +75,41 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _cmd_reproduce(a) -> int:
-    from . import reproduce as rp
+    from . import baselines, execute, registry
 
     if a.list:
-        for name, run in rp.load_registry(a.registry).items():
-            print(f"{name:<28} {run.reproduces:<14} {run.notebook.relative_to(rp.REPO_ROOT) if rp.REPO_ROOT in run.notebook.parents else run.notebook}")
+        root = registry.project_root(a.registry)
+        for name, run in registry.load_registry(a.registry).items():
+            nb = run.notebook.relative_to(root) if root in run.notebook.parents else run.notebook
+            print(f"{name:<28} {run.reproduces:<14} {nb}")
         return 0
     if a.jobs < 1:
         raise ValueError("--jobs must be >= 1")
     if a.update_baselines and a.profile != "smoke":
         raise ValueError("--update-baselines refreshes the smoke baselines: add --profile smoke")
-    overrides = rp.parse_params(a.param)
+    overrides = registry.parse_params(a.param)
     t0 = time.perf_counter()
-    results = rp.reproduce(registry=a.registry, only=a.only, profile=a.profile, dataset=a.dataset,
+    results = execute.reproduce(registry=a.registry, only=a.only, profile=a.profile, dataset=a.dataset,
                            overrides=overrides, out=a.out, jobs=a.jobs, force=a.force,
                            scheduler=a.scheduler, kernel_name=a.kernel, timeout=a.timeout,
                            progress=not a.no_progress)
     wall = time.perf_counter() - t0
-    print(rp.summary(results))
+    print(execute.summary(results))
     out_root = Path(a.out).resolve() / a.profile
     print(f"wall time {wall:.1f} s; outputs in {out_root}")
     if a.update_baselines:
-        dest = rp.baselines_dir(a.registry, a.profile)
-        done = rp.update_baselines(results, dest)
+        dest = baselines.baselines_dir(a.registry, a.profile)
+        done = baselines.update_baselines(results, dest)
         print(f"baselines updated for {len(done)} run(s) in {dest}: {' '.join(done)}")
     if not a.no_report:
         from .report import build_report
 
-        default_registry = rp.registry_path(a.registry) == rp.REPO_ROOT / "paper" / "runs.toml"
+        root = registry.project_root(a.registry)
+        default_registry = registry.registry_path(a.registry) == root / registry.REGISTRY
         if a.report:
             md = Path(a.report)
         elif a.profile == "paper" and default_registry:
-            md = rp.REPO_ROOT / "paper" / "REPORT.md"
+            md = root / "paper" / "REPORT.md"
         else:
             md = out_root / "REPORT.md"
         md, html = build_report(out_root, md, registry=a.registry, copy_figures=a.copy_figures)
@@ -115,7 +119,7 @@ def _cmd_reproduce(a) -> int:
 
 def _cmd_diff(a) -> int:
     from .diffing import DEFAULT_PNG_THRESHOLD, diff_runs
-    from .reproduce import load_registry
+    from .registry import load_registry
 
     name = a.run or Path(a.baseline_dir).resolve().name
     tolerances = {}
@@ -148,7 +152,7 @@ def main(argv=None) -> int:
     a = parser.parse_args(argv)
     try:
         return {"reproduce": _cmd_reproduce, "diff": _cmd_diff, "report": _cmd_report}[a.command](a)
-    except (ValueError, FileNotFoundError, ModuleNotFoundError) as exc:
+    except (ValueError, FileNotFoundError, ModuleNotFoundError) as exc:  # incl. RegistryError, ParameterError
         print(f"prodmaps {a.command}: error: {exc}", file=sys.stderr)
         return 2
 

@@ -1,4 +1,4 @@
-"""Shared helpers of the dataset preparation scripts (safe archive reading, atomic output).
+"""Safe archive reading and atomic output for the dataset preparation (FAUST, TOSCA, variants).
 
 Safety rules implemented here:
 
@@ -16,7 +16,6 @@ Safety rules implemented here:
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import json
 import os
 import posixpath
@@ -27,9 +26,7 @@ import tempfile
 import zipfile
 from pathlib import Path, PurePosixPath
 
-REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:  # run as `python data_scripts/x.py` without installing the package
-    sys.path.insert(0, str(REPO))
+from ..files import sha256_file
 
 MAX_MEMBER_BYTES = 1 << 30  # 1 GiB per member
 
@@ -39,9 +36,11 @@ class PrepareError(Exception):
 
 
 def default_data_root() -> Path:
-    """``$PRODMAPS_DATA`` if set, else the repository's ``data/`` folder."""
-    env = os.environ.get("PRODMAPS_DATA")
-    return Path(env).expanduser().resolve() if env else REPO / "data"
+    """Where prepared datasets go by default: :func:`prodmaps.datasets.data_root`
+    (``$PRODMAPS_DATA``, else ``~/.local/share/prodmaps``)."""
+    from ..datasets import data_root
+
+    return data_root()
 
 
 def check_member_name(name: str, target: Path = Path("/nonexistent/target")) -> None:
@@ -121,14 +120,6 @@ class Archive:
         self.close()
 
 
-def sha256_file(path, chunk: int = 1 << 20) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(chunk), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 @contextlib.contextmanager
 def staged_folder(target: Path, *, force: bool = False):
     """Yield a temporary sibling folder of ``target``; on success rename it to ``target``.
@@ -168,7 +159,7 @@ def write_manifest_and_sums(folder: Path, manifest: dict) -> None:
 
 def parse_mesh_bytes(data: bytes, suffix: str, scratch: Path):
     """Parse mesh bytes with the package's strict reader (no validation); returns (V, F)."""
-    from prodmaps.io import read_mesh_arrays
+    from ..io import read_mesh_arrays
 
     tmp = scratch / f"_member{suffix}"
     tmp.write_bytes(data)

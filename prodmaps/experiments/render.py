@@ -16,7 +16,8 @@ import sys
 
 import numpy as np
 
-__all__ = ["probe_rendering", "render_mesh", "render_grid", "VIEWS"]
+__all__ = ["probe_rendering", "render_mesh", "render_grid", "VIEWS", "error_colormap", "function_colormap",
+           "camera_bounds", "rendering_available"]
 
 # camera direction (from the object towards the camera) and up vector per named view
 VIEWS = {
@@ -112,7 +113,7 @@ def render_grid(panels, *, ncols=None, titles=None, captions=None, suptitle=None
     ``panels`` is a list of images (from :func:`render_mesh`). ``colorbar`` is an optional
     ``(cmap, clim, label)`` drawn once for the whole figure. Returns the figure.
     """
-    from .nbtools import setup_matplotlib
+    from .results import setup_matplotlib
 
     plt = setup_matplotlib()
     n = len(panels)
@@ -138,3 +139,35 @@ def render_grid(panels, *, ncols=None, titles=None, captions=None, suptitle=None
         sm = mpl.cm.ScalarMappable(norm=mpl.colors.Normalize(*clim), cmap=cmap)
         fig.colorbar(sm, ax=axes.ravel().tolist(), fraction=0.02, pad=0.01, label=label)
     return fig
+
+
+# ------------------------------------------------------------------ shared figure conventions
+def error_colormap():
+    """Reconstruction-error colours: light grey (small) to dark red (large), as the paper's
+    "decreasing from dark red to white", but grey so well-reconstructed parts stay visible."""
+    import matplotlib.colors as mcolors
+
+    return mcolors.LinearSegmentedColormap.from_list(
+        "grey_to_darkred", [(0.86, 0.86, 0.86), (0.99, 0.73, 0.6), (0.87, 0.18, 0.13), (0.4, 0.0, 0.05)])
+
+
+def function_colormap():
+    """Signed function values: blue (-1) to light grey (0) to red (+1)."""
+    import matplotlib.colors as mcolors
+
+    return mcolors.LinearSegmentedColormap.from_list(
+        "blue_grey_red", [(0.15, 0.3, 0.75), (0.84, 0.84, 0.84), (0.8, 0.1, 0.1)])
+
+
+def camera_bounds(*vertex_arrays) -> np.ndarray:
+    """``(xmin, xmax, ymin, ymax, zmin, zmax)`` framing all the given ``(n, 3)`` arrays."""
+    allv = np.vstack([np.asarray(v, dtype=np.float64) for v in vertex_arrays])
+    return np.ravel(np.column_stack([allv.min(0), allv.max(0)]))
+
+
+def rendering_available(render_images: bool = True) -> bool:
+    """Probe off-screen rendering (in a subprocess: a missing GL backend crashes VTK) and print
+    why not; without rendering a notebook still computes and writes every number."""
+    ok, reason = probe_rendering() if render_images else (False, "render_images=False")
+    print("rendering:", reason)
+    return ok

@@ -1,4 +1,4 @@
-"""Functional maps: ground truth from a point map, the NO17 energy fitted by L-BFGS, ZoomOut.
+"""The NO17 functional-map energy, its explicit quadratic form and two solvers (L-BFGS, direct).
 
 Conventions (the same everywhere in prodmaps)
 ---------------------------------------------
@@ -71,8 +71,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .basis import Basis
-from .transfer import check_fmap, fmap_from_p2p
+from ..basis import Basis
+from ..transfer import check_fmap, fmap_from_p2p
 
 __all__ = [
     "ground_truth",
@@ -84,11 +84,6 @@ __all__ = [
     "energy_and_gradient",
     "quadratic_form",
     "fit_no17",
-    "zoomout",
-    "wave_kernel_weights",
-    "auto_wks_energies",
-    "no17_demo_descriptors",
-    "farthest_point_landmarks",
 ]
 
 LAP_FORMS = ("resolvent", "eigdiff")
@@ -431,7 +426,6 @@ def fit_no17(
     return (C.copy(), info) if return_info else C.copy()
 
 
-# ---------------------------------------------------------------------------- ZoomOut
 def _solve_direct(terms: NO17Terms) -> np.ndarray:
     """Exact minimiser of the quadratic NO17 energy over ``C[:, 1:]`` with ``C[:, 0]`` fixed."""
     import scipy.linalg as sla
@@ -450,139 +444,3 @@ def _solve_direct(terms: NO17Terms) -> np.ndarray:
     C[:, 0] = terms.col0
     C[:, 1:] = x.reshape(k2, k1 - 1)
     return C
-
-
-def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return_p2p: bool = False):
-    """ZoomOut refinement (Melzi et al. 2019, "ZoomOut: spectral upsampling for efficient shape correspondence").
-
-    Starting from ``C_12`` ``(k2, k1)``, repeat: convert the current map to a point map with
-    the standard nearest-neighbour rule (:func:`prodmaps.p2p.from_fmap`, ``p2p_21`` ``(n2,)``),
-    grow both sizes by ``step`` (each clipped at its target) and set
-    ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` at the new size. Stops when the size reaches ``k_final``.
-
-    Parameters
-    ----------
-    k_final : int (both sides) or ``(k2_final, k1_final)`` (the order of ``C.shape``); counts
-        the constant; must not exceed the bases' column counts nor be below ``C_12.shape``.
-    step : size increase per iteration (>= 1).
-    return_p2p : also return the last point map (the one that produced the final ``C``).
-    """
-    from .p2p import from_fmap
-
-    _check_basis(basis_1, "basis_1")
-    _check_basis(basis_2, "basis_2")
-    C = _check_fmap(C_12, basis_1, basis_2)
-    k2, k1 = C.shape
-    if isinstance(k_final, (int, np.integer)):
-        K2, K1 = int(k_final), int(k_final)
-    else:
-        K2, K1 = (int(v) for v in k_final)
-    if K1 > basis_1.k or K2 > basis_2.k:
-        raise ValueError(f"k_final (k2, k1) = {(K2, K1)} exceeds the bases ({basis_2.k}, {basis_1.k} columns)")
-    if K1 < k1 or K2 < k2:
-        raise ValueError(f"k_final (k2, k1) = {(K2, K1)} is smaller than the initial map {C.shape}")
-    if int(step) < 1:
-        raise ValueError(f"step must be >= 1, got {step}")
-    p2p = None
-    while True:
-        p2p = from_fmap(C, basis_1, basis_2, method="std")
-        if k1 == K1 and k2 == K2:
-            # one last conversion at the final size so the returned C comes from a point map
-            C = basis_2.truncate(K2).project(basis_1.vecs[p2p, :K1])
-            break
-        k1, k2 = min(k1 + step, K1), min(k2 + step, K2)
-        C = basis_2.truncate(k2).project(basis_1.vecs[p2p, :k1])  # (k2, k1)
-    return (C, p2p) if return_p2p else C
-
-
-# ---------------------------------------------------------------- NO17 demo descriptors
-def auto_wks_energies(evals: np.ndarray, n_energies: int, sigma_factor: float = 7.0, margin: float = 2.0):
-    """Log-energies and ``σ`` of the usual automatic WKS sampling (Aubry et al. 2011).
-
-    ``e_min = log λ_1``, ``e_max = log λ_max`` over the non-zero eigenvalues,
-    ``σ = sigma_factor·(e_max − e_min)/n_energies``, energies evenly spaced in
-    ``[e_min + margin·σ, e_max − margin·σ]``. Returns ``(energies (n_energies,), σ)``.
-    """
-    ev = np.abs(np.asarray(evals, dtype=np.float64))
-    ev = np.sort(ev[ev > 1e-8 * ev.max()])
-    if ev.size < 2:
-        raise ValueError("need at least two non-zero eigenvalues for the WKS energies")
-    e_min, e_max = np.log(ev[0]), np.log(ev[-1])
-    sigma = sigma_factor * (e_max - e_min) / n_energies
-    return np.linspace(e_min + margin * sigma, e_max - margin * sigma, n_energies), float(sigma)
-
-
-def wave_kernel_weights(evals: np.ndarray, energies: np.ndarray, sigma: float, scaled: bool = True) -> np.ndarray:
-    """WKS spectral weights ``(len(energies), k)``: ``exp(−(e − log λ_i)²/(2σ²))``.
-
-    The constant eigenpair (λ = 0) gets weight 0. With ``scaled`` each row is divided by its
-    sum (the usual WKS normalisation ``C_e``).
-    """
-    ev = np.abs(np.asarray(evals, dtype=np.float64))
-    keep = ev > 1e-8 * ev.max()
-    logs = np.log(np.where(keep, ev, 1.0))
-    w = np.exp(-((np.asarray(energies)[:, None] - logs[None, :]) ** 2) / (2 * sigma**2)) * keep[None, :]
-    if scaled:
-        w = w / w.sum(axis=1, keepdims=True)
-    return w
-
-
-def farthest_point_landmarks(vertices: np.ndarray, n: int, start: int = 0) -> np.ndarray:
-    """``n`` vertex indices by Euclidean farthest-point sampling from vertex ``start`` (deterministic)."""
-    V = np.asarray(vertices, dtype=np.float64)
-    idx = [int(start)]
-    d = np.linalg.norm(V - V[start], axis=1)
-    for _ in range(n - 1):  # n landmarks, a handful of iterations
-        j = int(np.argmax(d))
-        idx.append(j)
-        d = np.minimum(d, np.linalg.norm(V - V[j], axis=1))
-    return np.array(idx, dtype=np.int64)
-
-
-def no17_demo_descriptors(
-    basis_1: Basis,
-    basis_2: Basis,
-    landmarks=None,
-    n_descr: int = 100,
-    subsample_step: int = 5,
-    k_descr: int | None = 128,
-):
-    """Descriptors of pyFM's NO17 demo: WKS plus wave-kernel maps at landmarks, subsampled.
-
-    Built from the first ``k_descr`` eigenpairs of each basis (all if None), with the automatic
-    energies of :func:`auto_wks_energies` computed **on each shape's own spectrum** and scaled
-    weights ``w_e`` (:func:`wave_kernel_weights`):
-
-    * WKS ``(n, n_descr)``: ``WKS_e(x) = Σ_i w_e,i φ_i(x)²``;
-    * for each landmark pair ``(l1, l2)`` the wave-kernel maps ``x ↦ Σ_i w_e,i φ_i(l) φ_i(x)``
-      ``(n, n_descr)`` each, landmarks in order, energies fastest;
-    * columns ``[WKS, maps]`` concatenated, then every ``subsample_step``-th column kept.
-
-    ``landmarks``: None, ``(q,)`` (same indices on both shapes) or ``(q, 2)`` (column 0 on
-    shape 1, column 1 on shape 2). No normalisation here (:func:`fit_no17` normalises).
-    Returns ``(descr_1 (n1, p), descr_2 (n2, p))``.
-    """
-    if landmarks is None:
-        l1 = l2 = np.zeros(0, dtype=np.int64)
-    else:
-        lm = np.asarray(landmarks)
-        if lm.ndim == 1:
-            l1 = l2 = lm.astype(np.int64)
-        elif lm.ndim == 2 and lm.shape[1] == 2:
-            l1, l2 = lm[:, 0].astype(np.int64), lm[:, 1].astype(np.int64)
-        else:
-            raise ValueError(f"landmarks must be (q,) or (q, 2); got shape {lm.shape}")
-    out = []
-    for basis, lms in ((basis_1, l1), (basis_2, l2)):
-        k = basis.k if k_descr is None else min(k_descr, basis.k)
-        if lms.size and (lms.min() < 0 or lms.max() >= basis.n):
-            raise ValueError(f"landmark indices must be in [0, {basis.n})")
-        Phi, ev = basis.vecs[:, :k], basis.evals[:k]
-        energies, sigma = auto_wks_energies(ev, n_descr)
-        w = wave_kernel_weights(ev, energies, sigma)  # (n_descr, k)
-        cols = [(Phi**2) @ w.T]  # (n, n_descr)
-        if lms.size:
-            maps = np.einsum("ek,lk,nk->nle", w, Phi[lms], Phi, optimize=True)  # (n, q, n_descr)
-            cols.append(maps.reshape(basis.n, -1))
-        out.append(np.concatenate(cols, axis=1)[:, ::subsample_step])
-    return out[0], out[1]

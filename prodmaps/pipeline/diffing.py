@@ -13,12 +13,13 @@
   any key named ``seconds`` or ending in ``_seconds`` (with everything below it) — notebook
   authors, name timings that way.
 * every ``*.png`` at the top level of both folders by the RMS of the pixel difference over all
-  RGB channels (0-255 scale, default threshold 2.0). A size mismatch or a PNG present on one
-  side only is a failure. For each failing image a side-by-side picture
-  ``baseline | new | |difference| x amplify`` is written into the diff folder
-  (default ``<run_dir>/diff/``), together with ``report.md``.
+  channels (0-255 scale, default threshold 2.0), computed and illustrated by matplotlib's own
+  image comparison (``matplotlib.testing.compare``: ``calculate_rms``, and the
+  ``*-failed-diff.png`` difference image of ``compare_images`` for each failing image, written
+  into the diff folder, default ``<run_dir>/diff/``, together with ``report.md``). A size
+  mismatch or a PNG present on one side only is a failure.
 
-Pillow and numpy are imported inside the image functions.
+matplotlib and Pillow are imported inside the image functions.
 """
 
 from __future__ import annotations
@@ -28,6 +29,8 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import numpy as np
 
 __all__ = ["DEFAULT_RTOL", "DEFAULT_ATOL", "DEFAULT_PNG_THRESHOLD", "DEFAULT_IGNORE", "Finding",
            "DiffReport", "diff_runs", "diff_results", "diff_images", "flatten", "tolerance_for",
@@ -181,48 +184,36 @@ def diff_results(new: dict, base: dict, tolerances: dict | None = None) -> list[
 
 
 def image_rms(a, b) -> float:
-    """RMS of the pixel difference of two equally sized RGB uint8 arrays (0-255 scale)."""
-    import numpy as np
+    """RMS of the pixel difference of two equally sized uint8 arrays (0-255 scale), as
+    ``matplotlib.testing.compare.calculate_rms`` computes it."""
+    from matplotlib.testing.compare import calculate_rms
 
-    d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
-    return float(np.sqrt(np.mean(d * d)))
+    return float(calculate_rms(np.asarray(a, dtype=np.int16), np.asarray(b, dtype=np.int16)))
 
 
-def _load_rgb(path: Path):
-    import numpy as np
+def _load(path: Path) -> "np.ndarray":
+    """An image as RGB uint8; transparency is composited on white (the figures' background)."""
     from PIL import Image
 
     with Image.open(path) as im:
         if im.mode in ("RGBA", "LA", "P"):
             im = im.convert("RGBA")
-            bg = Image.new("RGBA", im.size, (255, 255, 255, 255))
-            im = Image.alpha_composite(bg, im)
+            im = Image.alpha_composite(Image.new("RGBA", im.size, (255, 255, 255, 255)), im)
         return np.asarray(im.convert("RGB"), dtype=np.uint8)
 
 
-def _side_by_side(base, new, out: Path, amplify: float) -> None:
-    """Write ``baseline | new | |diff| * amplify`` (padded to a common height with grey)."""
-    import numpy as np
-    from PIL import Image
-
-    h = max(base.shape[0], new.shape[0])
-    w = max(base.shape[1], new.shape[1])
-
-    def pad(img):
-        canvas = np.full((h, w, 3), 128, dtype=np.uint8)
-        canvas[: img.shape[0], : img.shape[1]] = img
-        return canvas
-
-    pb, pn = pad(base), pad(new)
-    diff = np.clip(np.abs(pb.astype(np.int16) - pn.astype(np.int16)) * amplify, 0, 255).astype(np.uint8)
-    sep = np.zeros((h, 4, 3), dtype=np.uint8)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(np.concatenate([pb, sep, pn, sep, diff], axis=1)).save(out)
-
-
 def diff_images(run_dir, baseline_dir, *, threshold: float = DEFAULT_PNG_THRESHOLD,
-                diff_dir=None, amplify: float = 10.0) -> list[Finding]:
-    """Compare the top-level PNGs of two folders; write side-by-side images for failures."""
+                diff_dir=None) -> list[Finding]:
+    """Compare the top-level PNGs of two folders by pixel RMS (``matplotlib.testing.compare``).
+
+    For every image beyond ``threshold`` the difference image of ``compare_images``
+    (``<name>-failed-diff.png``) is written into ``diff_dir``.
+    """
+    import shutil
+    import tempfile
+
+    from matplotlib.testing.compare import compare_images
+
     run_dir, baseline_dir = Path(run_dir), Path(baseline_dir)
     diff_dir = Path(diff_dir) if diff_dir is not None else run_dir / "diff"
     new = {p.name for p in run_dir.glob("*.png")}
@@ -235,20 +226,26 @@ def diff_images(run_dir, baseline_dir, *, threshold: float = DEFAULT_PNG_THRESHO
         if name not in base:
             findings.append(Finding("image", name, False, detail="extra image (not in the baseline)"))
             continue
-        a, b = _load_rgb(baseline_dir / name), _load_rgb(run_dir / name)
-        out = diff_dir / (Path(name).stem + "_diff.png")
+        a, b = _load(baseline_dir / name), _load(run_dir / name)
         if a.shape != b.shape:
-            _side_by_side(a, b, out, amplify)
             findings.append(Finding("image", name, False, a.shape[:2], b.shape[:2],
                                     f"size mismatch: baseline {a.shape[1]}x{a.shape[0]}, "
-                                    f"new {b.shape[1]}x{b.shape[0]}", str(out)))
+                                    f"new {b.shape[1]}x{b.shape[0]}"))
             continue
         rms = image_rms(a, b)
         ok = rms <= threshold
-        if not ok:
-            _side_by_side(a, b, out, amplify)
+        out = ""
+        if not ok:  # matplotlib writes <actual>-failed-diff.png beside the actual image: do it in a scratch copy
+            with tempfile.TemporaryDirectory() as tmp:
+                actual = Path(tmp) / name
+                shutil.copyfile(run_dir / name, actual)
+                res = compare_images(str(baseline_dir / name), str(actual), tol=threshold, in_decorator=True)
+                if res:
+                    diff_dir.mkdir(parents=True, exist_ok=True)
+                    out = str(diff_dir / Path(res["diff"]).name)
+                    shutil.move(res["diff"], out)
         findings.append(Finding("image", name, ok, None, rms,
-                                f"pixel RMS {rms:.3f} {'<=' if ok else '>'} {threshold:g}", "" if ok else str(out)))
+                                f"pixel RMS {rms:.3f} {'<=' if ok else '>'} {threshold:g}", out))
     return findings
 
 

@@ -50,7 +50,9 @@ Relative errors are computed column by column, so the per-column scaling of HKS/
 change any reported number.
 
 Caching: SHOT, AWFT and the 200-eigenpair basis cost seconds per shape; pass the same
-``cache`` dict (one per source mesh, owned by the caller) to reuse them across calls.
+``cache`` (a :class:`prodmaps.cache.Cache`, one per source mesh, owned by the caller, e.g.
+:meth:`prodmaps.experiments.store.ShapeStore.family_cache`) to reuse them across calls. The keys
+are :func:`descriptor_key` (SHOT/AWFT) and ``("basis", n_eig)``.
 """
 
 from __future__ import annotations
@@ -59,11 +61,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import descriptors as _d
-from .basis import Basis, eigenbasis
-from .mesh import Mesh
+from .. import descriptors as _d
+from ..basis import Basis, eigenbasis
+from ..cache import Cache
+from ..mesh import Mesh
 
-__all__ = ["FAMILIES", "PAPER_LABELS", "FamilySpec", "make_family", "pull_back", "family_names"]
+__all__ = ["FAMILIES", "PAPER_LABELS", "FamilySpec", "make_family", "pull_back", "family_names",
+           "descriptor_key", "family_seed"]
 
 
 @dataclass(frozen=True)
@@ -131,11 +135,7 @@ def _big_basis(ctx, n_eig: int) -> Basis:
     b1 = ctx["basis"]
     if b1.k >= n_eig:
         return b1.truncate(n_eig)
-    key = ("basis", n_eig)
-    cache = ctx["cache"]
-    if key not in cache:
-        cache[key] = eigenbasis(ctx["mesh"], n_eig)
-    return cache[key]
+    return ctx["cache"].get(("basis", n_eig), lambda: eigenbasis(ctx["mesh"], n_eig))
 
 
 def _spectral_basis(ctx, n_eig):
@@ -162,7 +162,7 @@ def _gen_wks(ctx, rng, m, *, num_grid: int = 100, variance: float = 7.0, margin:
 
 
 def _gen_random(ctx, rng, m):
-    from .products import product_basis
+    from ..products import product_basis
 
     b = ctx["basis_k"]
     B = product_basis(b, order=2, pairs="unique").matrix  # (n, K)
@@ -177,7 +177,7 @@ def _gen_xyz(ctx, rng, m):
 
 
 def _gen_indicator(ctx, rng, m, *, min_frac: float = 0.1, max_frac: float = 0.5, method: str = "graph"):
-    from .geodesics import distances
+    from ..geodesics import distances
 
     if not 0 < min_frac <= max_frac < 1:
         raise ValueError(f"need 0 < min_frac <= max_frac < 1, got {min_frac}, {max_frac}")
@@ -194,11 +194,23 @@ def _gen_indicator(ctx, rng, m, *, min_frac: float = 0.1, max_frac: float = 0.5,
     return (D <= radius[:, None]).T.astype(np.float64)  # (n, m)
 
 
-def _cached_descriptor(ctx, key, fn):
-    cache = ctx["cache"]
-    if key not in cache:
-        cache[key] = fn()
-    return cache[key]
+def descriptor_key(name: str, **options) -> tuple:
+    """Cache key of the full SHOT or AWFT descriptor matrix of a mesh computed with ``options``."""
+    if name == "shot":
+        return ("shot", tuple(sorted(options.items())))
+    if name == "awft":
+        return ("awft", tuple(sorted((k, str(v)) for k, v in options.items())))
+    raise ValueError(f"descriptor_key: name must be 'shot' or 'awft', got {name!r}")
+
+
+def family_seed(seed: int, pair_index: int, family: str) -> int:
+    """The seed of ``family`` for pair ``pair_index`` of an experiment seeded with ``seed``.
+
+    Independent of which other families are run (the family's position in ``FAMILIES`` enters),
+    so subsets of families give the same functions.
+    """
+    j = list(FAMILIES).index(family)
+    return int(np.random.SeedSequence([seed, pair_index, j]).generate_state(1)[0])
 
 
 def _pick_columns(rng, D: np.ndarray, m: int, name: str, min_support: float = 0.01) -> np.ndarray:
@@ -211,14 +223,12 @@ def _pick_columns(rng, D: np.ndarray, m: int, name: str, min_support: float = 0.
 
 
 def _gen_shot(ctx, rng, m, **shot_opts):
-    key = ("shot", tuple(sorted(shot_opts.items())))
-    D = _cached_descriptor(ctx, key, lambda: _d.shot(ctx["mesh"], **shot_opts))
+    D = ctx["cache"].get(descriptor_key("shot", **shot_opts), lambda: _d.shot(ctx["mesh"], **shot_opts))
     return _pick_columns(rng, D, m, "SHOT")
 
 
 def _gen_awft(ctx, rng, m, **awft_opts):
-    key = ("awft", tuple(sorted((k, str(v)) for k, v in awft_opts.items())))
-    D = _cached_descriptor(ctx, key, lambda: _d.awft(ctx["mesh"], **awft_opts))
+    D = ctx["cache"].get(descriptor_key("awft", **awft_opts), lambda: _d.awft(ctx["mesh"], **awft_opts))
     return _pick_columns(rng, D, m, "AWFT")
 
 
@@ -244,7 +254,7 @@ def make_family(
     seed: int,
     p2p_21=None,
     m: int | None = None,
-    cache: dict | None = None,
+    cache: Cache | None = None,
     **options,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Generate the family ``name`` on the source and its ground truth on the target.
@@ -260,7 +270,8 @@ def make_family(
     seed : seeds ``numpy.random.default_rng``; the same arguments give identical arrays.
     p2p_21 : optional ``(n2,)`` ground-truth point map (target vertex -> source vertex).
     m : number of functions (default ``FAMILIES[name].m``; XYZ always has 3).
-    cache : optional dict, one per source mesh, reused for SHOT/AWFT/200-eigenpair bases.
+    cache : optional :class:`prodmaps.cache.Cache`, one per source mesh, reused for
+        SHOT/AWFT/200-eigenpair bases (see the module doc for the keys).
     options : family parameters (``t_rel``, ``n_eig_K`` for the heat kernels; ``num_grid``,
         ``variance``, ``margin``, ``n_eig`` for WKS; ``factor``, ``n_eig`` for HKS; ``min_frac``, ``max_frac``,
         ``method`` for Indicator; :func:`~prodmaps.descriptors.shot` /
@@ -286,6 +297,8 @@ def make_family(
             f"k_M={k_M} needs k_M+1={k_M + 1} basis columns but basis_1 has {basis_1.k}; "
             f"compute pm.eigenbasis(mesh, {k_M + 1}) or more"
         )
+    if cache is not None and not isinstance(cache, Cache):
+        raise TypeError(f"cache must be a prodmaps.cache.Cache (one per source mesh), got {type(cache).__name__}")
     spec = FAMILIES[name]
     if name == "XYZ":
         if m not in (None, 3):
@@ -298,7 +311,7 @@ def make_family(
         "mesh": mesh_1,
         "basis": basis_1,
         "basis_k": basis_1.truncate(k_M + 1),
-        "cache": {} if cache is None else cache,
+        "cache": Cache(max_entries=16) if cache is None else cache,
     }
     rng = np.random.default_rng(seed)
     F_1 = np.ascontiguousarray(_GENERATORS[name](ctx, rng, int(m), **options), dtype=np.float64)

@@ -1,4 +1,4 @@
-"""Small helpers shared by the notebooks: results files, repeatable figures, notebook hygiene.
+"""What every notebook writes: ``results.json`` and repeatable PNG figures.
 
 Every notebook writes into its ``out_dir``:
 
@@ -6,7 +6,7 @@ Every notebook writes into its ``out_dir``:
   ``"prodmaps_version"`` and the versions of numpy/scipy (no timestamps, so reruns are
   byte-identical when the numbers are);
 * PNG figures saved by :func:`save_figure` (fixed DPI, no metadata, no anti-aliasing of
-  lines), or rendered by :mod:`prodmaps.render`.
+  lines), or rendered by :mod:`prodmaps.experiments.render`.
 
 Matplotlib is imported inside the functions that need it.
 """
@@ -14,13 +14,14 @@ Matplotlib is imported inside the functions that need it.
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 
+from ..files import atomic_path
+
 __all__ = ["write_results", "read_results", "save_figure", "setup_matplotlib", "to_jsonable",
-           "strip_notebook", "notebook_has_outputs", "resolve_profile"]
+           "resolve_profile"]
 
 
 def to_jsonable(obj):
@@ -53,24 +54,22 @@ def write_results(out_dir, results: dict, parameters: dict) -> Path:
     """Write ``results.json`` atomically into ``out_dir`` and return its path."""
     import scipy
 
-    from . import __version__
+    from .. import __version__
 
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     doc = {
         "parameters": to_jsonable(parameters),
         "results": to_jsonable(results),
         "prodmaps_version": __version__,
         "versions": {"numpy": np.__version__, "scipy": scipy.__version__},
     }
-    path = out / "results.json"
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
-    os.replace(tmp, path)
+    path = Path(out_dir) / "results.json"
+    with atomic_path(path) as tmp:
+        tmp.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
     return path
 
 
 def read_results(out_dir) -> dict:
+    """The parsed ``results.json`` of a run folder."""
     return json.loads((Path(out_dir) / "results.json").read_text())
 
 
@@ -91,44 +90,7 @@ def setup_matplotlib():
 
 def save_figure(fig, out_dir, name: str) -> Path:
     """Save a matplotlib figure as ``out_dir/name.png`` with no metadata (repeatable bytes)."""
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / (name if name.endswith(".png") else name + ".png")
-    tmp = path.with_name(path.stem + ".tmp.png")
-    fig.savefig(tmp, dpi=100, metadata={"Software": None}, facecolor="white")
-    os.replace(tmp, path)
+    path = Path(out_dir) / (name if name.endswith(".png") else name + ".png")
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=100, metadata={"Software": None}, facecolor="white")
     return path
-
-
-# ------------------------------------------------------------------ notebook hygiene
-def notebook_has_outputs(path) -> bool:
-    """True if a committed notebook carries outputs or execution counts."""
-    nb = json.loads(Path(path).read_text())
-    return any(
-        c.get("outputs") or c.get("execution_count") is not None
-        for c in nb.get("cells", []) if c.get("cell_type") == "code"
-    )
-
-
-def strip_notebook(path) -> None:
-    """Remove outputs, execution counts and volatile metadata in place."""
-    path = Path(path)
-    nb = json.loads(path.read_text())
-    for c in nb.get("cells", []):
-        if c.get("cell_type") == "code":
-            c["outputs"] = []
-            c["execution_count"] = None
-        c.get("metadata", {}).pop("execution", None)
-        c.get("metadata", {}).pop("papermill", None)
-    nb.get("metadata", {}).pop("papermill", None)
-    path.write_text(json.dumps(nb, indent=1, ensure_ascii=False) + "\n")
-
-
-if __name__ == "__main__":  # python -m prodmaps.nbtools strip notebooks/*.ipynb
-    import sys
-
-    if len(sys.argv) >= 3 and sys.argv[1] == "strip":
-        for p in sys.argv[2:]:
-            strip_notebook(p)
-    else:
-        print("usage: python -m prodmaps.nbtools strip NOTEBOOK...")

@@ -1,0 +1,22 @@
+"""Point descriptors, one module each: spectral (HKS, WKS, heat kernels), SHOT, AWFT.
+
+``prodmaps.descriptors.hks`` etc. are re-exported here; see :mod:`.spectral`, :mod:`.shot` and
+:mod:`.awft` for the definitions and conventions. Curvatures live in :mod:`prodmaps.curvature`,
+the anisotropic Laplacian in :mod:`prodmaps.laplacian`.
+"""
+
+from .awft import awft
+from .shot import SHOT_DIM, shot
+from .spectral import (
+                       ZERO_EIGENVALUE_REL,
+                       heat_kernel,
+                       hks,
+                       hks_times,
+                       wks,
+                       wks_energies,
+                       wks_energies_from_evals,
+                       wks_weights,
+)
+
+__all__ = ["hks", "hks_times", "wks", "wks_energies", "wks_energies_from_evals", "wks_weights",
+           "heat_kernel", "shot", "awft", "SHOT_DIM", "ZERO_EIGENVALUE_REL"]

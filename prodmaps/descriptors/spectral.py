@@ -1,0 +1,208 @@
+"""Spectral point descriptors: HKS, WKS and heat kernels, as pure functions of eigenpairs.
+
+Conventions
+-----------
+* A :class:`prodmaps.Basis` holds ``vecs`` ``(n, k)`` orthonormal in the **area inner product**
+  (``ΦᵀAΦ = I``), ``evals`` ascending, column 0 the constant ``1/sqrt(area)``; ``k`` counts the
+  constant (see :mod:`prodmaps.conventions`). Descriptors use *all* the eigenpairs they are
+  given; pass ``basis.truncate(k)`` to use fewer.
+* Every descriptor returns an ``(n, d)`` array, one row per vertex, one column per time or energy.
+* An eigenvalue counts as zero (the constant's) when ``|λ| <= ZERO_EIGENVALUE_REL · max |λ|``;
+  WKS excludes those eigenpairs (its filter needs ``log λ``).
+
+The WKS exists once: :func:`wks_energies_from_evals` (the automatic sampling) and
+:func:`wks_weights` (the spectral filter, ``(energies, k)``) are pure functions of the
+eigenvalues; :func:`wks` and the NO17 demo descriptors (:mod:`prodmaps.fmaps`) both use them.
+
+Spectral descriptors
+--------------------
+``hks(basis, times)``: ``h_t(x, x) = Σ_i exp(-λ_i t) φ_i(x)²`` [SOG09], the constant term
+included (it is the diagonal of :func:`heat_kernel`). ``scaled=True`` divides each column by the
+heat trace ``Σ_i exp(-λ_i t)`` (SOG09's scale normalisation; pyFM's ``scaled=True``).
+
+``wks(basis, energies, sigma)``: ``Σ_{i≥1} f_e(λ_i)² φ_i(x)²`` with the log-normal energy
+filter ``f_e(λ)² = exp(-(e - log λ)² / (2σ²))`` [ASC11]; the constant eigenpair (λ = 0, no
+logarithm) is excluded as in ASC11. ``scaled=True`` (default, as in ASC11 and pyFM's
+``auto_WKS``) divides column ``e`` by ``C_e = Σ_{i≥1} f_e(λ_i)²`` so each energy has unit total
+filter weight and the columns are comparable across energies.
+
+Both are of the form ``Σ_i α_i φ_i(x)²``, hence lie exactly in the span of the pairwise
+products of the basis (paper, Section 5.2), whatever the scaling.
+
+Default sampling (``hks_times``, ``wks_energies``):
+
+* times log-spaced between ``4 ln10 / λ_max`` and ``4 ln10 / λ_1`` [SOG09] (λ_1 the first
+  non-zero eigenvalue, λ_max the largest of the basis): at ``t_min`` the highest mode of the
+  basis is damped by ``e^{-4 ln 10} = 1e-4``, at ``t_max`` the first non-constant mode is, so the
+  range covers exactly the scales the basis resolves. The factor is a parameter.
+* energies linearly spaced in log-eigenvalue: ``σ = variance · δ`` with
+  ``δ = (log λ_max - log λ_1) / num`` and ``variance = 7`` [ASC11], and the energies run from
+  ``log λ_1 + margin·σ`` to ``log λ_max - margin·σ`` (``margin = 2`` keeps the Gaussian filter
+  inside the sampled spectrum). With ``variance=7, margin=2`` this is the sampling of pyFM's
+  ``auto_WKS`` (so the two can be cross-checked); ASC11's original code uses ``margin = 0``.
+
+Both HKS and WKS are invariant to rigid motions (they use only the intrinsic eigenpairs).
+Under a uniform scaling ``x -> s x`` eigenvalues scale by ``s⁻²`` and ``φ_i²`` by ``s⁻²``; with
+the automatic sampling (which scales with the spectrum) ``s² · HKS`` and ``s² · WKS`` are
+scale-invariant.
+
+References
+----------
+[SOG09] Sun, Ovsjanikov, Guibas. A concise and provably informative multi-scale signature based
+on heat diffusion. SGP 2009.
+[ASC11] Aubry, Schlickewei, Cremers. The wave kernel signature. ICCV workshops 2011.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..basis import Basis
+
+__all__ = ["ZERO_EIGENVALUE_REL", "nonzero_eigenvalues", "hks", "hks_times", "wks", "wks_weights",
+           "wks_energies", "wks_energies_from_evals", "heat_kernel", "check_basis", "as_1d_finite"]
+
+ZERO_EIGENVALUE_REL = 1e-8
+
+
+def check_basis(basis) -> Basis:
+    if not isinstance(basis, Basis):
+        raise TypeError(f"expected a prodmaps.Basis, got {type(basis).__name__} (use pm.eigenbasis(mesh, k))")
+    return basis
+
+
+def as_1d_finite(x, name: str, positive: bool = False) -> np.ndarray:
+    arr = np.atleast_1d(np.asarray(x, dtype=np.float64))
+    if arr.ndim != 1 or arr.size == 0:
+        raise ValueError(f"{name} must be a non-empty 1-D sequence of numbers, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} contains non-finite values")
+    if positive and np.any(arr <= 0):
+        raise ValueError(f"{name} must be > 0, got min {arr.min():g}")
+    return arr
+
+
+def nonzero_eigenvalues(evals) -> np.ndarray:
+    """Boolean mask ``(k,)`` of the eigenvalues that are not zero (see the module doc)."""
+    ev = np.abs(np.asarray(evals, dtype=np.float64))
+    keep = ev > ZERO_EIGENVALUE_REL * max(float(ev.max()) if ev.size else 0.0, np.finfo(float).tiny)
+    if not np.any(keep):
+        raise ValueError(f"the spectrum has no non-zero eigenvalue ({ev.size} eigenvalues); use at least 2 eigenpairs")
+    return keep
+
+
+# ----------------------------------------------------------------------------- HKS
+def hks(basis: Basis, times, *, scaled: bool = False) -> np.ndarray:
+    """Heat kernel signature ``h_t(x,x) = Σ_i exp(-λ_i t) φ_i(x)²``, ``(n, len(times))``.
+
+    Uses every eigenpair of ``basis`` (constant included). ``times`` must be > 0.
+    ``scaled=True`` divides each column by the heat trace ``Σ_i exp(-λ_i t)``.
+    """
+    basis = check_basis(basis)
+    t = as_1d_finite(times, "times", positive=True)
+    coefs = np.exp(-np.outer(basis.evals, t))  # (k, T)
+    out = (basis.vecs**2) @ coefs  # (n, T)
+    if scaled:
+        out = out / coefs.sum(axis=0)[None, :]
+    return out
+
+
+def hks_times(basis: Basis, num: int = 100, *, factor: float = 4.0 * np.log(10.0)) -> np.ndarray:
+    """``num`` times log-spaced in ``[factor/λ_max, factor/λ_1]`` (SOG09: ``factor = 4 ln 10``)."""
+    basis = check_basis(basis)
+    if int(num) != num or num < 1:
+        raise ValueError(f"num must be a positive integer, got {num!r}")
+    if not np.isfinite(factor) or factor <= 0:
+        raise ValueError(f"factor must be > 0, got {factor!r}")
+    ev = basis.evals[nonzero_eigenvalues(basis.evals)]
+    return np.geomspace(factor / ev.max(), factor / ev.min(), int(num))
+
+
+# ----------------------------------------------------------------------------- WKS
+def wks_energies_from_evals(evals, num: int = 100, *, variance: float = 7.0,
+                            margin: float = 2.0) -> tuple[np.ndarray, float]:
+    """Automatic WKS sampling [ASC11] from eigenvalues: ``(energies (num,), sigma)``.
+
+    ``σ = variance · (log λ_max - log λ_1) / num`` over the non-zero eigenvalues and
+    ``energies = linspace(log λ_1 + margin·σ, log λ_max - margin·σ, num)``. Raises ValueError when
+    the margins leave no room (need ``num > 2·margin·variance``).
+    """
+    if int(num) != num or num < 1:
+        raise ValueError(f"num must be a positive integer, got {num!r}")
+    if not (np.isfinite(variance) and variance > 0 and np.isfinite(margin) and margin >= 0):
+        raise ValueError(f"need variance > 0 and margin >= 0, got {variance!r}, {margin!r}")
+    ev = np.abs(np.asarray(evals, dtype=np.float64))
+    ev = ev[nonzero_eigenvalues(ev)]
+    e_min, e_max = np.log(ev.min()), np.log(ev.max())
+    if e_max <= e_min:
+        raise ValueError("need at least two distinct non-zero eigenvalues for WKS energies")
+    sigma = variance * (e_max - e_min) / num
+    lo, hi = e_min + margin * sigma, e_max - margin * sigma
+    if hi < lo or (num > 1 and hi == lo):
+        raise ValueError(
+            f"num={num} energies with variance={variance} and margin={margin} leave an empty "
+            f"energy range; use num > {2 * margin * variance:g}, or a smaller margin/variance"
+        )
+    return np.linspace(lo, hi, int(num)), float(sigma)
+
+
+def wks_energies(basis: Basis, num: int = 100, *, variance: float = 7.0,
+                 margin: float = 2.0) -> tuple[np.ndarray, float]:
+    """:func:`wks_energies_from_evals` of ``basis.evals``: ``(energies (num,), sigma)``."""
+    return wks_energies_from_evals(check_basis(basis).evals, num, variance=variance, margin=margin)
+
+
+def wks_weights(evals, energies, sigma: float, *, scaled: bool = True) -> np.ndarray:
+    """The WKS spectral filter ``(len(energies), k)``: ``exp(-(e - log λ_i)²/(2σ²))``.
+
+    Zero eigenvalues (the constant) get weight 0. With ``scaled`` (ASC11's normalisation) each
+    row is divided by its sum, so every energy has unit total filter weight.
+    """
+    e = as_1d_finite(energies, "energies")
+    if not np.isfinite(sigma) or sigma <= 0:
+        raise ValueError(f"sigma must be finite and > 0, got {sigma!r}")
+    ev = np.abs(np.asarray(evals, dtype=np.float64))
+    keep = nonzero_eigenvalues(ev)
+    logs = np.log(np.where(keep, ev, 1.0))
+    w = np.exp(-((e[:, None] - logs[None, :]) ** 2) / (2.0 * sigma**2)) * keep[None, :]  # (E, k)
+    if scaled:
+        tot = w.sum(axis=1, keepdims=True)  # (E, 1)
+        if np.any(tot <= np.finfo(float).tiny):
+            raise ValueError(
+                "an energy lies so far outside the spectrum that its filter vanishes; "
+                "choose energies within [log λ_1, log λ_max] or a larger sigma"
+            )
+        w = w / tot
+    return w
+
+
+def wks(basis: Basis, energies, sigma: float, *, scaled: bool = True) -> np.ndarray:
+    """Wave kernel signature ``Σ_i w_e,i φ_i(x)²`` with the filter of :func:`wks_weights`, ``(n, E)``.
+
+    ``energies`` are log-eigenvalue positions (any finite reals); ``sigma > 0``. The constant
+    eigenpair (λ = 0) is excluded.
+    """
+    basis = check_basis(basis)
+    w = wks_weights(basis.evals, energies, sigma, scaled=scaled)  # (E, k)
+    return (basis.vecs**2) @ w.T  # (n, E)
+
+
+# ----------------------------------------------------------------------------- heat kernels
+def heat_kernel(basis: Basis, sources, t: float) -> np.ndarray:
+    """Heat kernels ``h_t(x_s, ·) = Σ_i exp(-λ_i t) φ_i(x_s) φ_i(·)``, ``(n, len(sources))``.
+
+    Built from all eigenpairs of ``basis`` (truncate the basis to use fewer). With the
+    A-orthonormal basis, ``u = h_t(x_s, ·)`` is the (truncated) solution of the heat equation
+    started from a unit-mass Dirac at ``x_s`` (``δ = 1/A_s`` at the vertex), and the matrix
+    ``heat_kernel(basis, idx, t)[idx]`` is symmetric.
+    """
+    basis = check_basis(basis)
+    if not np.isfinite(t) or t <= 0:
+        raise ValueError(f"t must be finite and > 0, got {t!r}")
+    src = np.atleast_1d(np.asarray(sources))
+    if src.ndim != 1 or not np.issubdtype(src.dtype, np.integer):
+        raise ValueError("sources must be a 1-D array of integer vertex indices")
+    if src.size and (src.min() < 0 or src.max() >= basis.n):
+        raise ValueError(f"sources must be vertex indices in [0, {basis.n}); got range [{src.min()}, {src.max()}]")
+    w = np.exp(-basis.evals * t)  # (k,)
+    return (basis.vecs * w[None, :]) @ basis.vecs[src].T  # (n, s)

@@ -1,0 +1,239 @@
+"""The claims ledger: the paper's qualitative claims, judged by rules on the notebooks' results.
+
+The ledger (``claims.toml`` beside this module, package data) has one entry per claim::
+
+    [claims."tab01.products_improve_transfer"]
+    where = "Table 1"                       # figure / table / section of the paper
+    quote = "for all functions except hk k ... our approach produces a significant improvement"
+    runs = ["tab01"]                        # the runs whose results.json decide it
+    notebook = "tables_transfer"
+    settings = "ground-truth maps, k_M = k_N = 9, 20 pairs"
+    subsets = ["all", "intra", "inter"]     # optional: judged over all pairs and per pair kind
+    [claims."tab01.products_improve_transfer".values]   # name -> "<run>:<dotted key>" ('*' expands)
+    ours = "tab01:errors{subset}.k9_9.transfer.{method}.*"
+    std = "tab01:errors{subset}.k9_9.transfer.std.*"
+    [claims."tab01.products_improve_transfer".rule]
+    holds = "all(ours[f] < std[f] for f in std if f != 'hk k')"
+    margin = "max(ours[f] / std[f] for f in std if f != 'hk k')"
+    evidence = "worst ours/std {margin:.2f} (ratio of transfer errors, all families but hk k)"
+
+Values are read from the results of the named runs (``results.json``'s ``"results"``): a key
+with ``*`` becomes a dict keyed by what ``*`` matched. Placeholders: ``{method}`` is the product
+method being judged (below), ``{subset}`` is ``""`` (all pairs), ``"_intra"`` or ``"_inter"``.
+
+Every claim is judged in up to three **settings**: ``paper`` (the paper's method, e.g.
+Approach B at ``rtol = 1e-3``: ``{method}`` is the entry's ``method``, default ``our_B``),
+``rule`` (Approach B with the threshold chosen by ``select_rtol(method="gain")``:
+``method_rule``, default ``our_B_gainrule``) and ``default`` (the library's default extended
+transfer: ``method_default``, default ``our_default``; reported beside the verdict, it does not
+enter it). A setting whose keys are absent is "not measured here". The verdict combines the
+first two:
+
+* ``holds`` — the rule holds at the paper's settings;
+* ``holds with the threshold rule`` — it does not at the paper's settings but does with the
+  gain rule;
+* ``does not hold`` — measured, and it holds neither at the paper's settings nor with the rule;
+* ``not measured here`` — the results needed are missing (e.g. FAUST/TOSCA not prepared).
+
+Rules are Python expressions over the values (and ``all``, ``any``, ``min``, ``max``, ``abs``,
+``len``, ``sum``, ``sorted``, ``mean``), evaluated without builtins; the ledger is part of the
+package, not user input.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import importlib.resources
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["Claim", "Verdict", "load_ledger", "evaluate", "evaluate_folder", "verdicts_for_run",
+           "format_table", "LEDGER", "VERDICTS"]
+
+LEDGER = Path(str(importlib.resources.files("prodmaps.experiments") / "claims.toml"))
+VERDICTS = ("holds", "holds with the threshold rule", "does not hold", "not measured here")
+SUBSET_SUFFIX = {"all": "", "intra": "_intra", "inter": "_inter"}
+_FUNCS = {"all": all, "any": any, "min": min, "max": max, "abs": abs, "len": len, "sum": sum,
+          "sorted": sorted, "round": round, "mean": lambda xs: sum(list(xs)) / max(len(list(xs)), 1)}
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One ledger entry (see the module doc)."""
+
+    id: str
+    where: str
+    quote: str
+    runs: tuple
+    values: dict
+    holds: str
+    margin: str = ""
+    evidence: str = ""
+    notebook: str = ""
+    settings: str = ""
+    subsets: tuple = ("all",)
+    method: str = "our_B"
+    method_rule: str = "our_B_gainrule"
+    method_default: str = "our_default"
+    note: str = ""
+
+
+@dataclass
+class Verdict:
+    """The judgement of one claim on one subset of pairs."""
+
+    claim: Claim
+    subset: str
+    verdict: str
+    settings: dict = field(default_factory=dict)  # setting -> {"holds": bool | None, "margin": ..., "evidence": str}
+
+    @property
+    def evidence(self) -> str:
+        for s in ("paper", "rule", "default"):
+            e = self.settings.get(s, {}).get("evidence")
+            if e:
+                return e
+        return "results not found"
+
+    def to_dict(self) -> dict:
+        return {"id": self.claim.id, "where": self.claim.where, "subset": self.subset, "verdict": self.verdict,
+                "settings": {k: {kk: vv for kk, vv in v.items()} for k, v in self.settings.items()}}
+
+
+def _toml():
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+        import tomli as tomllib
+    return tomllib
+
+
+def load_ledger(path=None) -> dict[str, Claim]:
+    """The claims of the ledger, in file order."""
+    doc = _toml().loads(Path(path or LEDGER).read_text(encoding="utf-8"))
+    out = {}
+    for cid, e in doc.get("claims", {}).items():
+        rule = e.get("rule", {})
+        missing = [k for k in ("where", "quote", "runs", "values") if k not in e] + ([] if "holds" in rule else ["rule.holds"])
+        if missing:
+            raise ValueError(f"claims ledger: claim {cid!r} lacks {missing}")
+        out[cid] = Claim(
+            id=cid, where=e["where"], quote=e["quote"], runs=tuple(e["runs"]), values=dict(e["values"]),
+            holds=rule["holds"], margin=rule.get("margin", ""), evidence=rule.get("evidence", ""),
+            notebook=e.get("notebook", ""), settings=e.get("settings", ""),
+            subsets=tuple(e.get("subsets", ("all",))), method=e.get("method", "our_B"),
+            method_rule=e.get("method_rule", "our_B_gainrule"), method_default=e.get("method_default", "our_default"),
+            note=e.get("note", ""))
+    return out
+
+
+def _flatten(obj, prefix: str = "") -> dict:
+    out = {}
+    if isinstance(obj, dict) and obj:
+        for k, v in obj.items():
+            out.update(_flatten(v, f"{prefix}.{k}" if prefix else str(k)))
+    elif isinstance(obj, list) and obj and not all(isinstance(v, (int, float)) for v in obj):
+        for i, v in enumerate(obj):
+            out.update(_flatten(v, f"{prefix}.{i}" if prefix else str(i)))
+    else:
+        out[prefix] = obj
+    return out
+
+
+class _Missing(LookupError):
+    pass
+
+
+def _lookup(path: str, results: dict):
+    run, _, key = path.partition(":")
+    if run not in results or results[run] is None:
+        raise _Missing(f"run {run!r} not available")
+    flat = results[run]["_flat"]
+    if "*" not in key:
+        if key not in flat:
+            raise _Missing(f"{run}:{key} not in the results")
+        return flat[key]
+    pre, _, post = key.partition("*")
+    hits = {k[len(pre): len(k) - len(post) if post else None]: v for k, v in flat.items()
+            if fnmatch.fnmatchcase(k, key) and "." not in k[len(pre): len(k) - len(post) if post else None]}
+    if not hits:
+        raise _Missing(f"{run}:{key} matches nothing in the results")
+    return hits
+
+
+def _judge(claim: Claim, results: dict, method: str, subset: str) -> dict:
+    env = dict(_FUNCS)
+    try:
+        for name, path in claim.values.items():
+            env[name] = _lookup(path.replace("{method}", method).replace("{subset}", SUBSET_SUFFIX[subset]), results)
+    except _Missing as exc:
+        return {"holds": None, "evidence": f"not measured: {exc}"}
+    try:
+        scope = {"__builtins__": {}, **env}  # one namespace: generator expressions see the values
+        holds = bool(eval(claim.holds, scope))  # noqa: S307 - the ledger is package data, not user input
+        margin = eval(claim.margin, scope) if claim.margin else None  # noqa: S307
+    except (KeyError, NameError, TypeError, ZeroDivisionError, ValueError) as exc:
+        return {"holds": None, "evidence": f"not measured: rule failed on these results ({type(exc).__name__}: {exc})"}
+    ev = claim.evidence.format(margin=margin, **{k: v for k, v in env.items() if k not in _FUNCS}) if claim.evidence else ""
+    return {"holds": holds, "margin": margin, "evidence": ev}
+
+
+def evaluate(claim: Claim, results: dict) -> list[Verdict]:
+    """Verdicts of ``claim`` (one per subset) from ``{run: results document or None}``."""
+    prepared = {r: ({"_flat": _flatten(d.get("results", d))} if d else None) for r, d in results.items()}
+    out = []
+    for subset in claim.subsets:
+        settings = {"paper": _judge(claim, prepared, claim.method, subset)}
+        uses_method = any("{method}" in p for p in claim.values.values())
+        if uses_method:
+            settings["rule"] = _judge(claim, prepared, claim.method_rule, subset)
+            settings["default"] = _judge(claim, prepared, claim.method_default, subset)
+        measured = [s for s in settings.values() if s["holds"] is not None]
+        if not measured:
+            verdict = "not measured here"
+        elif settings["paper"]["holds"]:
+            verdict = "holds"
+        elif settings.get("rule", {}).get("holds"):
+            verdict = "holds with the threshold rule"
+        else:
+            verdict = "does not hold"
+        out.append(Verdict(claim, subset, verdict, settings))
+    return out
+
+
+def _read(folder: Path) -> dict | None:
+    p = folder / "results.json"
+    try:
+        return json.loads(p.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def evaluate_folder(results_dir, ledger=None) -> list[Verdict]:
+    """Verdicts of every ledger claim from a results folder (``results/paper``: one subfolder per run)."""
+    results_dir = Path(results_dir)
+    claims = load_ledger(ledger)
+    runs = {r for c in claims.values() for r in c.runs}
+    docs = {r: _read(results_dir / r) for r in runs}
+    return [v for c in claims.values() for v in evaluate(c, docs)]
+
+
+def verdicts_for_run(run: str, results: dict, ledger=None) -> list[Verdict]:
+    """Verdicts of the claims judged on ``run`` alone, from its results (``results.json`` dict or its ``"results"``).
+
+    Claims that also need other runs are listed as "not measured here" with the missing runs
+    named; the report judges them on the whole results folder.
+    """
+    doc = results if "results" in results else {"results": results}
+    claims = [c for c in load_ledger(ledger).values() if run in c.runs]
+    return [v for c in claims for v in evaluate(c, {r: (doc if r == run else None) for r in c.runs})]
+
+
+def format_table(verdicts: list[Verdict]) -> str:
+    """A plain-text table of verdicts (for notebooks and the ``prodmaps claims`` command)."""
+    rows = [("claim", "pairs", "verdict", "evidence")]
+    for v in verdicts:
+        rows.append((v.claim.id, v.subset, v.verdict, v.evidence))
+    w = [max(len(r[i]) for r in rows) for i in range(3)]
+    return "\n".join(f"{r[0]:<{w[0]}}  {r[1]:<{w[1]}}  {r[2]:<{w[2]}}  {r[3]}" for r in rows)

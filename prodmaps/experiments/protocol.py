@@ -1,0 +1,213 @@
+"""The paper's transfer protocol (Section 5.1, Tables 1–6, Figure 8): pairs x sizes x methods.
+
+For every (source, target) pair and size ``(k_M, k_N)`` (the paper's counts: non-constant
+functions; bases have ``k + 1`` columns), the nine function families are generated on the
+source (:mod:`prodmaps.experiments.families`, ground truth ``G = F[p2p_21]``), approximated on
+the source and transferred to the target with a functional map ``C_12`` (ground truth or NO17,
+:mod:`prodmaps.experiments.maps`) by every method:
+
+``std``        A-orthogonal projection ``Φ1ᵀ A1 F``, transfer ``Φ2 C Φ1ᵀ A1 F``;
+``l1``, ``l2`` Approach A (lasso by FISTA, ridge) in the extended basis, transfer ``B2 C~ a``;
+``B``          Approach B at the paper's ``rtol``; ``B@<r>`` Approach B at ``rtol = r``;
+``B_gain``     Approach B with ``rtol`` from the map-based gain rule
+               (:func:`prodmaps.truncation.select_rtol`, no ground truth);
+``default``    the library's default extended transfer (``pm.transfer(..., method="prod")`` with
+               no threshold given; :mod:`prodmaps.transfer`).
+
+Errors are the paper's relative errors, per function column; :func:`family_means` averages the
+columns of each family, then the pairs.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import truncation
+from ..metrics import relative_error
+from ..products import product_basis
+from ..transfer import extend_fmap, fmap_from_p2p
+from . import families as pfam
+from .maps import no17_demo_map
+from .store import ShapeStore
+
+__all__ = ["ProtocolSettings", "ProtocolResult", "run_protocol", "method_label", "family_means", "area_curves",
+           "AREA_CRITERIA",
+           "METHODS", "STAGES"]
+
+METHODS = ("std", "l1", "l2", "B", "B_gain", "default")  # plus "B@<rtol>"
+STAGES = ("approx", "transfer")
+
+
+@dataclass
+class ProtocolSettings:
+    """Parameters of :func:`run_protocol` (the paper's values are the defaults)."""
+
+    sizes: list  # [(k_M, k_N), ...] paper's counts
+    map_kind: str = "gt"  # "gt" | "computed"
+    families: list = field(default_factory=lambda: list(pfam.FAMILIES))
+    methods: list = field(default_factory=lambda: ["std", "B"])
+    rtol: float = 1e-3
+    eps_ridge: float = 1e-6
+    eps_lasso: float = 1e-4
+    lasso_max_iter: int = 5000
+    pairs_convention: str = "ordered"
+    max_gain: float = 2.0
+    no17_k_descr: int = 128
+    seed: int = 0
+    k_M_family: int | None = None  # basis size of the basis-dependent families (default: largest k_M)
+
+    def __post_init__(self):
+        self.sizes = [(int(a), int(b)) for a, b in self.sizes]
+        bad = [m for m in self.methods if m not in METHODS and not str(m).startswith("B@")]
+        if bad or "std" not in self.methods:
+            raise ValueError(f"methods must contain 'std' and be among {METHODS} or 'B@<rtol>'; got {self.methods}")
+        unknown = set(self.families) - set(pfam.FAMILIES)
+        if unknown:
+            raise ValueError(f"unknown families {sorted(unknown)}; choose from {list(pfam.FAMILIES)}")
+        self.families = [f for f in pfam.FAMILIES if f in self.families]  # paper order
+        if self.map_kind not in ("gt", "computed"):
+            raise ValueError(f"map_kind must be 'gt' or 'computed', got {self.map_kind!r}")
+        if self.k_M_family is None:
+            self.k_M_family = max(a for a, _ in self.sizes)
+
+
+@dataclass
+class ProtocolResult:
+    """Per-pair errors of :func:`run_protocol`.
+
+    ``errors[(k_M, k_N)][stage][method]`` is a list (one entry per pair) of ``(m,)`` arrays of
+    per-column relative errors; ``cols[family]`` the column slice of each family.
+    """
+
+    settings: ProtocolSettings
+    pairs: list
+    errors: dict
+    cols: dict
+    map_deviation: dict
+    ranks: dict
+    gain_rtol: dict
+    seconds: list
+
+
+def _operator(ext1, method: str, s: ProtocolSettings):
+    if method == "B":
+        return ext1.operator("svd", rtol=s.rtol)
+    if method.startswith("B@"):
+        return ext1.operator("svd", rtol=float(method[2:]))
+    if method == "l2":
+        return ext1.operator("ridge", eps=s.eps_ridge)
+    if method == "l1":
+        return ext1.operator("lasso", eps=s.eps_lasso, max_iter=s.lasso_max_iter)
+    raise ValueError(method)
+
+
+def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collect=None,
+                 progress: bool = True) -> ProtocolResult:
+    """Run the protocol on ``pairs`` (list of ``(source id, target id)``) of ``store.dataset``.
+
+    ``collect(pair_index, size, F, G, cols, b1, b2, outputs)`` (optional) receives, for every
+    pair and size, the functions and ``outputs[method] = (approximation (n1, m), transfer (n2, m))``
+    (e.g. for the area curves of Figure 8).
+    """
+    from .. import datasets
+
+    s = settings
+    pairs = [tuple(p) for p in pairs]
+    prod_methods = [m for m in s.methods if m != "std"]
+    errors = {z: {st: {m: [] for m in s.methods} for st in STAGES} for z in s.sizes}
+    map_dev = {z: [] for z in s.sizes}
+    ranks = {z: [] for z in s.sizes}
+    gain_rtol = {z: [] for z in s.sizes}
+    cols, seconds = None, []
+    for ip, (sid1, sid2) in enumerate(pairs):
+        t0 = time.perf_counter()
+        gt = datasets.ground_truth(store.dataset, sid1, sid2)  # (n2,) target vertex -> source vertex
+        F, G, cols = store.family_functions(sid1, gt, ip, s.families, k_M=s.k_M_family, seed=s.seed)
+        for (kM, kN) in s.sizes:
+            b1, b2 = store.basis(sid1, kM + 1), store.basis(sid2, kN + 1)
+            C_gt = fmap_from_p2p(gt, b1, b2)  # (kN+1, kM+1)
+            C = C_gt if s.map_kind == "gt" else no17_demo_map(store, sid1, sid2, gt, kM + 1, kN + 1,
+                                                              k_descr=s.no17_k_descr)
+            map_dev[(kM, kN)].append(float(np.linalg.norm(C - C_gt) / np.linalg.norm(C_gt)))
+            err = errors[(kM, kN)]
+            a_std = b1.project(F)  # (kM+1, m)
+            outputs = {"std": (b1.vecs @ a_std, b2.vecs @ (C @ a_std))}
+            if prod_methods:
+                ext1 = product_basis(b1, order=2, pairs=s.pairs_convention)
+                ext2 = product_basis(b2, order=2, pairs=s.pairs_convention)
+                Ct = extend_fmap(C, b1, b2, order=2, pairs=s.pairs_convention)  # (K2, K1)
+                for m in prod_methods:
+                    if m == "default":
+                        from ..transfer import DefaultTransfer
+
+                        op = DefaultTransfer(C, b1, b2, pairs=s.pairs_convention)
+                        outputs[m] = (op.approximate(F), op(F))
+                        continue
+                    if m == "B_gain":
+                        r_g = truncation.select_rtol(b1, method="gain", C_12=C, basis_2=b2, max_gain=s.max_gain)
+                        gain_rtol[(kM, kN)].append(r_g)
+                        op = ext1.operator("svd", rtol=r_g)
+                    else:
+                        op = _operator(ext1, m, s)
+                    a = op.coefficients(F)  # (K1, m)
+                    outputs[m] = (ext1.evaluate(a), ext2.evaluate(Ct @ a))
+                if "B" in prod_methods:
+                    ranks[(kM, kN)].append(int(_operator(ext1, "B", s).rank))
+            for m, (fa, ft) in outputs.items():
+                err["approx"][m].append(relative_error(fa, F, b1.mass))
+                err["transfer"][m].append(relative_error(ft, G, b2.mass))
+            if collect is not None:
+                collect(ip, (kM, kN), F, G, cols, b1, b2, outputs)
+        seconds.append(time.perf_counter() - t0)
+        if progress:
+            print(f"pair {ip + 1:2d}/{len(pairs)} {sid1} -> {sid2}: {seconds[-1]:5.1f} s"
+                  + "".join(f"  [{kM}/{kN}] map dev {map_dev[(kM, kN)][-1]:.3f}" for kM, kN in s.sizes), flush=True)
+    return ProtocolResult(s, pairs, errors, cols, map_dev, ranks, gain_rtol, seconds)
+
+
+def method_label(method: str, table: str | None = None) -> str:
+    """Column name of a method in the paper's tables (``our_l2`` is ``our_A`` after Table 1)."""
+    if method.startswith("B@"):
+        return f"our_B_rtol{method[2:]}"
+    names = {"std": "std", "l1": "our_l1", "l2": "our_l2" if table in (None, "T1") else "our_A",
+             "B": "our_B", "B_gain": "our_B_gainrule", "default": "our_default"}
+    return names[method]
+
+
+def family_means(result: ProtocolResult, table: str | None = None) -> dict:
+    """``{(k_M, k_N, stage, method label, paper family label): (mean over pairs, std over pairs)}``.
+
+    Each pair contributes the mean over the family's columns.
+    """
+    out = {}
+    for z, by_stage in result.errors.items():
+        for st, by_method in by_stage.items():
+            for m, per_pair in by_method.items():
+                E = np.array(per_pair)  # (pairs, m_functions)
+                for fam in result.settings.families:
+                    per = E[:, result.cols[fam]].mean(axis=1)  # (pairs,)
+                    out[(z[0], z[1], st, method_label(m, table), pfam.PAPER_LABELS[fam])] = (float(per.mean()),
+                                                                                           float(per.std()))
+    return out
+
+
+AREA_CRITERIA = ("paper", "scale_free")
+
+
+def area_curves(f: np.ndarray, g: np.ndarray, mass: np.ndarray, gamma: np.ndarray) -> dict:
+    """Figure 8's area fractions ``(len(gamma), m)`` under both criteria.
+
+    ``"paper"``: area where ``(f-g)² < γ·sqrt(∫g²)`` (:func:`prodmaps.area_fraction_curve`);
+    ``"scale_free"``: area where ``(f-g)² < γ·∫g²/area`` (squared error relative to the mean square
+    of ``g``; the paper's criterion depends on the units of ``f`` and of the shape).
+    """
+    from ..metrics import area_fraction_curve
+
+    paper = area_fraction_curve(f, g, mass, gamma)
+    ms = np.einsum("i,ij->j", mass, g**2) / mass.sum()  # mean square of g, (m,)
+    e = (f - g) ** 2 / ms[None, :]  # scale-free pointwise error
+    sf = np.einsum("i,tij->tj", mass, (e[None] < gamma[:, None, None]).astype(float)) / mass.sum()
+    return {"paper": paper, "scale_free": sf}

@@ -1,0 +1,180 @@
+"""Per-shape data shared by the notebooks: meshes, eigenbases, descriptors, computed maps.
+
+:class:`ShapeStore` computes each value once per process (in memory) and once per machine (on
+disk, exact float64 ``.npz`` under ``<cache_dir()>/experiments/``), so the notebooks of one
+``make reproduce`` share eigenbases, SHOT/AWFT descriptors and NO17 maps instead of recomputing
+them. The numbers are the same with and without the disk cache (the arrays are stored exactly).
+
+Disk keys name everything a value depends on: the mesh bytes (:func:`prodmaps.geodesics.mesh_key`),
+the parameters, and a fingerprint of the source code of the library modules that compute it
+(:func:`code_fingerprint`), so editing e.g. the eigensolver never returns a stale basis.
+``PRODMAPS_CACHE`` moves the cache (default ``~/.cache/prodmaps``); ``disk_cache=False`` turns
+it off.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..basis import Basis, eigenbasis
+from ..cache import Cache
+from ..files import atomic_path, sha256_bytes
+from ..geodesics import cache_dir, mesh_key
+from ..mesh import Mesh
+from . import families as pfam
+
+__all__ = ["DiskCache", "ShapeStore", "code_fingerprint"]
+
+# library modules whose source decides each stored value (the disk key includes their bytes)
+EIGEN_CODE = ("prodmaps.mesh", "prodmaps.laplacian", "prodmaps.eigensolver", "prodmaps.basis")
+DESCRIPTOR_CODE = {
+    "shot": ("prodmaps.mesh", "prodmaps.descriptors.shot"),
+    "awft": EIGEN_CODE + ("prodmaps.curvature", "prodmaps.descriptors.awft", "prodmaps.descriptors.spectral"),
+}
+
+
+@functools.lru_cache(maxsize=None)
+def code_fingerprint(*modules: str) -> str:
+    """SHA-256 (16 hex digits) of the source bytes of the named modules."""
+    blob = b""
+    for name in modules:
+        path = Path(importlib.import_module(name).__file__)
+        blob += name.encode() + b"\0" + path.read_bytes() + b"\0"
+    return sha256_bytes(blob)[:16]
+
+
+class DiskCache:
+    """Arrays stored as ``.npz`` files named by a hash of their key (a JSON-able dict).
+
+    ``get(kind, key, compute)`` returns ``{name: array}`` from disk, or calls ``compute()`` (which
+    returns such a dict), stores it atomically and returns it. ``enabled=False`` never touches
+    the disk.
+    """
+
+    def __init__(self, folder=None, enabled: bool = True):
+        self.folder = Path(folder) if folder is not None else cache_dir() / "experiments"
+        self.enabled = bool(enabled)
+
+    def path(self, kind: str, key: dict) -> Path:
+        digest = sha256_bytes(json.dumps(key, sort_keys=True, default=str).encode())[:32]
+        return self.folder / f"{kind}_{digest}.npz"
+
+    def get(self, kind: str, key: dict, compute) -> dict:
+        if not self.enabled:
+            return compute()
+        path = self.path(kind, key)
+        if path.is_file():
+            with np.load(path, allow_pickle=False) as z:
+                return {k: z[k] for k in z.files}
+        out = compute()
+        with atomic_path(path) as tmp:
+            np.savez(tmp, **out)
+        return out
+
+
+class ShapeStore:
+    """Meshes, eigenbases and descriptors of one dataset's shapes, computed once and shared.
+
+    Parameters
+    ----------
+    dataset : a :mod:`prodmaps.datasets` name (``"anny_humans"``, ``"faust"``, ...).
+    n_eig : eigenpairs computed per shape, constant included (``k`` of :func:`prodmaps.eigenbasis`);
+        :meth:`basis` truncates, and truncations share one cache, so product bases and their
+        operators are reused across calls.
+    kind : Laplacian (``"cotan"`` | ``"robust"``).
+    disk_cache : share the arrays across processes through :class:`DiskCache`.
+    """
+
+    def __init__(self, dataset: str, n_eig: int, *, kind: str = "cotan", disk_cache: bool = True,
+                 cache_folder=None):
+        self.dataset = dataset
+        self.n_eig = int(n_eig)
+        self.kind = kind
+        self.disk = DiskCache(cache_folder, enabled=disk_cache)
+        self._mesh: dict[str, Mesh] = {}
+        self._basis: dict[str, Basis] = {}
+        self._family_cache: dict[str, Cache] = {}
+        self.memo = Cache(max_entries=512)  # per-process values of the experiments (maps, descriptors)
+
+    # ---------------------------------------------------------------- per shape
+    def mesh(self, sid: str) -> Mesh:
+        """The validated mesh of shape ``sid``."""
+        if sid not in self._mesh:
+            from .. import datasets
+
+            self._mesh[sid] = datasets.load_shape(self.dataset, sid)
+        return self._mesh[sid]
+
+    def mesh_key(self, sid: str) -> str:
+        return self.memo.get(("mesh_key", sid), lambda: mesh_key(self.mesh(sid)))
+
+    def basis(self, sid: str, k: int | None = None) -> Basis:
+        """Eigenbasis of ``sid`` with ``k`` columns (default ``n_eig``), constant included."""
+        if sid not in self._basis:
+            mesh = self.mesh(sid)
+            key = {"mesh": self.mesh_key(sid), "n_eig": self.n_eig, "kind": self.kind,
+                   "code": code_fingerprint(*EIGEN_CODE)}
+
+            def compute():
+                b = eigenbasis(mesh, self.n_eig, kind=self.kind)
+                return {"vecs": b.vecs, "evals": b.evals, "mass": b.mass}
+
+            z = self.disk.get("eig", key, compute)
+            self._basis[sid] = Basis(z["vecs"], z["evals"], z["mass"], name=sid)
+        full = self._basis[sid]
+        if k is None:
+            return full
+        if k > full.k:
+            raise ValueError(f"basis of {sid!r} has {full.k} columns (ShapeStore n_eig={self.n_eig}); asked for {k}")
+        return full.truncate(int(k))
+
+    def descriptor(self, sid: str, name: str) -> np.ndarray:
+        """The full SHOT (``"shot"``) or AWFT (``"awft"``) matrix of ``sid`` with default options."""
+        from .. import descriptors
+
+        if name not in DESCRIPTOR_CODE:
+            raise ValueError(f"descriptor must be 'shot' or 'awft', got {name!r}")
+        fn = descriptors.shot if name == "shot" else descriptors.awft
+        key = {"mesh": self.mesh_key(sid), "code": code_fingerprint(*DESCRIPTOR_CODE[name])}
+        return self.memo.get(("descriptor", sid, name),
+                             lambda: self.disk.get(name, key, lambda: {"D": fn(self.mesh(sid))})["D"])
+
+    def family_cache(self, sid: str, families=()) -> Cache:
+        """The :class:`Cache` handed to :func:`prodmaps.experiments.families.make_family` for
+        source ``sid``, holding the SHOT/AWFT matrices the requested ``families`` need."""
+        cache = self._family_cache.setdefault(sid, Cache(max_entries=16))
+        for fam, name in (("SHOT", "shot"), ("AWFT", "awft")):
+            if fam in families and pfam.descriptor_key(name) not in cache:
+                cache.put(pfam.descriptor_key(name), self.descriptor(sid, name))
+        return cache
+
+    def family_functions(self, sid_1: str, p2p_21, pair_index: int, families, *, k_M: int, seed: int):
+        """All ``families`` on source ``sid_1`` (columns stacked) and their ground truth.
+
+        Returns ``(F (n1, m), G (n2, m), cols)`` with ``G = F[p2p_21]`` and ``cols[family]`` the
+        column slice of each family. Seeds: :func:`prodmaps.experiments.families.family_seed`.
+        """
+        fams = [f for f in pfam.FAMILIES if f in families]
+        unknown = set(families) - set(pfam.FAMILIES)
+        if unknown:
+            raise ValueError(f"unknown families {sorted(unknown)}; choose from {list(pfam.FAMILIES)}")
+        mesh, basis = self.mesh(sid_1), self.basis(sid_1)
+        cache = self.family_cache(sid_1, fams)
+        Fs, Gs, cols, start = [], [], {}, 0
+        for fam in fams:
+            F1, G2 = pfam.make_family(fam, mesh, basis, k_M=k_M, seed=pfam.family_seed(seed, pair_index, fam),
+                                      p2p_21=p2p_21, cache=cache)
+            Fs.append(F1)
+            Gs.append(G2)
+            cols[fam] = slice(start, start + F1.shape[1])
+            start += F1.shape[1]
+        return np.hstack(Fs), np.hstack(Gs), cols
+
+    def __repr__(self) -> str:
+        return (f"ShapeStore({self.dataset!r}, n_eig={self.n_eig}, kind={self.kind!r}, "
+                f"{len(self._basis)} bases, disk={'on' if self.disk.enabled else 'off'})")

@@ -1,0 +1,223 @@
+"""Tables 1–6 of the paper: settings, the protocol run, our values beside the published ones.
+
+``TABLES`` holds the paper's settings (Section 5.1 and the appendix): which map (ground truth or
+NO17), which sizes ``(k_M, k_N)`` (the paper's counts, non-constant functions) and which methods.
+:func:`run_table` runs :func:`prodmaps.experiments.protocol.run_protocol` and returns the
+results document the tables notebook writes; :func:`write_table_files` writes the CSV/JSON
+files; :func:`table_figure` draws ours beside the published values.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..files import atomic_path
+from . import families as pfam
+from .protocol import ProtocolSettings, family_means, method_label, run_protocol
+from .published import published_values
+from .results import to_jsonable
+
+__all__ = ["TABLES", "FMAP_NAMES", "resolve_table", "run_table", "write_table_files", "table_figure"]
+
+TABLES = {
+    "T1": {"map_kind": "gt", "k_M": [9], "k_N": [9], "methods": ["std", "l1", "l2", "B"]},
+    "T2": {"map_kind": "computed", "k_M": [29], "k_N": [39], "methods": ["std", "l2", "B"]},
+    "T3": {"map_kind": "gt", "k_M": [6, 27], "k_N": [7, 35], "methods": ["std", "B"]},
+    "T4": {"map_kind": "computed", "k_M": [9], "k_N": [9], "methods": ["std", "l2", "B"]},
+    "T5": {"map_kind": "gt", "k_M": [29], "k_N": [29], "methods": ["std", "l2", "B"]},
+    "T6": {"map_kind": "gt", "k_M": [29], "k_N": [39], "methods": ["std", "l2", "B"]},
+}
+FMAP_NAMES = {"gt": "ground_truth", "computed": "computed_NO17"}
+
+
+def resolve_table(table: str | None, params: dict) -> dict:
+    """The run's parameters: ``params`` (profile values and overrides) over the table's settings.
+
+    Validates them and adds ``all_methods`` (the table's methods, then Approach B at the extra
+    thresholds ``B@<rtol>`` and the gain rule ``B_gain``), ``sizes`` and ``n_eig_store``.
+    """
+    if table is not None and table not in TABLES:
+        raise ValueError(f"table must be one of {sorted(TABLES)} or None, got {table!r}")
+    P = {**params, **{k: v for k, v in (TABLES[table] if table else {}).items() if params.get(k) is None}}
+    for key in ("k_M", "k_N"):
+        if P.get(key) is None:
+            raise ValueError(f"{key} is required when table=None")
+        P[key] = [int(v) for v in np.atleast_1d(P[key])]
+    if len(P["k_M"]) != len(P["k_N"]):
+        raise ValueError(f"k_M and k_N must have the same length, got {P['k_M']} and {P['k_N']}")
+    bad = set(P["families"]) - set(pfam.FAMILIES)
+    if bad:
+        raise ValueError(f"unknown families {sorted(bad)}; choose from {list(pfam.FAMILIES)}")
+    P["families"] = [f for f in pfam.FAMILIES if f in P["families"]]  # paper order
+    P["extra_rtol"] = [float(r) for r in (P.get("extra_rtol") or []) if float(r) != float(P["rtol"])]
+    return P
+
+
+def _methods(P) -> list:
+    methods = list(P["methods"]) + [f"B@{r:g}" for r in P["extra_rtol"]]
+    if P.get("gain_rule"):
+        methods.append("B_gain")
+    return methods
+
+
+def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progress: bool = True) -> dict:
+    """Run the protocol of one table; returns ``{"results", "ours", "spread", "published", ...}``.
+
+    ``results`` is the notebook's results document (errors per size/stage/method/family, the
+    entries matched to the published table, per-pair map deviations, Approach B ranks, gain-rule
+    thresholds, timings).
+    """
+    t_start = time.perf_counter()
+    methods = _methods(P)
+    settings = ProtocolSettings(
+        sizes=list(zip(P["k_M"], P["k_N"])), map_kind=P["map_kind"], families=P["families"], methods=methods,
+        rtol=P["rtol"], eps_ridge=P["eps_ridge"], eps_lasso=P["eps_lasso"], lasso_max_iter=P["lasso_max_iter"],
+        pairs_convention=P["pairs_convention"], max_gain=P["max_gain"], no17_k_descr=P["no17_k_descr"], seed=seed)
+    res = run_protocol(store, pairs, settings, progress=progress)
+    means = family_means(res, table)
+    ours = {k: v[0] for k, v in means.items()}
+    spread = {k: v[1] for k, v in means.items()}
+    fmap = FMAP_NAMES[P["map_kind"]]
+    pub = published_values(table, fmap) if table else {}
+    sizes, rows = settings.sizes, [pfam.PAPER_LABELS[f] for f in settings.families]
+    prod_methods = [m for m in methods if m != "std"]
+
+    def skey(s):
+        return f"k{s[0]}_{s[1]}"
+
+    labels = [method_label(m, table) for m in methods]
+    errors = {skey(s): {st: {lab: {r: ours[(s[0], s[1], st, lab, r)] for r in rows} for lab in labels}
+                        for st in ("approx", "transfer")} for s in sizes}
+    errors_spread = {skey(s): {st: {lab: {r: spread[(s[0], s[1], st, lab, r)] for r in rows} for lab in labels}
+                               for st in ("approx", "transfer")} for s in sizes}
+    shown = _shown_columns(pub, ours)
+    entries = [{"table": int(table[1:]), "fmap": fmap, "k_M": c[0], "k_N": c[1], "function": r, "stage": c[2],
+                "method": c[3], "value": ours[c + (r,)]}
+               for c in shown for r in rows if table and c + (r,) in pub]
+    better = {}
+    for s in sizes:
+        for m in prod_methods:
+            lab = method_label(m, table)
+            for r in rows:
+                o, st = ours[(s[0], s[1], "transfer", lab, r)], ours[(s[0], s[1], "transfer", "std", r)]
+                better[f"k{s[0]}_{s[1]}/{lab}/{r}"] = {"ours": o, "std": st, "ratio": o / st, "better": bool(o < st)}
+    n_better = {m: sum(v["better"] for k, v in better.items() if f"/{method_label(m, table)}/" in k)
+                for m in prod_methods}
+    results = {
+        "table_name": table or "custom", "fmap": fmap, "settings": [list(s) for s in sizes],
+        "pairs": [list(p) for p in res.pairs], "errors": errors, "errors_std_over_pairs": errors_spread,
+        "table": entries, "products_better_than_std": better, "n_products_better": n_better,
+        "map_deviation_from_gt": {skey(s): {"mean": float(np.mean(res.map_deviation[s])), "per_pair": res.map_deviation[s]}
+                                  for s in sizes},
+        "approach_B_rank_kept": {skey(s): res.ranks[s] for s in sizes},
+        "gain_rule_rtol": {skey(s): res.gain_rtol[s] for s in sizes},
+        "seconds": {"total": time.perf_counter() - t_start, "per_pair": res.seconds},
+    }
+    return {"results": results, "ours": ours, "spread": spread, "published": pub, "rows": rows,
+            "shown_columns": shown, "all_columns": _col_order(k[:4] for k in ours), "protocol": res}
+
+
+def _col_order(keys) -> list:
+    order = {"approx": 0, "transfer": 1}
+    morder = {"std": 0, "our_l1": 1, "our_l2": 2, "our_A": 2, "our_B": 3}
+    return sorted(set(keys), key=lambda c: (c[0], c[1], order[c[2]], morder.get(c[3], 4), c[3]))
+
+
+def _shown_columns(pub: dict, ours: dict) -> list:
+    """The published table's columns if there is one, else every measured column."""
+    pub_cols = _col_order(k[:4] for k in pub)
+    all_cols = _col_order(k[:4] for k in ours)
+    return [c for c in pub_cols if c in all_cols] if pub_cols else all_cols
+
+
+def print_table(run: dict, name: str) -> None:
+    """Ours with the published value in brackets, rows = functions."""
+    ours, pub, shown = run["ours"], run["published"], run["shown_columns"]
+    multi = len({c[:2] for c in shown}) > 1
+
+    def col_name(c):
+        return (f"k{c[0]}_{c[1]}_" if multi else "") + f"{c[2]}_{c[3]}"
+
+    print(f"{'function':10s} " + " ".join(f"{col_name(c):>22s}" for c in shown))
+    for r in run["rows"]:
+        cells = [f"{ours.get(c + (r,)):8.3f}" + (f" [{pub[c + (r,)]:4.2f}]" if c + (r,) in pub else "       ") + " " * 7
+                 for c in shown]
+        print(f"{r:10s} " + " ".join(f"{x:>22s}" for x in cells))
+
+
+def write_table_files(out_dir, run: dict, name: str) -> None:
+    """``<name>_ours.csv`` (wide), ``<name>_vs_published.csv`` (long) and ``table.json``."""
+    out = Path(out_dir)
+    ours, spread, pub, rows = run["ours"], run["spread"], run["published"], run["rows"]
+    all_cols = run["all_columns"]
+    multi = len({c[:2] for c in all_cols}) > 1
+    tnum = run["results"]["table_name"][1:] if run["results"]["table_name"] != "custom" else ""
+    fmap = run["results"]["fmap"]
+
+    def col_name(c):
+        return (f"k{c[0]}_{c[1]}_" if multi else "") + f"{c[2]}_{c[3]}"
+
+    with atomic_path(out / f"{name}_ours.csv") as tmp, open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(["function"] + [col_name(c) for c in all_cols])
+        for r in rows:
+            w.writerow([r] + [f"{ours[c + (r,)]:.6f}" for c in all_cols])
+    long_rows = []
+    for c in all_cols:
+        for r in rows:
+            p = pub.get(c + (r,))
+            long_rows.append({"table": tnum, "fmap": fmap, "k_M": c[0], "k_N": c[1], "function": r,
+                              "stage": c[2], "method": c[3], "ours": round(ours[c + (r,)], 6),
+                              "ours_std_over_pairs": round(spread[c + (r,)], 6),
+                              "published": "" if p is None else p,
+                              "difference": "" if p is None else round(ours[c + (r,)] - p, 6)})
+    with atomic_path(out / f"{name}_vs_published.csv") as tmp, open(tmp, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(long_rows[0]), lineterminator="\n")
+        w.writeheader()
+        w.writerows(long_rows)
+    with atomic_path(out / "table.json") as tmp:
+        tmp.write_text(json.dumps(to_jsonable(long_rows), indent=1) + "\n")
+
+
+def table_figure(run: dict, name: str, dataset: str):
+    """Heat map of ours (published in brackets); colour = ours - published; extra columns right."""
+    import matplotlib.colors as mcolors
+
+    from .results import setup_matplotlib
+
+    plt = setup_matplotlib()
+    ours, pub, rows, shown = run["ours"], run["published"], run["rows"], run["shown_columns"]
+    extra = [c for c in run["all_columns"] if c[2] == "transfer" and c[3] not in {s[3] for s in shown} and c[3] != "std"]
+    plot_cols = shown + [c for c in extra if c not in shown]
+    multi = len({c[:2] for c in plot_cols}) > 1
+    vals = np.array([[ours[c + (r,)] for c in plot_cols] for r in rows])  # (rows, cols)
+    pubv = np.array([[pub.get(c + (r,), np.nan) for c in plot_cols] for r in rows])
+
+    def short(c):
+        m = c[3].replace("our_", "").replace("_rtol", " rtol ").replace("_gainrule", " gain rule")
+        return (f"{c[0]}/{c[1]}\n" if multi else "") + f"{c[2]}\n{m}"
+
+    fig, ax = plt.subplots(figsize=(max(6.5, 0.95 * len(plot_cols) + 1.6), 0.36 * len(rows) + 1.7))
+    diff = np.where(np.isnan(pubv), 0.0, vals - pubv)
+    ax.imshow(np.clip(diff, -1.0, 1.0), cmap="RdBu_r", norm=mcolors.TwoSlopeNorm(vmin=-1.0, vcenter=0.0, vmax=1.0),
+              aspect="auto", alpha=0.75)
+    for i in range(len(rows)):
+        for j in range(len(plot_cols)):
+            txt = f"{vals[i, j]:.2f}" + ("" if np.isnan(pubv[i, j]) else f"\n({pubv[i, j]:.2f})")
+            ax.text(j, i, txt, ha="center", va="center", fontsize=7, color="white" if abs(diff[i, j]) > 0.7 else "black")
+    if len(plot_cols) > len(shown):
+        ax.axvline(len(shown) - 0.5, color="k", lw=1.5)
+    ax.set_yticks(range(len(rows)), rows)
+    ax.set_xticks(range(len(plot_cols)), [short(c) for c in plot_cols], fontsize=6.5)
+    ax.xaxis.tick_top()
+    sizes = run["results"]["settings"]
+    ax.set_title(f"{name}: {run['results']['fmap']}, k_M/k_N = {', '.join(f'{a}/{b}' for a, b in sizes)}, "
+                 f"{len(run['results']['pairs'])} pairs, {dataset}\n"
+                 "ours (published); colour = ours - published; right of the bar: not in the paper", fontsize=8, pad=6)
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,63 @@
+"""The descriptors of pyFM's NO17 demo: WKS plus wave-kernel maps at landmark pairs.
+
+The WKS filter is the package's one WKS (:func:`prodmaps.descriptors.wks_weights`), so these
+descriptors and :func:`prodmaps.descriptors.wks` agree exactly.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..basis import Basis
+from ..descriptors.spectral import wks_energies_from_evals, wks_weights
+
+__all__ = ["no17_demo_descriptors"]
+
+
+def no17_demo_descriptors(
+    basis_1: Basis,
+    basis_2: Basis,
+    landmarks=None,
+    n_descr: int = 100,
+    subsample_step: int = 5,
+    k_descr: int | None = 128,
+):
+    """Descriptors of pyFM's NO17 demo: WKS plus wave-kernel maps at landmarks, subsampled.
+
+    Built from the first ``k_descr`` eigenpairs of each basis (all if None), with the automatic
+    energies of :func:`auto_wks_energies` computed **on each shape's own spectrum** and scaled
+    weights ``w_e`` (:func:`wave_kernel_weights`):
+
+    * WKS ``(n, n_descr)``: ``WKS_e(x) = Σ_i w_e,i φ_i(x)²``;
+    * for each landmark pair ``(l1, l2)`` the wave-kernel maps ``x ↦ Σ_i w_e,i φ_i(l) φ_i(x)``
+      ``(n, n_descr)`` each, landmarks in order, energies fastest;
+    * columns ``[WKS, maps]`` concatenated, then every ``subsample_step``-th column kept.
+
+    ``landmarks``: None, ``(q,)`` (same indices on both shapes) or ``(q, 2)`` (column 0 on
+    shape 1, column 1 on shape 2). No normalisation here (:func:`fit_no17` normalises).
+    Returns ``(descr_1 (n1, p), descr_2 (n2, p))``.
+    """
+    if landmarks is None:
+        l1 = l2 = np.zeros(0, dtype=np.int64)
+    else:
+        lm = np.asarray(landmarks)
+        if lm.ndim == 1:
+            l1 = l2 = lm.astype(np.int64)
+        elif lm.ndim == 2 and lm.shape[1] == 2:
+            l1, l2 = lm[:, 0].astype(np.int64), lm[:, 1].astype(np.int64)
+        else:
+            raise ValueError(f"landmarks must be (q,) or (q, 2); got shape {lm.shape}")
+    out = []
+    for basis, lms in ((basis_1, l1), (basis_2, l2)):
+        k = basis.k if k_descr is None else min(k_descr, basis.k)
+        if lms.size and (lms.min() < 0 or lms.max() >= basis.n):
+            raise ValueError(f"landmark indices must be in [0, {basis.n})")
+        Phi, ev = basis.vecs[:, :k], basis.evals[:k]
+        energies, sigma = wks_energies_from_evals(ev, n_descr)
+        w = wks_weights(ev, energies, sigma)  # (n_descr, k)
+        cols = [(Phi**2) @ w.T]  # (n, n_descr)
+        if lms.size:
+            maps = np.einsum("ek,lk,nk->nle", w, Phi[lms], Phi, optimize=True)  # (n, q, n_descr)
+            cols.append(maps.reshape(basis.n, -1))
+        out.append(np.concatenate(cols, axis=1)[:, ::subsample_step])
+    return out[0], out[1]

@@ -1,0 +1,392 @@
+"""Batch regeneration of the registered notebooks: resumable, failure-isolated, parallel.
+
+Parameters passed to a notebook: the registry's ``params.<profile>``, then ``dataset`` (if
+given), then the ``-p key=value`` overrides, and always ``profile`` and ``out_dir``. Every name
+must be declared in the notebook's ``parameters`` cell (read with ``papermill.inspect_notebook``):
+a typo is refused before anything runs, instead of being silently ignored.
+
+Outputs and resumability
+------------------------
+Run ``X`` of profile ``P`` writes into ``OUT/P/X/``: whatever the notebook writes
+(``results.json``, PNGs), the executed notebook ``executed.ipynb`` and its HTML rendering
+``executed.html`` (figures embedded, for reading), the kernel's stderr ``kernel.log`` (local
+runs) and ``manifest.json``. The manifest records the run hash of
+:mod:`prodmaps.pipeline.hashing` (notebook, parameters, importable library code, data, kernel).
+A run whose hash is unchanged, whose last execution succeeded and whose outputs still exist is
+skipped (``force=True`` redoes it).
+
+Each run executes into a temporary folder beside its target (``OUT/P/.X.tmp-*``) which is then
+renamed into place, so ``OUT/P/X`` is never half written. A failing run keeps its executed
+notebook (with the traceback in the failing cell), ``error.txt`` and any partial outputs in
+``OUT/P/X/``; its manifest says ``"status": "failed"`` so the next invocation retries it. One
+failing run never stops the others. Do not run two invocations on the same ``OUT`` at once.
+
+Parallelism (:mod:`prodmaps.pipeline.schedulers`): ``jobs > 1`` runs notebooks in a local
+process pool; ``scheduler=ADDRESS`` sends one task per run to a Dask distributed cluster.
+Nothing here imports papermill, tqdm or dask at module import.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import json
+import os
+import re
+import shutil
+import sys
+import tempfile
+import threading
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..files import sha256_file
+from .hashing import run_hash
+from .notebooks import declared_parameters, export_html
+from .registry import PROFILES, load_registry, project_root
+
+__all__ = ["RunResult", "run_notebook", "plan_runs", "reproduce", "summary", "ParameterError"]
+
+
+class ParameterError(ValueError):
+    """A parameter given to a run that its notebook does not declare."""
+
+
+# ------------------------------------------------------------------------------ one notebook
+def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *,
+                 timeout: float | None = None, cwd=None, executed_name: str = "executed.ipynb",
+                 html: bool = True):
+    """Execute ``notebook`` with papermill, writing into ``out_dir``; return the executed notebook path.
+
+    ``out_dir`` is passed to the notebook as the ``out_dir`` parameter (absolute path) and the
+    executed copy is saved there as ``executed_name``. The working directory is the project
+    root (``cwd``). Raises papermill's ``PapermillExecutionError`` if a cell fails (the executed
+    notebook with the traceback is still written, and rendered as HTML). ``timeout`` is per
+    cell, in seconds. With ``html`` the executed notebook is also written as ``executed.html``.
+    """
+    import papermill as pm_
+
+    out = Path(out_dir).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    parameters = dict(params or {})
+    parameters["out_dir"] = str(out)
+    executed = out / executed_name
+    try:
+        pm_.execute_notebook(
+            str(notebook), str(executed), parameters=parameters, kernel_name=kernel_name,
+            cwd=str(cwd or Path.cwd()), progress_bar=False, log_output=False,
+            execution_timeout=timeout,
+        )
+    finally:
+        if html and executed.is_file():
+            try:
+                export_html(executed)
+            except Exception as exc:  # a rendering problem must not hide the notebook's own result
+                (out / "executed.html.error.txt").write_text(f"HTML export failed: {exc}\n")
+    return executed
+
+
+# ------------------------------------------------------------------------------ run loop
+@dataclass
+class RunResult:
+    name: str
+    status: str  # "ok", "skipped", "failed"
+    seconds: float = 0.0
+    run_dir: str = ""
+    error: str = ""
+
+    def to_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+_NOT_OUTPUTS = ("manifest.json", "executed.ipynb", "executed.html", "executed.html.error.txt", "error.txt",
+                "kernel.log")
+_ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
+
+
+def _output_files(folder: Path) -> dict:
+    return {
+        p.name: sha256_file(p) for p in sorted(folder.iterdir())
+        if p.is_file() and p.name not in _NOT_OUTPUTS
+    }
+
+
+def _relocate_out_dir(results: Path, tmp: Path, final: Path, root: Path) -> None:
+    """Rewrite ``parameters.out_dir`` in results.json from the temporary to the final folder."""
+    if not results.is_file():
+        return
+    try:
+        doc = json.loads(results.read_text())
+    except ValueError:
+        return
+    par = doc.get("parameters")
+    if isinstance(par, dict) and isinstance(par.get("out_dir"), str) and Path(par["out_dir"]) == tmp:
+        try:
+            par["out_dir"] = final.relative_to(root).as_posix()
+        except ValueError:
+            par["out_dir"] = str(final)
+        results.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
+
+
+def mkdtemp_beside(target: Path, name: str) -> Path:
+    """A fresh hidden folder next to ``target`` with the usual (umask) permissions."""
+    tmp = Path(tempfile.mkdtemp(prefix=f".{name}.tmp-", dir=target.parent))
+    os.chmod(tmp, 0o755)  # mkdtemp makes it 0700
+    return tmp
+
+
+@contextlib.contextmanager
+def _stderr_to(path: Path):
+    """Send file descriptor 2 (inherited by the Jupyter kernel) to ``path`` while running.
+
+    Keeps kernel chatter (ipykernel/VTK warnings) out of the progress display and in the run
+    folder as ``kernel.log``. Only in the main thread (Dask runs tasks in threads: no redirect).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(path, "ab") as fh:
+            os.dup2(fh.fileno(), 2)
+            try:
+                yield
+            finally:
+                sys.stderr.flush()
+                os.dup2(saved, 2)
+    finally:
+        os.close(saved)
+
+
+def swap_into_place(tmp: Path, target: Path) -> None:
+    """Replace ``target`` by ``tmp`` (same parent) with renames; never leaves a half folder."""
+    old = None
+    if target.exists():
+        old = target.with_name(f".{target.name}.old-{os.getpid()}-{time.monotonic_ns()}")
+        os.replace(target, old)
+    os.replace(tmp, target)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+
+
+def _execute_task(task: dict) -> dict:
+    """Execute one planned run (in this process, a pool worker or a Dask worker)."""
+    name, target = task["name"], Path(task["run_dir"])
+    target.parent.mkdir(parents=True, exist_ok=True)
+    for env, val in (task.get("env") or {}).items():
+        os.environ.setdefault(env, val)
+    for stale in target.parent.glob(f".{name}.tmp-*"):  # left by an interrupted invocation
+        shutil.rmtree(stale, ignore_errors=True)
+    tmp = mkdtemp_beside(target, name)
+    t0 = time.perf_counter()
+    error = ""
+    try:
+        with _stderr_to(tmp / "kernel.log"):
+            run_notebook(task["notebook"], tmp, task["params"], task.get("kernel_name", "python3"),
+                         timeout=task.get("timeout"), cwd=task.get("cwd"))
+        _relocate_out_dir(tmp / "results.json", tmp, target, Path(task.get("cwd") or Path.cwd()))
+        if not (tmp / "results.json").is_file():
+            raise RuntimeError("the notebook finished but wrote no results.json into out_dir")
+    except BaseException as exc:  # failure isolation: record everything, never raise
+        if not isinstance(exc, Exception):  # Ctrl-C / SystemExit: leave no temporary folder behind
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+        if exc.__class__.__name__ == "PapermillExecutionError":
+            tb = "\n".join(getattr(exc, "traceback", []) or [])
+            error = f"{getattr(exc, 'ename', 'Error')}: {getattr(exc, 'evalue', exc)}\n\n{_ANSI.sub('', tb)}"
+            error = f"cell {getattr(exc, 'exec_count', '?')} failed\n" + error
+        else:
+            error = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+        (tmp / "error.txt").write_text(error)
+    seconds = time.perf_counter() - t0
+    status = "failed" if error else "ok"
+    manifest = {
+        "run": name, "profile": task["profile"], "status": status, "hash": task["hash"],
+        "inputs": task["inputs"], "notebook": task["notebook"], "seconds": round(seconds, 3),
+        "finished": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "python": sys.version.split()[0], "outputs": _output_files(tmp),
+    }
+    (tmp / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=True, default=str) + "\n")
+    swap_into_place(tmp, target)
+    first = error.strip().splitlines()[:2]
+    return RunResult(name, status, seconds, str(target), " | ".join(first)).to_dict()
+
+
+def _is_current(run_dir: Path, h: str) -> bool:
+    man = run_dir / "manifest.json"
+    if not man.is_file():
+        return False
+    try:
+        m = json.loads(man.read_text())
+    except ValueError:
+        return False
+    if m.get("hash") != h or m.get("status") != "ok":
+        return False
+    outs = m.get("outputs", {})
+    return "results.json" in outs and all((run_dir / f).is_file() for f in outs)
+
+
+def _check_declared(run, params: dict, where: str) -> None:
+    """Refuse parameters the notebook does not declare (a typo would silently do nothing)."""
+    if not run.notebook.is_file():
+        return  # reported as a failed run, with the path
+    declared = declared_parameters(run.notebook)
+    unknown = sorted(set(params) - set(declared))
+    if unknown:
+        raise ParameterError(
+            f"run {run.name!r}: {where} {unknown} not declared in the parameters cell of "
+            f"{run.notebook.name}; it declares {sorted(declared)}")
+
+
+def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, overrides=None,
+              out="results", kernel_name: str = "python3", timeout=None, cwd=None) -> list[dict]:
+    """Resolve the selected runs into task dicts (parameters, target folder, input hash).
+
+    Raises :class:`ParameterError` if a registry parameter or an override is not declared by
+    the run's notebook, ``ValueError`` for an unknown run or profile.
+    """
+    from .notebooks import parameter_default
+
+    if profile not in PROFILES:
+        raise ValueError(f"unknown profile {profile!r}; choose one of {PROFILES}")
+    names = list(runs) if not only else list(only)
+    unknown = [n for n in names if n not in runs]
+    if unknown:
+        raise ValueError(f"unknown run(s) {unknown}; registered runs: {list(runs)}")
+    out = Path(out).resolve()
+    tasks = []
+    for n in dict.fromkeys(names):
+        run = runs[n]
+        params = run.parameters(profile)
+        _check_declared(run, params, f"registry parameters (params.{profile})")
+        if dataset is not None:
+            params["dataset"] = dataset
+        params.update(overrides or {})
+        _check_declared(run, {k: v for k, v in params.items() if k not in run.parameters(profile)},
+                        "parameters")
+        params["profile"] = profile
+        ds = params.get("dataset") or (parameter_default(run.notebook, "dataset") if run.notebook.is_file() else None)
+        h, inputs = run_hash(run.notebook, params, ds, kernel_name)
+        tasks.append({
+            "name": n, "notebook": str(run.notebook), "params": params, "profile": profile,
+            "run_dir": str(out / profile / n), "hash": h, "inputs": inputs,
+            "kernel_name": kernel_name, "timeout": timeout, "cwd": str(cwd or Path.cwd()),
+        })
+    return tasks
+
+
+class _Progress:
+    """tqdm progress bar when available, plain lines otherwise."""
+
+    def __init__(self, total: int, enabled: bool, stream):
+        self.bar = None
+        self.stream = stream
+        if enabled:
+            try:
+                from tqdm import tqdm
+
+                self.bar = tqdm(total=total, desc="reproduce", unit="run", file=stream, dynamic_ncols=True)
+            except ModuleNotFoundError:
+                self.bar = None
+
+    def done(self, res: dict) -> None:
+        line = f"  {res['status']:<8} {res['name']:<28} {res['seconds']:8.1f} s"
+        if res["status"] == "failed":
+            line += f"   {res['error']}"
+        if self.bar is not None:
+            self.bar.write(line)
+            self.bar.set_postfix_str(res["name"])
+            self.bar.update(1)
+        else:
+            print(line, file=self.stream, flush=True)
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
+def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None, overrides=None,
+              out="results", jobs: int = 1, force: bool = False, scheduler=None,
+              kernel_name: str = "python3", timeout=None, progress: bool = True,
+              stream=None) -> list[RunResult]:
+    """Run the selected registry entries; returns one :class:`RunResult` per run (registry order).
+
+    Skips runs whose inputs are unchanged (see the module doc) unless ``force``. ``jobs`` > 1
+    uses a local process pool; ``scheduler`` (a Dask scheduler address, or a
+    ``distributed.Client``) sends one task per run to a Dask cluster instead
+    (:mod:`prodmaps.pipeline.schedulers`).
+    """
+    from .schedulers import run_dask, run_pool, thread_env
+
+    own_stream = None
+    if stream is None:
+        # a duplicate of the terminal's stderr: fd 2 itself is redirected during runs
+        try:
+            own_stream = stream = os.fdopen(os.dup(sys.stderr.fileno()), "w", buffering=1)
+        except (AttributeError, OSError, ValueError):  # e.g. a captured stream without a file descriptor
+            stream = sys.stderr
+    runs = load_registry(registry)
+    tasks = plan_runs(runs, only=only, profile=profile, dataset=dataset, overrides=overrides,
+                      out=out, kernel_name=kernel_name, timeout=timeout, cwd=project_root(registry))
+    results: dict[str, dict] = {}
+    todo = []
+    for t in tasks:
+        if not force and _is_current(Path(t["run_dir"]), t["hash"]):
+            results[t["name"]] = RunResult(t["name"], "skipped", 0.0, t["run_dir"]).to_dict()
+        else:
+            todo.append(t)
+    bar = _Progress(len(tasks), progress, stream)
+    for r in results.values():
+        bar.done(r)
+    env = thread_env(jobs if scheduler is None else 1)
+    for t in todo:
+        t["env"] = env
+    try:
+        if scheduler is not None:
+            results_iter = run_dask(todo, scheduler, _execute_task, _collect)
+        elif jobs <= 1 or len(todo) <= 1:
+            results_iter = (_safe_execute(t) for t in todo)
+        else:
+            results_iter = run_pool(todo, jobs, _execute_task, _collect)
+        for r in results_iter:
+            results[r["name"]] = r
+            bar.done(r)
+    finally:
+        bar.close()
+        if own_stream is not None:
+            own_stream.close()
+    return [RunResult(**results[t["name"]]) for t in tasks]
+
+
+def _safe_execute(task) -> dict:
+    """:func:`_execute_task` in this process; an unexpected error fails that run only."""
+    try:
+        return _execute_task(task)
+    except Exception as exc:  # e.g. the output folder is not writable
+        msg = f"could not run: {type(exc).__name__}: {exc}"
+        return RunResult(task["name"], "failed", 0.0, task["run_dir"], msg).to_dict()
+
+
+def _collect(fut, task) -> dict:
+    """Result of a pool/Dask future; a crashed worker becomes a failed run, not an exception."""
+    try:
+        return fut.result()
+    except Exception as exc:  # worker died (e.g. killed by the OOM killer)
+        msg = f"worker crashed: {type(exc).__name__}: {exc}"
+        return RunResult(task["name"], "failed", 0.0, task["run_dir"], msg).to_dict()
+
+
+def summary(results: list[RunResult]) -> str:
+    """Plain-text summary: counts, then one line per failure naming its error file."""
+    n = {s: sum(r.status == s for r in results) for s in ("ok", "skipped", "failed")}
+    total = sum(r.seconds for r in results)
+    lines = [f"{len(results)} run(s): {n['ok']} ran, {n['skipped']} skipped (unchanged), "
+             f"{n['failed']} failed; {total:.1f} s of notebook time"]
+    for r in results:
+        if r.status == "failed":
+            lines.append(f"FAILED {r.name}: {r.error}")
+            lines.append(f"       see {Path(r.run_dir) / 'error.txt'} and {Path(r.run_dir) / 'executed.ipynb'}")
+    return "\n".join(lines)

@@ -1,0 +1,83 @@
+"""Content hashes that decide whether a run must be redone.
+
+A run's hash covers what can change its outputs, and nothing else:
+
+* the notebook's bytes and the parameters it is given (without ``out_dir``);
+* the code a notebook can import: every file of the installed ``prodmaps`` package — the math
+  library and :mod:`prodmaps.experiments` with its data files (claims ledger, published tables)
+  — **except** :mod:`prodmaps.pipeline` (this subpackage: registry, execution, diffing, report,
+  CLI) and the embedded datasets (hashed separately), so editing the report reruns nothing;
+* the input data (the dataset's ``SHA256SUMS`` file, or the sizes and modification times of its
+  files);
+* the kernel name.
+
+Hashes are over contents, not modification times: ``touch`` alone reruns nothing.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+from ..files import sha256_bytes, sha256_file
+
+__all__ = ["library_hash", "library_files", "data_hash", "run_hash"]
+
+_PACKAGE = Path(__file__).resolve().parents[1]  # the installed prodmaps package
+_SKIP = ("pipeline", "data")  # subfolders of the package that do not enter the library hash
+_SUFFIXES = (".py", ".toml", ".csv", ".json")
+
+
+def library_files() -> list[Path]:
+    """The package files a notebook can import or read (sorted), see the module doc."""
+    files = []
+    for p in sorted(_PACKAGE.rglob("*")):
+        rel = p.relative_to(_PACKAGE)
+        if p.is_file() and p.suffix in _SUFFIXES and rel.parts[0] not in _SKIP and "__pycache__" not in rel.parts:
+            files.append(p)
+    return files
+
+
+def library_hash() -> str:
+    """Hash of the bytes of :func:`library_files` (with their relative names)."""
+    h = hashlib.sha256()
+    for p in library_files():
+        h.update(p.relative_to(_PACKAGE).as_posix().encode() + b"\0" + p.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def data_hash(dataset: str | None) -> str:
+    """Cheap fingerprint of a dataset's files: its ``SHA256SUMS`` bytes if present, else the
+    relative paths, sizes and modification times of its files. ``"none"`` if no dataset."""
+    if not dataset:
+        return "none"
+    from .. import datasets
+
+    try:
+        d = datasets.dataset_dir(str(dataset))
+    except ValueError:  # not a registered dataset name
+        d = datasets.data_root() / str(dataset)
+    sums = d / "SHA256SUMS"
+    if sums.is_file():
+        return "sha256sums:" + sha256_file(sums)
+    if not d.is_dir():
+        return "missing:" + str(dataset)
+    h = hashlib.sha256()
+    for p in sorted(q for q in d.rglob("*") if q.is_file()):
+        st = p.stat()
+        h.update(f"{p.relative_to(d).as_posix()}\0{st.st_size}\0{st.st_mtime_ns}\0".encode())
+    return "stat:" + h.hexdigest()
+
+
+def run_hash(notebook: Path, params: dict, dataset: str | None, kernel_name: str = "python3") -> tuple[str, dict]:
+    """``(hash, inputs)`` of one run (see the module doc)."""
+    inputs = {
+        "notebook": sha256_file(notebook) if Path(notebook).is_file() else "missing",
+        "parameters": {k: v for k, v in sorted(params.items()) if k != "out_dir"},
+        "library": library_hash(),
+        "data": data_hash(dataset),
+        "kernel": kernel_name,
+    }
+    blob = json.dumps(inputs, sort_keys=True, default=str).encode()
+    return sha256_bytes(blob), inputs

@@ -1,0 +1,92 @@
+"""Notebook files: declared parameters, output stripping, HTML export of executed notebooks.
+
+* :func:`declared_parameters` reads the ``parameters`` cell with ``papermill.inspect_notebook``
+  (names, defaults as source text, help from the trailing comments), so the runner can refuse a
+  ``-p NAME=VALUE`` the notebook does not declare.
+* :func:`strip` removes outputs, execution counts and volatile metadata with ``nbstripout``
+  (committed notebooks carry no outputs; a test enforces it).
+* :func:`export_html` writes an executed notebook as standalone HTML (``nbconvert``, figures
+  embedded) for reading.
+
+papermill, nbformat, nbstripout and nbconvert are imported inside the functions.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+from pathlib import Path
+
+from ..files import atomic_path
+
+__all__ = ["declared_parameters", "parameter_default", "strip", "has_outputs", "export_html", "code_lines"]
+
+
+def declared_parameters(notebook) -> dict:
+    """``{name: {"default": source text, "help": comment}}`` of the notebook's ``parameters`` cell."""
+    import papermill
+
+    return {k: {"default": v.get("default"), "help": v.get("help", "")}
+            for k, v in papermill.inspect_notebook(str(notebook)).items()}
+
+
+def parameter_default(notebook, name: str):
+    """The default of parameter ``name`` as a Python value (``None`` if absent or not a literal)."""
+    p = declared_parameters(notebook).get(name)
+    if p is None or p["default"] is None:
+        return None
+    try:
+        return ast.literal_eval(p["default"])
+    except (ValueError, SyntaxError):
+        return None
+
+
+def has_outputs(path) -> bool:
+    """True if a notebook file carries outputs or execution counts in any code cell."""
+    nb = json.loads(Path(path).read_text(encoding="utf-8"))
+    return any(c.get("outputs") or c.get("execution_count") is not None
+               for c in nb.get("cells", []) if c.get("cell_type") == "code")
+
+
+def strip(path) -> None:
+    """Strip outputs, execution counts and volatile metadata in place (``nbstripout``)."""
+    import nbformat
+    from nbstripout import strip_output
+
+    path = Path(path)
+    nb = nbformat.read(str(path), as_version=4)
+    nb = strip_output(nb, keep_output=False, keep_count=False, keep_id=True,
+                      extra_keys=["metadata.papermill", "cell.metadata.papermill", "cell.metadata.execution"])
+    with atomic_path(path) as tmp:
+        nbformat.write(nb, str(tmp))
+
+
+def export_html(executed, html_path=None) -> Path:
+    """Write ``executed`` (an ``.ipynb``) as standalone HTML with its figures embedded."""
+    import nbformat
+    from nbconvert import HTMLExporter
+
+    executed = Path(executed)
+    html_path = Path(html_path) if html_path is not None else executed.with_suffix(".html")
+    nb = nbformat.read(str(executed), as_version=4)
+    body, _ = HTMLExporter(template_name="classic").from_notebook_node(nb)
+    with atomic_path(html_path) as tmp:
+        tmp.write_text(body, encoding="utf-8")
+    return html_path
+
+
+def code_lines(path) -> int:
+    """Number of non-blank lines in the code cells of a notebook file."""
+    nb = json.loads(Path(path).read_text(encoding="utf-8"))
+    return sum(1 for c in nb.get("cells", []) if c.get("cell_type") == "code"
+               for line in "".join(c.get("source", [])).splitlines() if line.strip())
+
+
+if __name__ == "__main__":  # python -m prodmaps.pipeline.notebooks strip notebooks/*.ipynb
+    import sys
+
+    if len(sys.argv) >= 3 and sys.argv[1] == "strip":
+        for p in sys.argv[2:]:
+            strip(p)
+    else:
+        print("usage: python -m prodmaps.pipeline.notebooks strip NOTEBOOK...")

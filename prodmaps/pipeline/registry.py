@@ -1,0 +1,170 @@
+"""The run registry: every notebook run that reproduces a figure or table of the paper.
+
+Every run is an entry of ``paper/runs.toml`` (another file through ``$PRODMAPS_RUNS`` or the
+``registry=`` arguments)::
+
+    [runs.fig04]
+    notebook = "notebooks/fig04_coordinate_reconstruction.ipynb"   # relative to the project root
+    reproduces = "Figure 4"
+    title = "Coordinate reconstruction, k = 9..69"                  # optional
+    claims = ["fig04.products_improve"]                             # optional: ledger entries judged on it
+    [runs.fig04.params.smoke]        # papermill parameters of the smoke profile
+    [runs.fig04.params.paper]        # ... and of the paper profile
+    [runs.fig04.tolerances]          # optional, for prodmaps.pipeline.diffing (dotted-key globs)
+    "results.errors.*" = { rtol = 1e-6, atol = 1e-9 }
+
+Several runs may share one notebook with different parameters (e.g. the six tables). Relative
+notebook paths are resolved against the project root: the parent of the folder holding the
+registry (``paper/..``), or the folder named by an optional top-level ``root = "..."`` key
+(relative to the registry file). Without an explicit registry, the project is found by looking
+for ``paper/runs.toml`` in the working directory and its parents.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["PROFILES", "REGISTRY", "Run", "RegistryError", "find_project_root", "registry_path",
+           "project_root", "load_registry", "parse_param", "parse_params"]
+
+PROFILES = ("smoke", "paper")
+REGISTRY = Path("paper") / "runs.toml"
+_NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
+_RUN_KEYS = {"notebook", "reproduces", "title", "params", "tolerances", "description", "claims"}
+
+
+class RegistryError(ValueError):
+    """A malformed run registry (names the file, the run and the problem)."""
+
+
+@dataclass(frozen=True)
+class Run:
+    """One registry entry. ``notebook`` is an absolute path; ``params[profile]`` a dict."""
+
+    name: str
+    notebook: Path
+    reproduces: str = ""
+    title: str = ""
+    params: dict = field(default_factory=dict)
+    tolerances: dict = field(default_factory=dict)
+    claims: tuple = ()
+
+    def parameters(self, profile: str) -> dict:
+        return dict(self.params.get(profile, {}))
+
+
+# ------------------------------------------------------------------------------ registry
+def _toml():
+    try:
+        import tomllib  # Python >= 3.11
+    except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+        try:
+            import tomli as tomllib
+        except ModuleNotFoundError as exc:
+            raise ModuleNotFoundError("reading paper/runs.toml on Python 3.10 needs `pip install tomli`") from exc
+    return tomllib
+
+
+def find_project_root(start=None) -> Path:
+    """The nearest folder at or above ``start`` (default: the working directory) holding
+    ``paper/runs.toml``: the project whose notebooks are reproduced."""
+    here = Path(start or Path.cwd()).resolve()
+    for folder in (here, *here.parents):
+        if (folder / REGISTRY).is_file():
+            return folder
+    raise RegistryError(
+        f"no {REGISTRY} in {here} or its parents: run from the project's folder (the clone of the "
+        "repository), or pass --registry / set PRODMAPS_RUNS")
+
+
+def registry_path(path=None) -> Path:
+    """``path`` if given, else ``$PRODMAPS_RUNS``, else ``paper/runs.toml`` of :func:`find_project_root`."""
+    if path is not None:
+        return Path(path).expanduser().resolve()
+    env = os.environ.get("PRODMAPS_RUNS")
+    if env:
+        return Path(env).expanduser().resolve()
+    return find_project_root() / REGISTRY
+
+
+def project_root(registry=None) -> Path:
+    """The project root of a registry: its ``root = "..."`` key, else the parent of ``paper/``."""
+    path = registry_path(registry)
+    try:
+        doc = _toml().loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        doc = {}
+    return (path.parent / doc.get("root", "..")).resolve()
+
+
+def load_registry(path=None) -> dict[str, Run]:
+    """Read the run registry (see the module doc) into ``{name: Run}`` in file order."""
+    path = registry_path(path)
+    if not path.is_file():
+        raise RegistryError(f"run registry {path} not found (set PRODMAPS_RUNS or pass --registry)")
+    try:
+        doc = _toml().loads(path.read_text(encoding="utf-8"))
+    except Exception as exc:  # tomllib.TOMLDecodeError
+        raise RegistryError(f"{path}: not valid TOML: {exc}") from exc
+    root = (path.parent / doc.get("root", "..")).resolve()
+    runs = doc.get("runs", {})
+    if not isinstance(runs, dict):
+        raise RegistryError(f"{path}: [runs] must be a table of runs")
+    out: dict[str, Run] = {}
+    for name, entry in runs.items():
+        where = f"{path}: run {name!r}"
+        if not _NAME_RE.match(name):
+            raise RegistryError(f"{where}: run names may use letters, digits, '_', '-', '.'")
+        if not isinstance(entry, dict):
+            raise RegistryError(f"{where}: must be a table")
+        unknown = set(entry) - _RUN_KEYS
+        if unknown:
+            raise RegistryError(f"{where}: unknown keys {sorted(unknown)}; allowed {sorted(_RUN_KEYS)}")
+        if "notebook" not in entry:
+            raise RegistryError(f"{where}: missing `notebook = \"notebooks/....ipynb\"`")
+        params = entry.get("params", {})
+        if not isinstance(params, dict) or not all(isinstance(v, dict) for v in params.values()):
+            raise RegistryError(f"{where}: params must be tables [runs.{name}.params.<profile>]")
+        for prof, p in params.items():
+            reserved = {"profile", "out_dir"} & set(p)
+            if reserved:
+                raise RegistryError(f"{where}: params.{prof} must not set {sorted(reserved)} (added by the runner)")
+        tol = entry.get("tolerances", {})
+        if not isinstance(tol, dict):
+            raise RegistryError(f"{where}: tolerances must be a table of key-glob = {{rtol, atol}}")
+        nb = Path(entry["notebook"])
+        out[name] = Run(
+            name=name, notebook=(nb if nb.is_absolute() else root / nb).resolve(),
+            reproduces=str(entry.get("reproduces", "")), title=str(entry.get("title", "")),
+            params={k: dict(v) for k, v in params.items()}, tolerances=dict(tol),
+            claims=tuple(str(c) for c in entry.get("claims", ())),
+        )
+    return out
+
+
+def parse_param(text: str):
+    """``key=value`` -> ``(key, value)``; value read as JSON, else a TOML literal, else a string."""
+    if "=" not in text:
+        raise ValueError(f"parameter {text!r} must look like key=value")
+    key, raw = text.split("=", 1)
+    key = key.strip()
+    if not key.isidentifier():
+        raise ValueError(f"parameter name {key!r} is not a valid Python identifier")
+    try:
+        return key, json.loads(raw)
+    except ValueError:
+        pass
+    try:
+        return key, _toml().loads(f"v = {raw}")["v"]
+    except Exception:
+        return key, raw
+
+
+def parse_params(items) -> dict:
+    return dict(parse_param(t) for t in (items or []))
+
+

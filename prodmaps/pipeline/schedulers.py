@@ -1,0 +1,55 @@
+"""Where runs execute: this process, a local process pool, or a Dask distributed cluster.
+
+The execution function and the result collector are passed in (:mod:`prodmaps.pipeline.execute`),
+so a scheduler only decides *where* a task runs. With several notebooks at once, BLAS threads are
+capped so they do not oversubscribe the CPUs.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+__all__ = ["thread_env", "run_pool", "run_dask"]
+
+
+def thread_env(jobs: int) -> dict:
+    """With several notebooks at once, cap BLAS threads so they do not oversubscribe the CPUs."""
+    if jobs <= 1:
+        return {}
+    n = str(max(1, (os.cpu_count() or 1) // jobs))
+    return {k: n for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+
+
+def run_pool(tasks: list[dict], jobs: int, execute, collect):
+    """Run ``execute(task)`` in a spawn-based process pool of ``jobs`` workers; yield results."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    with ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), mp_context=mp.get_context("spawn")) as ex:
+        futs = {ex.submit(execute, t): t for t in tasks}
+        for fut in as_completed(futs):
+            yield collect(fut, futs[fut])
+
+
+def run_dask(tasks: list[dict], scheduler, execute, collect):
+    """Submit one task per run to a Dask cluster and yield results as they finish."""
+    if not tasks:
+        return
+    try:
+        from dask.distributed import Client, as_completed
+    except ModuleNotFoundError as exc:
+        raise ModuleNotFoundError("--scheduler needs Dask: pip install 'prodmaps[dask]'") from exc
+    own = not hasattr(scheduler, "submit")
+    client = Client(scheduler) if own else scheduler
+    try:
+        futs = {}
+        for t in tasks:
+            f = client.submit(execute, t, key=f"prodmaps-{t['name']}-{t['hash'][:12]}-{time.time_ns()}",
+                              pure=False, retries=0)
+            futs[f] = t
+        for f in as_completed(list(futs)):
+            yield collect(f, futs[f])
+    finally:
+        if own:
+            client.close()
