@@ -35,13 +35,13 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+import prodmaps as pm
+from prodmaps.datasets import dataset_dir
 
-import prodmaps as pm  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]  # the repository: where results and the registry live
 
-SHAPE_1 = ROOT / "data" / "anny_humans" / "shapes" / "anny_000.ply"
-SHAPE_2 = ROOT / "data" / "anny_humans" / "shapes" / "anny_013.ply"
+SHAPE_1 = dataset_dir("anny_humans") / "shapes" / "anny_000.ply"
+SHAPE_2 = dataset_dir("anny_humans") / "shapes" / "anny_013.ply"
 
 
 def timed(fn, repeat: int = 1):
@@ -165,7 +165,7 @@ def bench_no17(args):
     if not have("pyFM"):
         row.update(skipped="pyfmaps not installed")
         return row
-    from benchmarks.no17_anchor import compare_no17
+    from no17_anchor import compare_no17  # the script folder is on sys.path when run as a script
 
     row.update(compare_no17(SHAPE_1, SHAPE_2))
     return row
@@ -174,7 +174,6 @@ def bench_no17(args):
 SCALE_SCRIPT = r"""
 import json, resource, sys, time
 import numpy as np
-sys.path.insert(0, sys.argv[1])
 import prodmaps as pm
 from prodmaps.mesh import subdivide_midpoint
 mesh = pm.load_mesh(sys.argv[2])
@@ -194,15 +193,15 @@ G = pm.transfer(F, C, b, b, "prod")
 t_tr = time.perf_counter() - t2
 err = pm.relative_error(G, F, b.mass)
 print(json.dumps({"n": big.n_vertices, "eig_s": t_eig, "approach_b_s": t_op, "transfer_s": t_tr,
-                  "total_s": time.perf_counter() - t0, "materialised": "solver" in ext._cache,
+                  "total_s": time.perf_counter() - t0, "materialised": "solver" in ext.cache,
                   "peak_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
                   "xyz_error": [float(x) for x in err]}))
 """
 
 
 def bench_scale(args):
-    shape = ROOT / "data" / "anny_humans" / "remeshed" / "anny_025_remesh_nonuniform.ply"
-    r = subprocess.run([sys.executable, "-c", SCALE_SCRIPT, str(ROOT), str(shape), "2"],
+    shape = dataset_dir("anny_humans") / "remeshed" / "anny_025_remesh_nonuniform.ply"
+    r = subprocess.run([sys.executable, "-c", SCALE_SCRIPT, "-", str(shape), "2"],
                        capture_output=True, text=True, cwd=ROOT)
     if r.returncode != 0:
         raise RuntimeError(r.stderr[-2000:])

@@ -38,15 +38,15 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+import prodmaps as pm
+import prodmaps.geodesics  # noqa: F401
+from prodmaps import fmaps
+from prodmaps.datasets import dataset_dir
+from prodmaps.p2p import from_fmap, nearest_neighbors
 
-import prodmaps as pm  # noqa: E402
-import prodmaps.geodesics  # noqa: E402
-from prodmaps import fmaps  # noqa: E402
-from prodmaps.p2p import from_fmap, nearest_neighbors  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]  # the repository: where results and the registry live
 
-SHAPES = ROOT / "data" / "anny_humans" / "shapes"
+SHAPES = dataset_dir("anny_humans") / "shapes"
 NO17_PAIRS = [("000", "013"), ("000", "001"), ("000", "005"), ("002", "007"), ("011", "016"), ("023", "028")]
 EXT_PAIRS = [("000", "001"), ("000", "003"), ("000", "005"), ("002", "007"), ("004", "009"), ("000", "013")]
 NOISES = (0.1, 0.25, 0.5)

@@ -25,7 +25,7 @@ from .eigensolver import smallest_eigenpairs
 from .laplacian import laplacian
 from .mesh import Mesh
 
-__all__ = ["Basis", "eigenbasis", "fourier_basis", "fix_signs"]
+__all__ = ["Basis", "eigenbasis", "fourier_basis", "fix_signs", "from_arrays"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,3 +189,52 @@ def fourier_basis(n: int, k: int, period: float = 2 * np.pi) -> Basis:
                 evals.append((j * omega) ** 2)
         j += 1
     return Basis(np.stack(cols, axis=1), np.array(evals), w, name="fourier")
+
+
+def from_arrays(vecs, evals, mass, *, name: str = "", atol: float = 1e-6) -> Basis:
+    """A :class:`Basis` from eigenpairs computed elsewhere (pyFM, geomfum, your own code), checked.
+
+    Parameters
+    ----------
+    vecs : ``(n, k)`` eigenvectors as columns, the constant first (pyFM:
+        ``TriMesh.eigenvectors``; geomfum: ``mesh.basis.full_vecs``).
+    evals : ``(k,)`` eigenvalues, ascending (``TriMesh.eigenvalues``).
+    mass : the area weights ``(n,)`` (``TriMesh.vertex_areas``) or a sparse ``(n, n)`` mass
+        matrix (``TriMesh.A``; a diagonal sparse matrix is turned into its diagonal).
+    atol : tolerance of the checks.
+
+    Nothing is recomputed and no sign is changed (a functional map computed with these vectors
+    stays valid). Checks, each raising ``ValueError`` that says what to fix: shapes; the first
+    column constant (``|φ0 - mean| <= atol·|mean|``); A-orthonormality ``|ΦᵀAΦ - I| <= atol``
+    (the inner product every projection here uses); eigenvalues ascending with ``λ0 ≈ 0``.
+    """
+    V = np.asarray(vecs, dtype=np.float64)
+    ev = np.asarray(evals, dtype=np.float64).ravel()
+    if V.ndim != 2:
+        raise ValueError(f"vecs must be (n, k) with the eigenvectors as columns; got shape {V.shape}")
+    if ev.shape != (V.shape[1],):
+        hint = " (vecs transposed? eigenvectors must be the columns)" if ev.size == V.shape[0] else ""
+        raise ValueError(f"evals has {ev.size} values but vecs has {V.shape[1]} columns{hint}")
+    if sp.issparse(mass):
+        M = sp.csr_matrix(mass)
+        if M.shape != (V.shape[0],) * 2:
+            raise ValueError(f"mass must be ({V.shape[0]}, {V.shape[0]}); got {M.shape}")
+        off = M - sp.diags(M.diagonal())
+        mass = M.diagonal() if off.count_nonzero() == 0 else M
+    mass_v = mass if sp.issparse(mass) else np.asarray(mass, dtype=np.float64).ravel()
+    if not sp.issparse(mass_v) and mass_v.shape != (V.shape[0],):
+        raise ValueError(f"mass must have one area weight per vertex ({V.shape[0]},); got {mass_v.shape}")
+    c = V[:, 0]
+    if np.max(np.abs(c - c.mean())) > atol * abs(c.mean()) or c.mean() == 0:
+        raise ValueError("the first column of vecs is not constant: prodmaps bases have the constant "
+                         "eigenfunction first (sort the eigenpairs by eigenvalue)")
+    AV = mass_v @ V if sp.issparse(mass_v) else mass_v[:, None] * V
+    G = V.T @ AV  # (k, k)
+    dev = float(np.max(np.abs(G - np.eye(V.shape[1]))))
+    if dev > atol:
+        raise ValueError(f"the eigenvectors are not orthonormal in the area inner product (max |ΦᵀAΦ - I| = "
+                         f"{dev:.2e}); pass the mass the eigenproblem was solved with (pyFM: vertex_areas), "
+                         "or A-normalise the columns")
+    if np.any(np.diff(ev) < -atol * max(abs(ev).max(), 1.0)) or abs(ev[0]) > atol * max(abs(ev).max(), 1.0):
+        raise ValueError("evals must be ascending with the constant's eigenvalue 0 first")
+    return Basis(V, ev, mass_v, name=name)

@@ -41,6 +41,7 @@ __all__ = [
     "remove_duplicate_faces",
     "repair",
     "subdivide_midpoint",
+    "icosphere",
 ]
 
 
@@ -332,3 +333,21 @@ def subdivide_midpoint(vertices, faces, levels: int = 1):
         f = np.concatenate([np.stack([a, ab, ca], 1), np.stack([ab, b, bc], 1),
                             np.stack([ca, bc, c], 1), np.stack([ab, bc, ca], 1)])
     return v, f
+
+
+def icosphere(subdivisions: int = 2, radius: float = 1.0, name: str = "icosphere") -> Mesh:
+    """A closed genus-0 sphere mesh: the icosahedron, ``subdivisions`` times midpoint-subdivided
+    (``10·4^s + 2`` vertices: 162 for ``s = 2``, 642 for ``s = 3``), projected on the sphere.
+
+    Handy for tests and examples: the Laplace–Beltrami spectrum is known (``l(l+1)/radius²`` with
+    multiplicity ``2l+1``), every vertex is regular but the 12 original ones.
+    """
+    t = (1 + 5**0.5) / 2
+    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
+                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
+    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
+                  [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
+                  [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]])
+    v, f = subdivide_midpoint(v, f, levels=int(subdivisions))
+    v = radius * v / np.linalg.norm(v, axis=1, keepdims=True)
+    return Mesh(v, f, name=name)

@@ -173,22 +173,53 @@ def _extend_unique(C: np.ndarray, phi0: float, order: int) -> np.ndarray:
 
 # ------------------------------------------------------------------------- transfer
 def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, order: int = 2,
-             pairs: str = "ordered", approx: str = "svd", **params) -> np.ndarray:
+             pairs: str = "ordered", approx: str | None = None, rtol: float | None = None, **params) -> np.ndarray:
     """Transfer function(s) ``F`` ``(n1,)``/``(n1, m)`` from shape 1 to shape 2 with ``C_12``.
 
+    ``C_12`` is ``(basis_2.k, basis_1.k)`` and maps coefficients on shape 1 to shape 2; bases are
+    A-orthonormal with the constant first (:mod:`prodmaps.conventions`).
+
     ``method="std"``: ``Φ2 C_12 Φ1ᵀ A1 F`` (A-orthogonal projection, then the map).
-    ``method="prod"``: the paper's extended transfer ``B2 C~ a`` where ``a`` are the
-    coefficients of ``F`` in the extended basis of shape 1 (``approx`` = ``"svd"``
-    (Approach B, default), ``"ridge"`` or ``"lasso"`` (Approach A); ``params`` such as
-    ``rtol=1e-3`` go to :func:`prodmaps.approx.operator`). Factorisations are cached on the
-    bases, so transferring many functions in one call or in repeated calls reuses them.
+
+    ``method="prod"`` with no threshold given: **the library's default extended transfer**
+    (:mod:`prodmaps.safe_transfer`): the standard projection first, then the residual fitted with
+    the products that are A1-orthogonal to the basis, keeping only the product directions whose
+    image under ``C~`` passes a gain and a leak test (no ground truth needed). The paper's fixed
+    threshold can make products worse on real maps; the default never did in our measurements,
+    and it reduces exactly to the standard transfer when no direction passes. ``params`` may set
+    its ``g0``, ``p``, ``l0``, ``floor``.
+
+    ``method="prod"`` with ``rtol=...`` (e.g. ``rtol=1e-3``): **the paper's Approach B** exactly,
+    ``B2 C~ a`` with ``a`` the truncated-SVD coefficients of ``F`` in the extended basis of
+    ``order`` and ``pairs`` (the ordered pairs are the paper's); ``approx="ridge"`` or ``"lasso"``
+    (with ``eps=...``) gives Approach A. ``params`` go to
+    :func:`prodmaps.approx.approximation_operator`. Factorisations are cached on the bases, so
+    transferring many functions in one call, or in repeated calls, reuses them.
     """
     C = check_fmap(C_12, basis_1, basis_2)
     F = check_functions(F, basis_1.n)
     if method == "std":
+        if rtol is not None or approx is not None or params:
+            raise TypeError("method='std' takes no rtol/approx/params (they configure method='prod')")
         return basis_2.vecs @ (C @ basis_1.project(F))
     if method != "prod":
         raise ValueError(f"method must be 'std' or 'prod', got {method!r}")
+    if rtol is None and approx in (None, "safe"):
+        if order != 2:
+            raise ValueError("the default extended transfer uses pairwise products (order=2); pass rtol=... "
+                             "for the paper's Approach B with higher orders")
+        from .safe_transfer import DEFAULTS, safe_operator
+
+        unknown = set(params) - set(DEFAULTS)
+        if unknown:
+            raise TypeError(f"unknown parameters {sorted(unknown)} for the default extended transfer "
+                            f"(allowed: {sorted(DEFAULTS)}); pass rtol=... for Approach B")
+        return safe_operator(C, basis_1, basis_2, **params)(F)
+    approx = approx or "svd"
+    if approx == "svd":
+        params["rtol"] = 1e-3 if rtol is None else rtol
+    elif rtol is not None:
+        raise TypeError(f"rtol is Approach B's threshold; approx={approx!r} takes eps=...")
     ext1 = product_basis(basis_1, order, pairs)
     ext2 = product_basis(basis_2, order, pairs)
     a = ext1.operator(approx, **params).coefficients(F)  # (K1,) or (K1, m)

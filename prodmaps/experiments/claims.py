@@ -49,13 +49,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 __all__ = ["Claim", "Verdict", "load_ledger", "evaluate", "evaluate_folder", "verdicts_for_run",
-           "format_table", "LEDGER", "VERDICTS"]
+           "format_table", "setting_mark", "LEDGER", "VERDICTS"]
 
 LEDGER = Path(str(importlib.resources.files("prodmaps.experiments") / "claims.toml"))
 VERDICTS = ("holds", "holds with the threshold rule", "does not hold", "not measured here")
 SUBSET_SUFFIX = {"all": "", "intra": "_intra", "inter": "_inter"}
+def _mean(values) -> float:
+    values = list(values)
+    return sum(values) / len(values)
+
+
 _FUNCS = {"all": all, "any": any, "min": min, "max": max, "abs": abs, "len": len, "sum": sum,
-          "sorted": sorted, "round": round, "mean": lambda xs: sum(list(xs)) / max(len(list(xs)), 1)}
+          "sorted": sorted, "round": round, "range": range, "zip": zip, "mean": _mean}
 
 
 @dataclass(frozen=True)
@@ -175,7 +180,12 @@ def _judge(claim: Claim, results: dict, method: str, subset: str) -> dict:
         margin = eval(claim.margin, scope) if claim.margin else None  # noqa: S307
     except (KeyError, NameError, TypeError, ZeroDivisionError, ValueError) as exc:
         return {"holds": None, "evidence": f"not measured: rule failed on these results ({type(exc).__name__}: {exc})"}
-    ev = claim.evidence.format(margin=margin, **{k: v for k, v in env.items() if k not in _FUNCS}) if claim.evidence else ""
+    fmt = {k: v for k, v in env.items() if k not in _FUNCS}
+    fmt.update({f"n_{k}": len(v) for k, v in fmt.items() if isinstance(v, dict)})
+    try:
+        ev = claim.evidence.format(margin=margin, **fmt) if claim.evidence else ""
+    except (KeyError, IndexError, ValueError, TypeError) as exc:
+        ev = f"(evidence template failed: {exc})"
     return {"holds": holds, "margin": margin, "evidence": ev}
 
 
@@ -230,10 +240,19 @@ def verdicts_for_run(run: str, results: dict, ledger=None) -> list[Verdict]:
     return [v for c in claims for v in evaluate(c, {r: (doc if r == run else None) for r in c.runs})]
 
 
+def setting_mark(v: Verdict, setting: str) -> str:
+    """``yes`` / ``no`` / ``—`` (not measured) for one setting of a verdict."""
+    h = v.settings.get(setting, {}).get("holds")
+    return "—" if h is None else ("yes" if h else "no")
+
+
 def format_table(verdicts: list[Verdict]) -> str:
     """A plain-text table of verdicts (for notebooks and the ``prodmaps claims`` command)."""
-    rows = [("claim", "pairs", "verdict", "evidence")]
+    if not verdicts:
+        return "(no claim of the ledger is judged on this run alone; see the report)"
+    rows = [("claim", "pairs", "verdict", "paper", "rule", "default", "evidence")]
     for v in verdicts:
-        rows.append((v.claim.id, v.subset, v.verdict, v.evidence))
-    w = [max(len(r[i]) for r in rows) for i in range(3)]
-    return "\n".join(f"{r[0]:<{w[0]}}  {r[1]:<{w[1]}}  {r[2]:<{w[2]}}  {r[3]}" for r in rows)
+        rows.append((v.claim.id, v.subset if len(v.claim.subsets) > 1 else "", v.verdict, setting_mark(v, "paper"),
+                     setting_mark(v, "rule"), setting_mark(v, "default"), v.evidence))
+    w = [max(len(r[i]) for r in rows) for i in range(6)]
+    return "\n".join("  ".join(f"{c:<{w[i]}}" for i, c in enumerate(r[:6])) + "  " + r[6] for r in rows)

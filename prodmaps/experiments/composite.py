@@ -34,7 +34,9 @@ from ..laplacian import laplacian
 from ..mesh import face_areas
 from ..metrics import relative_error
 from ..products import product_basis
+from ..safe_transfer import safe_operator
 from ..transfer import fmap_from_p2p, transfer
+from ..truncation import select_rtol
 
 __all__ = ["composite_function", "triangle_quality", "function_transfer", "remeshing_transfer"]
 
@@ -80,7 +82,7 @@ def function_transfer(dataset: str, source_id: str, target_id: str, sizes, *, rt
     For every ``(k_M, k_N)`` in ``sizes``: approximation and transfer errors (std / products with
     Approach B at ``rtol``), the transfer of each part alone, and products at the ``rtol_compare``
     thresholds. Returns ``{"results": ..., "meshes": (m1, m2), "f": (n1,), "g_true": (n2,),
-    "fields": {key: (approx_std, approx_prod, transfer_std, transfer_prod)}}``.
+    "fields": {key: (approx_std, approx_prod, transfer_std, transfer_prod, transfer_default)}}``.
     """
     mesh_1 = datasets.load_shape(dataset, source_id)
     mesh_2 = datasets.load_shape(dataset, target_id)
@@ -107,6 +109,17 @@ def function_transfer(dataset: str, source_id: str, target_id: str, sizes, *, rt
             "approx": {"std": relative_error(approx_std, f, b1.mass), "prod": relative_error(approx_prod, f, b1.mass)},
             "transfer": {"std": relative_error(trans_std, g_true, b2.mass), "prod": relative_error(trans_prod, g_true, b2.mass)},
         }
+        # beside the paper: Approach B with the gain rule's threshold, and the library's default transfer
+        r_g = select_rtol(b1, method="gain", C_12=C, basis_2=b2, pairs=pairs_convention)
+        safe = safe_operator(C, b1, b2)
+        trans_default = safe(f)
+        errors[key]["approx"].update({
+            "gain_rule": relative_error(ext1.evaluate(ext1.operator("svd", rtol=r_g).coefficients(f)), f, b1.mass),
+            "default": relative_error(safe.approximate(f), f, b1.mass)})
+        errors[key]["transfer"].update({
+            "gain_rule": relative_error(transfer(f, C, b1, b2, "prod", rtol=r_g, **kw), g_true, b2.mass),
+            "default": relative_error(trans_default, g_true, b2.mass)})
+        errors[key]["gain_rule_rtol"] = r_g
         Fp = np.column_stack(list(parts.values()))  # (n1, 4): each part alone, same pipeline
         Gp = Fp[p2p_21]
         eps = relative_error(transfer(Fp, C, b1, b2, "std"), Gp, b2.mass)
@@ -118,7 +131,7 @@ def function_transfer(dataset: str, source_id: str, target_id: str, sizes, *, rt
             t_r = transfer(f, C, b1, b2, "prod", rtol=r, **kw)
             extra[key][f"rtol{r:g}"] = {"approx_prod": relative_error(a_r, f, b1.mass),
                                          "transfer_prod": relative_error(t_r, g_true, b2.mass)}
-        fields[key] = (approx_std, approx_prod, trans_std, trans_prod)
+        fields[key] = (approx_std, approx_prod, trans_std, trans_prod, trans_default)
         if verbose:
             e = errors[key]
             print(f"k_M = {kM}, k_N = {kN}: approx std {e['approx']['std']:.4f} prod {e['approx']['prod']:.4f} | "

@@ -12,7 +12,10 @@ the source and transferred to the target with a functional map ``C_12`` (ground 
 ``B_gain``     Approach B with ``rtol`` from the map-based gain rule
                (:func:`prodmaps.truncation.select_rtol`, no ground truth);
 ``default``    the library's default extended transfer (``pm.transfer(..., method="prod")`` with
-               no threshold given; :mod:`prodmaps.transfer`).
+               no threshold given; :mod:`prodmaps.transfer`);
+``p2p``        the map converted to a point map first (nearest neighbours, :func:`prodmaps.p2p.from_fmap`)
+               and ``f`` pulled back through it (Section 5.1's remark; its "approximation" is the
+               standard one).
 
 Errors are the paper's relative errors, per function column; :func:`family_means` averages the
 columns of each family, then the pairs.
@@ -37,7 +40,7 @@ __all__ = ["ProtocolSettings", "ProtocolResult", "run_protocol", "method_label",
            "AREA_CRITERIA",
            "METHODS", "STAGES"]
 
-METHODS = ("std", "l1", "l2", "B", "B_gain", "default")  # plus "B@<rtol>"
+METHODS = ("std", "l1", "l2", "B", "B_gain", "default", "p2p")  # plus "B@<rtol>"
 STAGES = ("approx", "transfer")
 
 
@@ -135,15 +138,21 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
             err = errors[(kM, kN)]
             a_std = b1.project(F)  # (kM+1, m)
             outputs = {"std": (b1.vecs @ a_std, b2.vecs @ (C @ a_std))}
-            if prod_methods:
+            if "p2p" in prod_methods:
+                from ..p2p import from_fmap
+
+                outputs["p2p"] = (outputs["std"][0], F[from_fmap(C, b1, b2, "std")])  # (n2, m) pulled back
+            if [m for m in prod_methods if m != "p2p"]:
                 ext1 = product_basis(b1, order=2, pairs=s.pairs_convention)
                 ext2 = product_basis(b2, order=2, pairs=s.pairs_convention)
                 Ct = extend_fmap(C, b1, b2, order=2, pairs=s.pairs_convention)  # (K2, K1)
                 for m in prod_methods:
+                    if m == "p2p":
+                        continue
                     if m == "default":
-                        from ..transfer import DefaultTransfer
+                        from ..safe_transfer import safe_operator
 
-                        op = DefaultTransfer(C, b1, b2, pairs=s.pairs_convention)
+                        op = safe_operator(C, b1, b2)
                         outputs[m] = (op.approximate(F), op(F))
                         continue
                     if m == "B_gain":
@@ -173,20 +182,23 @@ def method_label(method: str, table: str | None = None) -> str:
     if method.startswith("B@"):
         return f"our_B_rtol{method[2:]}"
     names = {"std": "std", "l1": "our_l1", "l2": "our_l2" if table in (None, "T1") else "our_A",
-             "B": "our_B", "B_gain": "our_B_gainrule", "default": "our_default"}
+             "B": "our_B", "B_gain": "our_B_gainrule", "default": "our_default", "p2p": "p2p_transfer"}
     return names[method]
 
 
-def family_means(result: ProtocolResult, table: str | None = None) -> dict:
+def family_means(result: ProtocolResult, table: str | None = None, pairs_mask=None) -> dict:
     """``{(k_M, k_N, stage, method label, paper family label): (mean over pairs, std over pairs)}``.
 
-    Each pair contributes the mean over the family's columns.
+    Each pair contributes the mean over the family's columns; ``pairs_mask`` (boolean, one entry
+    per pair) restricts the average to some pairs (e.g. the intra-subject ones).
     """
     out = {}
     for z, by_stage in result.errors.items():
         for st, by_method in by_stage.items():
             for m, per_pair in by_method.items():
                 E = np.array(per_pair)  # (pairs, m_functions)
+                if pairs_mask is not None:
+                    E = E[np.asarray(pairs_mask, dtype=bool)]
                 for fam in result.settings.families:
                     per = E[:, result.cols[fam]].mean(axis=1)  # (pairs,)
                     out[(z[0], z[1], st, method_label(m, table), pfam.PAPER_LABELS[fam])] = (float(per.mean()),

@@ -62,6 +62,9 @@ def _methods(P) -> list:
     methods = list(P["methods"]) + [f"B@{r:g}" for r in P["extra_rtol"]]
     if P.get("gain_rule"):
         methods.append("B_gain")
+    for extra in ("default", "p2p"):  # the library default; the transfer through a point map (Section 5.1)
+        if P.get(f"{extra}_method", True) and extra not in methods:
+            methods.append(extra)
     return methods
 
 
@@ -95,6 +98,17 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
                         for st in ("approx", "transfer")} for s in sizes}
     errors_spread = {skey(s): {st: {lab: {r: spread[(s[0], s[1], st, lab, r)] for r in rows} for lab in labels}
                                for st in ("approx", "transfer")} for s in sizes}
+    from .. import datasets
+
+    kinds = np.array([datasets.shape_class(store.dataset, a) == datasets.shape_class(store.dataset, b)
+                      for a, b in res.pairs])  # True: intra-subject pair
+    by_kind, n_kind = {}, {}
+    for kind, mask in (("intra", kinds), ("inter", ~kinds)):
+        n_kind[kind] = int(mask.sum())
+        if mask.any():
+            m = family_means(res, table, pairs_mask=mask)
+            by_kind[kind] = {skey(s): {st: {lab: {r: m[(s[0], s[1], st, lab, r)][0] for r in rows} for lab in labels}
+                                       for st in ("approx", "transfer")} for s in sizes}
     shown = _shown_columns(pub, ours)
     entries = [{"table": int(table[1:]), "fmap": fmap, "k_M": c[0], "k_N": c[1], "function": r, "stage": c[2],
                 "method": c[3], "value": ours[c + (r,)]}
@@ -111,6 +125,7 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
     results = {
         "table_name": table or "custom", "fmap": fmap, "settings": [list(s) for s in sizes],
         "pairs": [list(p) for p in res.pairs], "errors": errors, "errors_std_over_pairs": errors_spread,
+        **{f"errors_{kind}": e for kind, e in by_kind.items()}, "n_pairs_by_kind": n_kind,
         "table": entries, "products_better_than_std": better, "n_products_better": n_better,
         "map_deviation_from_gt": {skey(s): {"mean": float(np.mean(res.map_deviation[s])), "per_pair": res.map_deviation[s]}
                                   for s in sizes},

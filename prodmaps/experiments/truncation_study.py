@@ -150,3 +150,93 @@ def truncation_study(store: ShapeStore, pairs, *, sizes, map_kinds, families, rt
         },
     }
     return {"results": results, "gains": GAINS}
+
+
+# ----------------------------------------------------------------------------- figures
+def _setting_colors(summary: dict):
+    from .results import setup_matplotlib
+
+    plt = setup_matplotlib()
+    sizes = sorted({key.split("/")[0] for key in summary}, key=lambda s: [int(v) for v in s[1:].split("_")])
+    cc = plt.cm.tab10(np.arange(len(sizes)))
+    return plt, {s: cc[i] for i, s in enumerate(sizes)}
+
+
+_LS = {"gt": "-", "computed": "--"}
+
+
+def figure_error_vs_threshold(results: dict, axis_name: str, xlabel: str, mark: float):
+    """Transfer error vs ``rtol`` (``axis_name="rtol"``) or ridge ``ε`` (``"eps"``), one panel per
+    family; thin horizontal lines: the standard transfer; stars: the gain rule's choice."""
+    summary = results["summary"]
+    xs = results["rtols"] if axis_name == "rtol" else results["eps"]
+    plt, color = _setting_colors(summary)
+    labels = list(next(iter(summary.values())))
+    nc = min(3, len(labels))
+    nr = int(np.ceil(len(labels) / nc))
+    fig, axes = plt.subplots(nr, nc, figsize=(3.6 * nc, 2.7 * nr), squeeze=False)
+    for i, lab in enumerate(labels):
+        ax = axes[i // nc, i % nc]
+        for key, by_fam in summary.items():
+            d, mk, col = by_fam[lab], key.split("/")[1], color[key.split("/")[0]]
+            ax.plot(xs, d[axis_name]["transfer"], _LS[mk], marker="o", ms=2.5, color=col, label=f"{key} products")
+            ax.axhline(d["std_transfer"], ls=_LS[mk], color=col, lw=0.8, alpha=0.6)
+            if axis_name == "rtol":
+                g = d["chosen"]["gain"]
+                ax.plot([g["rtol_geomean"]], [g["transfer"]], marker="*", ms=9, color=col, ls="none")
+        ax.axvline(mark, color="k", lw=0.8, ls=":")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(lab, fontsize=8)
+        ax.set_xlabel(xlabel, fontsize=7)
+        ax.set_ylabel("transfer error", fontsize=7)
+        if i == 0:
+            ax.legend(fontsize=5.5)
+    for j in range(len(labels), nr * nc):
+        axes[j // nc, j % nc].axis("off")
+    fig.suptitle(f"Transfer error vs {xlabel} (thin horizontal lines: standard transfer; dotted: paper's value; "
+                 "star: 'gain' rule)", fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def figure_why(results: dict, gains: dict, families=("XYZ", "Indicator", "WKS")):
+    """Left: transfer gains of the singular directions vs ``σ_i/σ_max``; right: the split of the
+    transfer error into its approximation and map parts vs ``rtol``, for two families."""
+    summary, RT, paper_rtol = results["summary"], results["rtols"], results["paper_rtol"]
+    plt, color = _setting_colors(summary)
+    labels = list(next(iter(summary.values())))
+    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
+    ax = axes[0]
+    for key in summary:
+        g = np.vstack(gains[key])
+        g = g[g[:, 0] > 1e-6]
+        g[:, 1] = np.clip(g[:, 1], 0.1, 1e4)  # (zero singular values: infinite gain)
+        ax.scatter(g[:, 0], g[:, 1], s=3 if "gt" in key else 9, alpha=0.4, color=color[key.split("/")[0]],
+                   marker="o" if "gt" in key else "x", linewidths=0.6, label=key)
+    ax.axvline(paper_rtol, color="k", ls=":", lw=0.8)
+    ax.axvline(1e-2, color="grey", ls=":", lw=0.8)
+    ax.axhline(1.0, color="k", lw=0.6)
+    ax.axhline(results["max_gain"], color="tab:red", lw=0.6, ls="--")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlim(1e-5, 1.1)
+    ax.set_ylim(0.3, 1.5e4)
+    ax.set_xlabel("σ_i / σ_max (source direction)")
+    ax.set_ylabel("transfer gain ||B2 C̃ v_i|| / σ_i")
+    ax.set_title("transfer gain of singular directions", fontsize=8)
+    ax.legend(fontsize=5.5, markerscale=3)
+    for ax, lab in zip(axes[1:], [lb for lb in families if lb in labels][:2]):
+        for key in summary:
+            d, ls, col = summary[key][lab]["rtol"], _LS[key.split("/")[1]], color[key.split("/")[0]]
+            ax.plot(RT, d["approx"], ls, color=col, lw=0.8, alpha=0.6)
+            ax.plot(RT, d["map_part"], ls, color=col, marker="x", ms=3, lw=0.8)
+            ax.plot(RT, d["transfer"], ls, color=col, marker="o", ms=3, label=key)
+        ax.axvline(paper_rtol, color="k", ls=":", lw=0.8)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("rtol")
+        ax.set_title(f"{lab}: total (o), map part (x), approximation (plain)", fontsize=8)
+        ax.legend(fontsize=5.5)
+    fig.tight_layout()
+    return fig

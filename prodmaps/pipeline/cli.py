@@ -10,6 +10,7 @@ Examples::
     prodmaps reproduce --profile smoke --update-baselines   # refresh paper/baselines/smoke/
     prodmaps diff results/smoke/fig03 paper/baselines/smoke/fig03
     prodmaps report results/paper                        # paper/REPORT.md and .html
+    prodmaps claims results/paper                        # the verdicts of the claims ledger
 
 Exit status: 0 on success; 1 if a run failed or a diff found drift; 2 for usage errors.
 """
@@ -63,6 +64,12 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--registry", help="run registry file")
     d.add_argument("--png-threshold", type=float, default=None, help="pixel RMS threshold (0-255, default 2.0)")
     d.add_argument("--diff-dir", help="where side-by-side images go (default RUN_DIR/diff)")
+
+    c = sub.add_parser("claims", help="print the verdicts of the claims ledger on a results folder",
+                       description="Judge every claim of prodmaps/experiments/claims.toml on the runs in a "
+                                   "results folder (e.g. results/paper) and print the table.")
+    c.add_argument("results_dir", nargs="?", default="results/paper", help="e.g. results/paper (default)")
+    c.add_argument("--json", action="store_true", help="print the verdicts as JSON")
 
     rp = sub.add_parser("report", help="write paper/REPORT.md and REPORT.html from a results folder")
     rp.add_argument("results_dir", nargs="?", default="results/paper", help="e.g. results/paper (default)")
@@ -137,6 +144,19 @@ def _cmd_diff(a) -> int:
     return 0 if rep.ok else 1
 
 
+def _cmd_claims(a) -> int:
+    import json
+
+    from ..experiments import claims
+
+    verdicts = claims.evaluate_folder(a.results_dir)
+    if a.json:
+        print(json.dumps([v.to_dict() for v in verdicts], indent=1, default=str))
+    else:
+        print(claims.format_table(verdicts))
+    return 0
+
+
 def _cmd_report(a) -> int:
     from .report import build_report
 
@@ -151,7 +171,8 @@ def main(argv=None) -> int:
     parser = build_parser()
     a = parser.parse_args(argv)
     try:
-        return {"reproduce": _cmd_reproduce, "diff": _cmd_diff, "report": _cmd_report}[a.command](a)
+        return {"reproduce": _cmd_reproduce, "diff": _cmd_diff, "report": _cmd_report,
+                "claims": _cmd_claims}[a.command](a)
     except (ValueError, FileNotFoundError, ModuleNotFoundError) as exc:  # incl. RegistryError, ParameterError
         print(f"prodmaps {a.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -17,40 +17,32 @@ and the smoke sizes are too small to show either way (see the notebooks' closing
 tests check that the measurements are well formed, never which conversion wins.
 """
 
-from pathlib import Path
-
 import numpy as np
 import pytest
-from conftest import smoke_fixture
-
-ROOT = Path(__file__).resolve().parents[1]
-NOTEBOOKS = {
-    "fig07": "notebooks/fig07_function_transfer.ipynb",
-    "fig09": "notebooks/fig09_remeshing.ipynb",
-    "fig11": "notebooks/fig11_hks_wks_convergence.ipynb",
-    "fig12_13": "notebooks/fig12_13_p2p.ipynb",
-    "fig14": "notebooks/fig14_quad_transfer.ipynb",
-}
 
 pytestmark = pytest.mark.notebook
 
 
-fig07 = smoke_fixture("fig07")
-fig09 = smoke_fixture("fig09")
-fig11 = smoke_fixture("fig11")
-fig12_13 = smoke_fixture("fig12_13")
-fig14 = smoke_fixture("fig14")
+@pytest.fixture(scope="module")
+def fig07(smoke_results):
+    return smoke_results("fig07")
 
+@pytest.fixture(scope="module")
+def fig09(smoke_results):
+    return smoke_results("fig09")
 
-@pytest.mark.parametrize("name", list(NOTEBOOKS))
-def test_notebook_committed_clean_with_parameters_cell(name):
-    import json
+@pytest.fixture(scope="module")
+def fig11(smoke_results):
+    return smoke_results("fig11")
 
-    path = ROOT / NOTEBOOKS[name]
-    assert not nbfiles.has_outputs(path), f"{path.name}: strip outputs before committing"
-    cells = json.loads(path.read_text())["cells"]
-    assert cells[0]["cell_type"] == "markdown"
-    assert "parameters" in cells[1]["metadata"].get("tags", [])
+@pytest.fixture(scope="module")
+def fig12_13(smoke_results):
+    return smoke_results("fig12_13")
+
+@pytest.fixture(scope="module")
+def fig14(smoke_results):
+    return smoke_results("fig14")
+
 
 
 # ----------------------------------------------------------------------------- Figure 11

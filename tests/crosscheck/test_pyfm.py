@@ -120,3 +120,35 @@ def test_no17_fit_agrees(pair):
     C = fmaps.fit_no17(b1.truncate(k1), b2.truncate(k2), d1, d2, w_descr=1.0, w_lap=1e-2, w_dcomm=1e-1)
     assert C[0, 0] == pytest.approx(model.FM_12[0, 0], rel=1e-12)
     assert np.linalg.norm(C - model.FM_12) < 1e-3 * np.linalg.norm(model.FM_12)
+
+
+# ----------------------------------------------------------------------------- pyFM users
+def test_pyfm_bases_and_map_go_straight_into_transfer(pair):
+    """A pyFM pipeline gains products in three lines: bases from pyFM's arrays, pyFM's FM_12."""
+    import pyFM.spectral as spectral
+
+    m1, m2, tm1, tm2, _, _ = pair
+    p2p_21 = np.arange(m2.n_vertices)
+    FM_12 = spectral.p2p_to_FM(p2p_21, tm1.eigenvectors[:, :10], tm2.eigenvectors[:, :15], A2=tm2.A)  # (15, 10)
+    b1 = pm.basis.from_arrays(tm1.eigenvectors[:, :10], tm1.eigenvalues[:10], tm1.vertex_areas)
+    b2 = pm.basis.from_arrays(tm2.eigenvectors[:, :15], tm2.eigenvalues[:15], tm2.A)  # sparse diagonal mass too
+    assert np.array_equal(pm.fmap_from_p2p(p2p_21, b1, b2), FM_12)  # same convention: FM_12 is our C_12
+    assert b1.phi0 < 0 or b1.phi0 > 0  # pyFM's constant may be negative; nothing is re-signed
+    f = m1.vertices
+    std = pm.relative_error(pm.transfer(f, FM_12, b1, b2, "std"), f[p2p_21], b2.mass)
+    prod = pm.relative_error(pm.transfer(f, FM_12, b1, b2, "prod"), f[p2p_21], b2.mass)
+    assert np.all(prod <= std + 1e-12) and prod.mean() < 0.9 * std.mean()
+
+
+def test_pyfm_arrays_that_break_the_conventions_are_refused(pair):
+    _, _, tm1, _, _, _ = pair
+    V, ev, a = tm1.eigenvectors[:, :10], tm1.eigenvalues[:10], tm1.vertex_areas
+    with pytest.raises(ValueError, match="transposed"):
+        pm.basis.from_arrays(V.T, ev, a)
+    with pytest.raises(ValueError, match="not constant"):
+        pm.basis.from_arrays(V[:, ::-1], ev[::-1], a)
+    with pytest.raises(ValueError, match="area inner product"):
+        pm.basis.from_arrays(V, ev, np.ones_like(a))  # the Euclidean inner product instead of the area one
+    b = pm.basis.from_arrays(V, ev, a)
+    with pytest.raises(ValueError, match="shape 1 to shape 2"):
+        pm.transfer(np.zeros(b.n), np.zeros((10, 12)), b, b, "prod")

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 import scipy.sparse as sp
-from conftest import icosphere
 
 import prodmaps as pm
 import prodmaps.lmh as lmh
+from prodmaps.mesh import icosphere
 
 
 @pytest.fixture(scope="module")

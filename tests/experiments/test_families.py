@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import prodmaps as pm
-from prodmaps.cache import Cache
 import prodmaps.descriptors as D
 import prodmaps.experiments.families as PF
+from prodmaps.cache import Cache
 from prodmaps.datasets import dataset_dir as ds_dir
 
 ROOT = Path(__file__).resolve().parents[1]

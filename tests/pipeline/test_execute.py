@@ -1,23 +1,20 @@
 """The reproduction pipeline: registry, CLI, resumability, --force, failure isolation, atomic
-outputs, baselines, Dask, and the report. Uses tiny throwaway notebooks in tmp_path."""
+outputs, declared parameters, run hashes, baselines, Dask. Uses tiny throwaway notebooks in tmp_path."""
 
 from __future__ import annotations
 
 import json
 import subprocess
 import sys
-from pathlib import Path
+from pathlib import Path  # noqa: F401  (fixture paths)
 
 import nbformat
 import pytest
 
-from prodmaps.experiments.published import load_published, match_entries, normalize_entry
-from prodmaps.pipeline import cli
+from prodmaps.pipeline import baselines, cli, execute, hashing
 from prodmaps.pipeline import registry as rp
 from prodmaps.pipeline.diffing import diff_runs
-from prodmaps.pipeline.report import build_report
 
-ROOT = Path(__file__).resolve().parents[1]
 PY = sys.executable
 
 TINY_PARAMS = """profile = "smoke"
@@ -30,13 +27,13 @@ fail = False
 
 TINY_BODY = """import numpy as np
 from PIL import Image
-from prodmaps import nbtools
+from prodmaps.experiments import results as nbr
 if fail:
     raise RuntimeError("injected failure for the test")
 rng = np.random.default_rng(seed)
 x = rng.standard_normal(5)
 results = {"value_twice": 2 * value, "draws": x, "sum": float(x.sum() * value)}
-nbtools.write_results(out_dir, results, {"profile": profile, "seed": seed, "value": value, "dataset": dataset})
+nbr.write_results(out_dir, results, {"profile": profile, "seed": seed, "value": value, "dataset": dataset})
 img = (np.outer(np.linspace(0, 255, 24), np.ones(32)) * value % 256).astype(np.uint8)
 Image.fromarray(np.stack([img, img[::-1], img], axis=-1)).save(f"{out_dir}/ramp.png")
 print("tiny done", results["sum"])
@@ -106,7 +103,8 @@ def test_registry_loads_and_resolves_paths(project):
     assert runs["tiny_a"].notebook == (project / "notebooks" / "tiny_a.ipynb").resolve()
     assert runs["tiny_a"].parameters("smoke") == {"value": 1.5}
     assert runs["tiny_b"].parameters("paper") == {}
-    assert rp.baselines_dir() == project / "paper" / "baselines" / "smoke"
+    assert baselines.baselines_dir() == project / "paper" / "baselines" / "smoke"
+    assert rp.project_root() == project.resolve()
 
 
 def test_default_registry_lists_the_paper_runs(monkeypatch):
@@ -151,21 +149,21 @@ def test_parse_param_literals():
 
 def test_run_hash_tracks_notebook_params_and_data(project):
     runs = rp.load_registry()
-    (h0,) = [t["hash"] for t in rp.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "o")]
-    again = rp.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "elsewhere")[0]
+    (h0,) = [t["hash"] for t in execute.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "o")]
+    again = execute.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "elsewhere")[0]
     assert again["hash"] == h0  # the output folder is not an input
     assert again["inputs"]["data"].startswith("sha256sums:")
-    assert rp.plan_runs(runs, only=["tiny_a"], profile="paper", out=project / "o")[0]["hash"] != h0
-    assert rp.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "o",
+    assert execute.plan_runs(runs, only=["tiny_a"], profile="paper", out=project / "o")[0]["hash"] != h0
+    assert execute.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "o",
                         overrides={"seed": 1})[0]["hash"] != h0
     (project / "data" / "tinyset" / "SHA256SUMS").write_text("1111  shape.ply\n")
-    assert rp.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "o")[0]["hash"] != h0
-    t = rp.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "o", dataset="other")[0]
+    assert execute.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "o")[0]["hash"] != h0
+    t = execute.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "o", dataset="other")[0]
     assert t["params"]["dataset"] == "other" and t["inputs"]["data"] == "missing:other"
     with pytest.raises(ValueError, match="unknown run"):
-        rp.plan_runs(runs, only=["nope"], profile="smoke")
+        execute.plan_runs(runs, only=["nope"], profile="smoke")
     with pytest.raises(ValueError, match="unknown profile"):
-        rp.plan_runs(runs, profile="huge")
+        execute.plan_runs(runs, profile="huge")
 
 
 # ----------------------------------------------------------------------------- running
@@ -267,7 +265,7 @@ def test_swap_into_place_replaces_atomically(tmp_path):
     new = tmp_path / ".run.tmp-1"
     new.mkdir()
     (new / "new.txt").write_text("new")
-    rp._swap_into_place(new, target)
+    execute.swap_into_place(new, target)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
     assert [p.name for p in target.iterdir()] == ["new.txt"]
 
@@ -315,68 +313,42 @@ def test_dask_localcluster_gives_the_local_numbers(project, capsys):
 
 
 def test_python_m_prodmaps_entry_point(project):
-    r = subprocess.run([PY, "-m", "prodmaps", "reproduce", "--list"], cwd=ROOT, capture_output=True,
+    r = subprocess.run([PY, "-m", "prodmaps", "reproduce", "--list"], cwd=project, capture_output=True,
                        text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert "tiny_a" in r.stdout and "tiny_b" in r.stdout  # PRODMAPS_RUNS is inherited
-    r = subprocess.run([PY, "-m", "prodmaps", "frobnicate"], cwd=ROOT, capture_output=True, text=True)
+    r = subprocess.run([PY, "-m", "prodmaps", "frobnicate"], cwd=project, capture_output=True, text=True)
     assert r.returncode == 2
 
 
-# ----------------------------------------------------------------------------- report
-def test_table_entries_match_published_rows():
-    pub = load_published()
-    assert len(pub) == 306 and {"table", "fmap", "k_M", "k_N", "function", "stage", "method"} <= set(pub[0])
-    m, u = match_entries([
-        {"table": 1, "function": "HKS", "stage": "transfer", "method": "std", "value": 0.55},
-        {"table": "T1", "function": "WKS", "column": "transfer_our_B", "value": 0.04},
-        {"table": 3, "function": "HKS", "stage": "transfer", "method": "std", "value": 0.1},  # ambiguous
-        {"table": 3, "function": "HKS", "stage": "transfer", "method": "std", "value": 0.1, "k_M": 6, "k_N": 7},
-        {"table": 1, "function": "hks", "stage": "transfer", "method": "std", "value": 0.1},  # case matters
-        {"table": 1, "function": "HKS", "stage": "transfer", "method": "std", "value": 0.1, "k_M": 10},
-        {"function": "HKS"},
-    ], pub)
-    assert [(r["table"], r["function"], r["method"], r["value"]) for r, _ in m] == [
-        ("1", "HKS", "std", 0.54), ("1", "WKS", "our_B", 0.04), ("3", "HKS", "std", m[2][0]["value"])]
-    assert m[2][0]["k_M"] == "6"
-    reasons = [why for _, why in u]
-    assert "add fmap/k_M/k_N" in reasons[0] and reasons[1] == reasons[2] == "no published value with these keys"
-    assert "misses" in reasons[3]
-    assert normalize_entry({"table": "Table 2", "function": "XYZ", "stage": "approx", "method": "std",
-                            "value": 1})["table"] == "2"
+# ----------------------------------------------------------------------------- parameters, hashes
+def test_undeclared_parameters_are_refused_before_running(project, capsys):
+    runs = rp.load_registry()
+    with pytest.raises(execute.ParameterError, match=r"\['valeu'\] not declared"):
+        execute.plan_runs(runs, only=["tiny_a"], profile="smoke", overrides={"valeu": 2})
+    rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(project / "r"), "-p", "valeu=2"], capsys)
+    assert rc == 2 and "not declared" in text and "value" in text  # lists the declared names
+    assert not (project / "r").exists()  # nothing ran
+    write_registry(project, {"tiny_a": ("notebooks/tiny_a.ipynb", {"smoke": {"vlaue": 1.5}})})
+    with pytest.raises(execute.ParameterError, match="registry parameters"):
+        execute.plan_runs(rp.load_registry(), profile="smoke")
 
 
-def test_report_has_figures_tables_parameters_and_data(tmp_path, monkeypatch):
-    monkeypatch.setenv("PRODMAPS_RUNS", str(write_registry(tmp_path, {
-        "tab01": ("notebooks/x.ipynb", {}), "fig09": ("notebooks/y.ipynb", {})})))
-    res = tmp_path / "results" / "paper"
-    run = res / "tab01"
-    run.mkdir(parents=True)
-    entries = [{"table": 1, "function": "HKS", "stage": "transfer", "method": "std", "value": 0.5512},
-               {"table": 1, "function": "Nope", "stage": "transfer", "method": "std", "value": 0.3}]
-    doc = {"parameters": {"dataset": "anny_humans", "k_M": 9}, "results": {"table": entries, "err": {"k9": 0.25}},
-           "prodmaps_version": "0.1.0", "versions": {"numpy": "2.4.6", "scipy": "1.17.1"}}
-    (run / "results.json").write_text(json.dumps(doc))
-    (run / "manifest.json").write_text(json.dumps({"status": "ok", "seconds": 12.5, "python": "3.11.7",
-                                                   "inputs": {"data": "sha256sums:abcdef"}}))
-    from PIL import Image
-    Image.new("RGB", (8, 8), "red").save(run / "panel.png")
-    md, html = build_report(res, tmp_path / "paper" / "REPORT.md")
-    text = md.read_text()
-    assert "| HKS | transfer | std | 0.54 | 0.551 | +0.011 | tab01 |" in text
-    assert "1 of 54 published values reproduced" in text
-    assert "Nope" in text and "no published value" in text  # unmatched entry is listed
-    assert "![tab01 panel](../results/paper/tab01/panel.png)" in text
-    assert (md.parent / "../results/paper/tab01/panel.png").resolve().is_file()
-    assert "| `k_M` | `9` |" in text and "numpy 2.4.6" in text and "`anny_humans`" in text and "sha256sums:abcdef" in text
-    assert "| `err.k9` | 0.25 |" in text and "table.0" not in text
-    assert "`fig09`" in text and "Not reproduced (failed or not run):** `fig09`" in text
-    assert cli.main(["report", str(res), "--out", str(tmp_path / "r2" / "R.md")]) == 0
-    assert "](../results/paper/tab01/panel.png)" in (tmp_path / "r2" / "R.md").read_text()
-    assert (tmp_path / "r2" / "R.html").is_file()
-    assert cli.main(["report", str(res), "--out", str(tmp_path / "r3" / "R.md"), "--copy-figures"]) == 0
-    assert "](report_figures/tab01/panel.png)" in (tmp_path / "r3" / "R.md").read_text()
-    assert (tmp_path / "r3" / "report_figures" / "tab01" / "panel.png").is_file()
-    h = html.read_text()
-    assert h.startswith("<!DOCTYPE html>") and '<img src="../results/paper/tab01/panel.png"' in h
-    assert "<td>+0.011</td>" in h
+def test_repeated_only_adds_runs(project, capsys):
+    rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(project / "r"),
+                      "--only", "tiny_a", "--only", "tiny_b"], capsys)
+    assert rc == 0 and "2 ran" in _statuses(text)
+
+
+def test_library_hash_covers_importable_code_not_the_pipeline():
+    files = {p.relative_to(hashing._PACKAGE).as_posix() for p in hashing.library_files()}
+    assert {"transfer.py", "experiments/protocol.py", "experiments/claims.toml",
+            "experiments/published_tables.csv"} <= files
+    assert not [f for f in files if f.startswith(("pipeline/", "data/"))]
+
+
+def test_executed_notebook_is_kept_as_html(project, capsys):
+    out = project / "results"
+    rc, _ = _main(["reproduce", "--profile", "smoke", "--out", str(out), "--only", "tiny_a"], capsys)
+    html = (out / "smoke" / "tiny_a" / "executed.html").read_text()
+    assert rc == 0 and "tiny done" in html and "<html" in html.lower()

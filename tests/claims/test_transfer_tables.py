@@ -24,39 +24,30 @@ standard transfer for XYZ, Indicator, SHOT, AWFT, hk K at ``rtol = 1e-3``, and e
 with computed maps (Tables 2 and 4, Figure 8's transfer curves).
 """
 
-from pathlib import Path
-
 import numpy as np
 import pytest
-from conftest import smoke_fixture
 
 from prodmaps.experiments.published import load_published, match_entries
-
-ROOT = Path(__file__).resolve().parents[1]
-TABLES_NB = ROOT / "notebooks" / "tables_transfer.ipynb"
-FIG08_NB = ROOT / "notebooks" / "fig08_area_curves.ipynb"
-STUDY_NB = ROOT / "notebooks" / "study_truncation.ipynb"
 
 pytestmark = pytest.mark.notebook
 
 
-tab01 = smoke_fixture("tab01")
-tab02 = smoke_fixture("tab02")
-fig08 = smoke_fixture("fig08")
-study = smoke_fixture("study_truncation")
+@pytest.fixture(scope="module")
+def tab01(smoke_results):
+    return smoke_results("tab01")
 
+@pytest.fixture(scope="module")
+def tab02(smoke_results):
+    return smoke_results("tab02")
 
-@pytest.mark.parametrize("nb", [TABLES_NB, FIG08_NB, STUDY_NB], ids=lambda p: p.stem)
-def test_notebook_committed_clean_with_parameters_cell(nb):
-    import json
+@pytest.fixture(scope="module")
+def fig08(smoke_results):
+    return smoke_results("fig08")
 
-    assert not nbfiles.has_outputs(nb), f"{nb.name}: strip outputs before committing"
-    cells = json.loads(nb.read_text())["cells"]
-    assert cells[0]["cell_type"] == "markdown"
-    assert cells[1]["metadata"].get("tags") == ["parameters"]
-    src = "".join(cells[1]["source"])
-    for key in ("profile", "dataset", "out_dir", "seed"):
-        assert f"{key} =" in src
+@pytest.fixture(scope="module")
+def study(smoke_results):
+    return smoke_results("study_truncation")
+
 
 
 # ------------------------------------------------------------------------------ Table 1

@@ -1,11 +1,14 @@
 """Mesh validation, I/O and repairs; every broken mesh in tests/data/broken must be named."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
-from conftest import BROKEN
 
 import prodmaps as pm
 from prodmaps import mesh as pmesh
+
+BROKEN = Path(__file__).resolve().parents[1] / "data" / "broken"
 
 
 @pytest.mark.parametrize(

@@ -4,11 +4,11 @@ import time
 
 import numpy as np
 import pytest
-from conftest import icosphere
 
 import prodmaps as pm
 import prodmaps.datasets as ds
 import prodmaps.geodesics as geo
+from prodmaps.mesh import icosphere
 
 
 @pytest.fixture(scope="module")

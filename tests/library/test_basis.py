@@ -1,28 +1,14 @@
-"""Laplacian and eigenbases: PSD stiffness, A-orthonormality, signs, errors, Fourier basis."""
+"""Eigenbases: A-orthonormality, signs, determinism, errors, the Fourier basis, the one eigensolver."""
+
+from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from conftest import BROKEN
 
 import prodmaps as pm
 
-
-def test_cotan_laplacian_is_psd_with_constant_kernel(sphere):
-    W, A = pm.laplacian(sphere)
-    assert abs(W - W.T).max() < 1e-12
-    np.testing.assert_allclose(W @ np.ones(sphere.n_vertices), 0, atol=1e-10)
-    x = np.random.default_rng(0).normal(size=sphere.n_vertices)
-    assert x @ (W @ x) > 0
-    assert A.shape == (sphere.n_vertices,)
-    np.testing.assert_allclose(A.sum(), sphere.area, rtol=1e-12)
-
-
-def test_full_mass_matches_area_and_lumps_to_barycentric(sphere):
-    _, M = pm.laplacian(sphere, mass="full")
-    _, A = pm.laplacian(sphere)
-    assert sp.issparse(M)
-    np.testing.assert_allclose(np.asarray(M.sum(axis=1)).ravel(), A, rtol=1e-12)
+BROKEN = Path(__file__).resolve().parents[1] / "data" / "broken"
 
 
 def test_sphere_eigenvalues_approach_l_times_l_plus_1(sphere):
@@ -47,12 +33,6 @@ def test_eigenbasis_is_deterministic(human_0, basis_0):
     np.testing.assert_array_equal(again.vecs[:, :30], basis_0.vecs[:, :30])
 
 
-def test_open_mesh_uses_neumann_condition():
-    m = pm.load_mesh(BROKEN / "open_boundary.off")
-    W, A = pm.laplacian(m)
-    np.testing.assert_allclose(W @ np.ones(4), 0, atol=1e-12)  # constants stay in the kernel
-
-
 @pytest.mark.parametrize("k", [0, -1, 5002, 10**6])
 def test_eigenbasis_k_out_of_range(human_0, k):
     with pytest.raises(ValueError, match="out of range"):
@@ -62,11 +42,6 @@ def test_eigenbasis_k_out_of_range(human_0, k):
 def test_eigenbasis_rejects_non_mesh():
     with pytest.raises(TypeError):
         pm.eigenbasis(np.zeros((3, 3)), 2)
-
-
-def test_robust_laplacian_close_to_cotan_on_good_mesh(human_0, basis_0):
-    r = pm.eigenbasis(human_0, 10, kind="robust")
-    np.testing.assert_allclose(r.evals[1:], basis_0.evals[1:10], rtol=0.01)
 
 
 def test_fourier_basis_orthonormal_and_eigen():
@@ -83,3 +58,29 @@ def test_basis_validation():
         pm.Basis(np.full((4, 2), np.nan), np.zeros(2), np.ones(4))
     with pytest.raises(ValueError, match="mass"):
         pm.Basis(np.zeros((4, 2)), np.zeros(2), np.ones(3))
+
+
+def test_truncations_share_the_cache_and_find_the_same_product_basis(basis_0):
+    a, b = basis_0.truncate(10), basis_0.truncate(10)
+    assert a is not b and a.cache is b.cache is basis_0.cache
+    assert pm.product_basis(a) is pm.product_basis(b)  # survives truncate(): keyed by k
+    assert pm.product_basis(basis_0.truncate(11)) is not pm.product_basis(a)
+    fresh = pm.Basis(a.vecs, a.evals, a.mass)  # new arrays, new cache
+    assert pm.product_basis(fresh) is not pm.product_basis(a)
+
+
+def test_one_eigensolver_dense_and_sparse_routes_agree(human_0):
+    from prodmaps import eigensolver
+
+    W, A = pm.laplacian(human_0)
+    ev_s, V_s = eigensolver.smallest_eigenpairs(W, A, 8)  # n > DENSE_MAX_N: shift-invert Lanczos
+    small = W[:1200, :1200]  # a principal block is still PSD-like; compare routes on one problem
+    Asmall = A[:1200]
+    ev_d, V_d = eigensolver.smallest_eigenpairs(small, Asmall, 5)  # dense LAPACK route
+    assert human_0.n_vertices > eigensolver.DENSE_MAX_N >= 1200
+    np.testing.assert_allclose(np.einsum("ij,i,ij->j", V_s, A, V_s), 1.0, rtol=1e-12)  # A-normalised
+    np.testing.assert_allclose(np.einsum("ij,i,ij->j", V_d, Asmall, V_d), 1.0, rtol=1e-12)
+    assert np.all(np.diff(ev_s) >= 0) and abs(ev_s[0]) < 1e-8 * ev_s[-1]
+    with pytest.raises(ValueError, match="1 <= k"):
+        eigensolver.smallest_eigenpairs(W, A, human_0.n_vertices)
+    assert eigensolver.shift(W, A) < 0

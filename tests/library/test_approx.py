@@ -130,7 +130,7 @@ def test_wrong_length_is_rejected(b10):
 
 def test_dual_gram_route_when_more_columns_than_points():
     """K_u > n (order-4 products on a coarse sphere): the n x n route equals the SVD route."""
-    from conftest import icosphere
+    from prodmaps.mesh import icosphere
 
     sphere = icosphere(2)  # 162 vertices
     b = pm.eigenbasis(sphere, 9)

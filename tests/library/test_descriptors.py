@@ -4,11 +4,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import icosphere  # noqa: E402  (shared test mesh)
 
 import prodmaps as pm
 import prodmaps.descriptors as D
 from prodmaps.datasets import dataset_dir as ds_dir
+from prodmaps.mesh import icosphere
 
 ROOT = Path(__file__).resolve().parents[1]
 ANNY = ds_dir("anny_humans") / "shapes" / "anny_000.ply"
