@@ -1,6 +1,6 @@
 # prodmaps — two commands do all the set-up on a fresh machine:
 #   make reproduce   create .venv, install, regenerate every notebook into $(OUT)
-#   make test        create/reuse .venv, run the whole test suite
+#   make test        create/reuse .venv, run ruff and the whole test suite
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
@@ -8,7 +8,7 @@ OUT    ?= results
 PROFILE ?= paper
 JOBS   ?= 1
 
-.PHONY: reproduce reproduce-smoke update-baselines report test bench venv clean-venv strip-notebooks
+.PHONY: reproduce reproduce-smoke update-baselines report claims test lint bench venv clean-venv strip-notebooks
 
 venv: $(VENV)/.installed
 
@@ -31,14 +31,20 @@ update-baselines: venv
 report: venv
 	$(PY) -m prodmaps report $(OUT)/paper
 
-test: venv
+claims: venv
+	$(PY) -m prodmaps claims $(OUT)/paper
+
+lint: venv
+	$(VENV)/bin/ruff check prodmaps tests benchmarks data_scripts notebooks
+
+test: venv lint
 	$(PY) -m pytest -q
 
 bench: venv
 	$(PY) benchmarks/run.py --out benchmarks/results
 
 strip-notebooks: venv
-	$(PY) -m prodmaps.nbtools strip notebooks/*.ipynb
+	$(PY) -m prodmaps.pipeline.notebooks strip notebooks/*.ipynb
 
 clean-venv:
 	rm -rf $(VENV)

@@ -96,7 +96,9 @@ def part_a(out):
         C, info = fmaps.fit_no17(b1.truncate(35), b2.truncate(35), d1, d2, return_info=True, **W)
         p_ours = from_fmap(C, b1, b2)
         # pyFM, its own pipeline
-        model = FunctionalMapping(TriMesh(m1.vertices.copy(), m1.faces.copy()), TriMesh(m2.vertices.copy(), m2.faces.copy()))
+        model = FunctionalMapping(
+            TriMesh(m1.vertices.copy(), m1.faces.copy()), TriMesh(m2.vertices.copy(), m2.faces.copy())
+        )
         t0 = time.perf_counter()
         model.preprocess(n_descr=100, descr_type="WKS", landmarks=lm, subsample_step=5, k_process=128, k_descr=128)
         t_pre_py = time.perf_counter() - t0
@@ -154,7 +156,9 @@ def part_b(out):
                 grid += [dict(rtol=r) for r in (1e-2, 1e-4)]
                 for params in grid:
                     p = from_fmap(C, b1, b2, method="extended", **params)
-                    srow = dict(pair=f"{s1}->{s2}", map=kind, params=params, ext=geo_error(m1, p, s1)[0], std=res["std"])
+                    srow = dict(
+                        pair=f"{s1}->{s2}", map=kind, params=params, ext=geo_error(m1, p, s1)[0], std=res["std"]
+                    )
                     sweep.append(srow)
                     print("S", srow, flush=True)
     out["part_b"] = rows
@@ -164,8 +168,12 @@ def part_b(out):
 def to_markdown(out):
     L = ["# study_p2p", "", f"prodmaps study, seed {SEED}; errors: mean geodesic error / sqrt(area of shape 1).", ""]
     if isinstance(out.get("part_a"), list):
-        L += ["## A. NO17 (pyFM demo settings, 35x35, std conversion): ours vs pyFM", "",
-              "| pair | err ours | err pyFM | ours/pyFM | fit s ours | fit s pyFM | same p2p |", "|---|---|---|---|---|---|---|"]
+        L += [
+            "## A. NO17 (pyFM demo settings, 35x35, std conversion): ours vs pyFM",
+            "",
+            "| pair | err ours | err pyFM | ours/pyFM | fit s ours | fit s pyFM | same p2p |",
+            "|---|---|---|---|---|---|---|",
+        ]
         for r in out["part_a"]:
             L.append(f"| {r['pair']} | {r['err_ours']:.4f} | {r['err_pyfm']:.4f} | {r['ratio']:.3f} | "
                      f"{r['fit_s_ours']:.2f} | {r['fit_s_pyfm']:.2f} | {r['same_p2p']:.3f} |")
@@ -178,7 +186,9 @@ def to_markdown(out):
     L += ["## B. Point-map recovery at C (k2, k1) = (40, 30): std vs extended", "",
           "| pair | map | std | ext | std_heat | ext s |", "|---|---|---|---|---|---|"]
     for r in out["part_b"]:
-        L.append(f"| {r['pair']} | {r['map']} | {r['std']:.4f} | {r['ext']:.4f} | {r['std_heat']:.4f} | {r['ext_s']:.1f} |")
+        L.append(
+            f"| {r['pair']} | {r['map']} | {r['std']:.4f} | {r['ext']:.4f} | {r['std_heat']:.4f} | {r['ext_s']:.1f} |"
+        )
     L += ["", "Means over pairs:", "", "| map | std | ext | std_heat | ext better on |", "|---|---|---|---|---|"]
     kinds = list(dict.fromkeys(r["map"] for r in out["part_b"]))
     for k in kinds:

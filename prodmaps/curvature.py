@@ -78,7 +78,9 @@ def principal_curvatures(mesh: Mesh, smooth: int = 1):
     bvec = np.stack(rhs, axis=1)  # (m, 6)
     AtA = np.einsum("fki,fkj->fij", Amat, Amat)
     Atb = np.einsum("fki,fk->fi", Amat, bvec)
-    s = np.linalg.solve(AtA + 1e-12 * np.trace(AtA, axis1=1, axis2=2)[:, None, None] * np.eye(3), Atb[..., None])[..., 0]
+    s = np.linalg.solve(AtA + 1e-12 * np.trace(AtA, axis1=1, axis2=2)[:, None, None] * np.eye(3), Atb[..., None])[
+        ..., 0
+    ]
     # sign: on a sphere of radius r with outward normals n = x/r, Δn = e/r and S = I/r, so the
     # mean curvature is positive there.
     S2 = np.empty((m, 2, 2))

@@ -217,7 +217,10 @@ def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=N
     stacked = p.ndim == 2  # several maps against the same truth: one distance computation
     P = p if stacked else p[None, :]  # (m, n2)
     if q.ndim != 1 or P.shape[1] != q.shape[0] or P.ndim != 2:
-        raise ValueError(f"p2p_21 ((n2,) or (m, n2)) and p2p_21_true ((n2,)) must have the same length n2; got {p.shape} and {q.shape}")
+        raise ValueError(
+            "p2p_21 ((n2,) or (m, n2)) and p2p_21_true ((n2,)) must have the same length n2; "
+            f"got {p.shape} and {q.shape}"
+        )
     P = np.stack([_check_sources(mesh_1, row) for row in P])
     q = _check_sources(mesh_1, q)
     err = np.zeros(P.shape, dtype=np.float64)  # (m, n2)

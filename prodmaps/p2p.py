@@ -123,7 +123,17 @@ def heat_square_coefficients(basis: Basis, t: float, n_eig: int, pairs: str = "u
     return out
 
 
-def extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, t=None, t_scale: float = 1.0, n_eig=None, rtol: float = 1e-3, pairs: str = "unique"):
+def extended_embeddings(
+    C_12,
+    basis_1: Basis,
+    basis_2: Basis,
+    *,
+    t=None,
+    t_scale: float = 1.0,
+    n_eig=None,
+    rtol: float = 1e-3,
+    pairs: str = "unique",
+):
     """Canonical coefficients used by the extended conversion.
 
     Returns ``(emb_1 (n1, r), emb_2 (n2, r), info)``: the transferred squared heat kernels of
@@ -152,7 +162,9 @@ def extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, t=None, t_scale
     return emb_1, emb_2, {"t": t, "n_eig": n_eig, "rtol": rtol, "pairs": pairs, "dim": emb_1.shape[1]}
 
 
-def from_fmap(C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, block: int | None = None, **params) -> np.ndarray:
+def from_fmap(
+    C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, block: int | None = None, **params
+) -> np.ndarray:
     """Point map ``p2p_21`` ``(n2,)`` (for each vertex of shape 2 a vertex of shape 1) from ``C_12`` ``(k2, k1)``.
 
     Parameters

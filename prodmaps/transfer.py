@@ -96,7 +96,6 @@ def extend_fmap(C_12, basis_1: Basis, basis_2: Basis, order: int = 2, pairs: str
     if pairs not in ("ordered", "unique"):
         raise ValueError(f"pairs must be 'ordered' or 'unique', got {pairs!r}")
     phi0 = basis_2.phi0
-    k1, k2 = basis_1.k - 1, basis_2.k - 1
     if order == 1:
         return C.copy()
     if order == 2 and pairs == "ordered":
@@ -183,11 +182,12 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, or
 
     ``method="prod"`` with no threshold given: **the library's default extended transfer**
     (:mod:`prodmaps.safe_transfer`): the standard projection first, then the residual fitted with
-    the products that are A1-orthogonal to the basis, keeping only the product directions whose
-    image under ``C~`` passes a gain and a leak test (no ground truth needed). The paper's fixed
-    threshold can make products worse on real maps; the default never did in our measurements,
-    and it reduces exactly to the standard transfer when no direction passes. ``params`` may set
-    its ``g0``, ``p``, ``l0``, ``floor``.
+    the products that are A1-orthogonal to the basis; each product direction's image under ``C~``
+    loses its part inside ``range(Φ2 C)`` and is kept only if it passes a gain and a leak test (no
+    ground truth needed). The paper's fixed threshold can make products worse on real maps; the
+    default never did in our measurements: it never changes what the standard transfer carries
+    (its projection on ``range(Φ2 C)`` is the standard transfer) and reduces to it exactly when no
+    direction passes. ``params`` may set its ``g0``, ``p``, ``l0``, ``floor``, ``h_min``.
 
     ``method="prod"`` with ``rtol=...`` (e.g. ``rtol=1e-3``): **the paper's Approach B** exactly,
     ``B2 C~ a`` with ``a`` the truncated-SVD coefficients of ``F`` in the extended basis of

@@ -40,12 +40,18 @@ def smoke_run(tmp_path_factory):
     """``smoke_run(name)``: run a registered notebook's smoke profile once per test session.
 
     Returns the run's output folder (``results.json``, PNGs, ``executed.ipynb``/``.html``). The
-    registry is the project's ``paper/runs.toml`` (found from the working directory).
+    registry is the project's ``paper/runs.toml`` (found from the working directory). The outputs
+    are kept in ``results/smoke_tests/<run>/`` of the project, so CI keeps the executed notebooks
+    (as HTML) for reading.
     """
+    import shutil
+
     from prodmaps.pipeline import execute, registry
 
     runs = registry.load_registry()
     root = registry.project_root()
+    keep = root / "results" / "smoke_tests"
+    shutil.rmtree(keep, ignore_errors=True)
     cache = {}
 
     def get(name):
@@ -53,7 +59,7 @@ def smoke_run(tmp_path_factory):
             run = runs[name]
             params = run.parameters("smoke")
             params["profile"] = "smoke"
-            out = tmp_path_factory.mktemp("smoke") / name
+            out = keep / name
             try:
                 execute.run_notebook(run.notebook, out, params, kernel_name="python3", cwd=root)
                 cache[name] = out

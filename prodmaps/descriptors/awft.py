@@ -77,7 +77,12 @@ def awft(
         raise ValueError(f"k must be an integer in [2, {mesh.n_vertices}), got {k!r}")
     taus = as_1d_finite(taus, "taus", positive=True)
     freqs0 = np.atleast_1d(np.asarray(freqs0))
-    if freqs0.shape != taus.shape or not np.issubdtype(freqs0.dtype, np.integer) or np.any(freqs0 < 0) or np.any(freqs0 >= k):
+    if (
+        freqs0.shape != taus.shape
+        or not np.issubdtype(freqs0.dtype, np.integer)
+        or np.any(freqs0 < 0)
+        or np.any(freqs0 >= k)
+    ):
         raise ValueError(f"freqs0 must be integers in [0, k) with one entry per tau; got {freqs0!r}")
     angles = as_1d_finite(angles_deg, "angles_deg") if len(np.atleast_1d(angles_deg)) else np.zeros(0)
     functions = tuple(functions)

@@ -94,7 +94,12 @@ def shot(
     Invariant to rigid motions (up to round-off and to neighbours exactly at distance ``R``).
     """
     mesh = _check_mesh(mesh)
-    for name, val in (("n_bins", n_bins), ("n_azimuth", n_azimuth), ("n_elevation", n_elevation), ("n_radial", n_radial)):
+    for name, val in (
+        ("n_bins", n_bins),
+        ("n_azimuth", n_azimuth),
+        ("n_elevation", n_elevation),
+        ("n_radial", n_radial),
+    ):
         if int(val) != val or val < 1:
             raise ValueError(f"{name} must be a positive integer, got {val!r}")
     V = mesh.vertices  # (n, 3)

@@ -9,6 +9,7 @@ The ledger (``claims.toml`` beside this module, package data) has one entry per 
     notebook = "tables_transfer"
     settings = "ground-truth maps, k_M = k_N = 9, 20 pairs"
     subsets = ["all", "intra", "inter"]     # optional: judged over all pairs and per pair kind
+    smoke_verdict = "does not hold"         # what the smoke profile gives (asserted by the claim tests)
     [claims."tab01.products_improve_transfer".values]   # name -> "<run>:<dotted key>" ('*' expands)
     ours = "tab01:errors{subset}.k9_9.transfer.{method}.*"
     std = "tab01:errors{subset}.k9_9.transfer.std.*"
@@ -82,6 +83,7 @@ class Claim:
     method_rule: str = "our_B_gainrule"
     method_default: str = "our_default"
     note: str = ""
+    smoke_verdict: dict = field(default_factory=dict)  # subset -> the verdict expected on the smoke results
 
 
 @dataclass
@@ -120,7 +122,9 @@ def load_ledger(path=None) -> dict[str, Claim]:
     out = {}
     for cid, e in doc.get("claims", {}).items():
         rule = e.get("rule", {})
-        missing = [k for k in ("where", "quote", "runs", "values") if k not in e] + ([] if "holds" in rule else ["rule.holds"])
+        missing = [k for k in ("where", "quote", "runs", "values") if k not in e] + (
+            [] if "holds" in rule else ["rule.holds"]
+        )
         if missing:
             raise ValueError(f"claims ledger: claim {cid!r} lacks {missing}")
         out[cid] = Claim(
@@ -129,7 +133,15 @@ def load_ledger(path=None) -> dict[str, Claim]:
             notebook=e.get("notebook", ""), settings=e.get("settings", ""),
             subsets=tuple(e.get("subsets", ("all",))), method=e.get("method", "our_B"),
             method_rule=e.get("method_rule", "our_B_gainrule"), method_default=e.get("method_default", "our_default"),
-            note=e.get("note", ""))
+            note=e.get("note", ""), smoke_verdict=_per_subset(cid, e.get("smoke_verdict", {})))
+    return out
+
+
+def _per_subset(cid: str, v) -> dict:
+    out = {"all": v} if isinstance(v, str) else dict(v)
+    bad = {k: x for k, x in out.items() if x not in VERDICTS or k not in SUBSET_SUFFIX}
+    if bad:
+        raise ValueError(f"claims ledger: claim {cid!r}: smoke_verdict {bad} (verdicts: {VERDICTS})")
     return out
 
 

@@ -107,7 +107,10 @@ def function_transfer(dataset: str, source_id: str, target_id: str, sizes, *, rt
         key = f"kM{kM}_kN{kN}"
         errors[key] = {
             "approx": {"std": relative_error(approx_std, f, b1.mass), "prod": relative_error(approx_prod, f, b1.mass)},
-            "transfer": {"std": relative_error(trans_std, g_true, b2.mass), "prod": relative_error(trans_prod, g_true, b2.mass)},
+            "transfer": {
+                "std": relative_error(trans_std, g_true, b2.mass),
+                "prod": relative_error(trans_prod, g_true, b2.mass),
+            },
         }
         # beside the paper: Approach B with the gain rule's threshold, and the library's default transfer
         r_g = select_rtol(b1, method="gain", C_12=C, basis_2=b2, pairs=pairs_convention)
@@ -134,8 +137,11 @@ def function_transfer(dataset: str, source_id: str, target_id: str, sizes, *, rt
         fields[key] = (approx_std, approx_prod, trans_std, trans_prod, trans_default)
         if verbose:
             e = errors[key]
-            print(f"k_M = {kM}, k_N = {kN}: approx std {e['approx']['std']:.4f} prod {e['approx']['prod']:.4f} | "
-                  f"transfer std {e['transfer']['std']:.4f} prod {e['transfer']['prod']:.4f}  [{time.perf_counter() - t0:.1f} s]")
+            print(
+                f"k_M = {kM}, k_N = {kN}: approx std {e['approx']['std']:.4f} prod {e['approx']['prod']:.4f} | "
+                f"transfer std {e['transfer']['std']:.4f} prod {e['transfer']['prod']:.4f}  "
+                f"[{time.perf_counter() - t0:.1f} s]"
+            )
     results = {
         "error_definition": "sqrt(int (f-g)^2)/sqrt(int g^2), area-weighted (source for approx, target for transfer)",
         "pair": f"{source_id}->{target_id}", "anchors": anchors, "errors": errors, "other_rtol": extra,

@@ -91,12 +91,17 @@ def hks_wks_convergence(dataset: str, pairs, *, source_dim: int, target_dims, hk
                      "std_change_second_to_last": float(s[-1] / s[min(1, len(s) - 1)])}  # ~ 1: flat
     results = {
         "error_definition": "sqrt(int (f-g)^2)/sqrt(int g^2), area-weighted on the target, mean over pairs",
-        "pairs": [f"{a}->{b}" for a, b in pairs], "target_dims": dims,
-        "errors": {d: {m: {f"d{dd}": float(mean[d][m][j]) for j, dd in enumerate(dims)} for m in methods} for d in names},
+        "pairs": [f"{a}->{b}" for a, b in pairs],
+        "target_dims": dims,
+        "errors": {
+            d: {m: {f"d{dd}": float(mean[d][m][j]) for j, dd in enumerate(dims)} for m in methods} for d in names
+        },
         "errors_per_pair": {d: {m: err[d][m] for m in methods} for d in names},
         "approximation_on_source": {d: {m: float(np.mean(v)) for m, v in approx_err[d].items()} for d in approx_err},
-        "scale_sensitivity": {d: {m: {f"s{s:.1f}": float(np.mean(sens[d][m][s])) for s in SCALES} for m in methods}
-                              for d in names},
-        "scales_used": scale_values, "claims": claims,
+        "scale_sensitivity": {
+            d: {m: {f"s{s:.1f}": float(np.mean(sens[d][m][s])) for s in SCALES} for m in methods} for d in names
+        },
+        "scales_used": scale_values,
+        "claims": claims,
     }
     return {"results": results, "mean": mean, "errors_raw": err, "dims": dims}

@@ -84,9 +84,13 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
             means[m][method] = float(allv.mean())
         wins[m] = int(sum(r[f"{m}_extended"] < r[f"{m}_std"] for r in per_pair))
     results = {
-        "error_definition": "geodesic distance on the source between recovered and true image / sqrt(area of source); heat method",
+        "error_definition": "geodesic distance on the source between recovered and true image "
+        "/ sqrt(area of source); heat method",
         "map_size": {"k_target": k_target, "k_source": k_source, "C_shape": [k_target, k_source]},
-        "pairs": [r["pair"] for r in per_pair], "mean_error": means, "extended_better_pairs": wins,
-        "per_pair": per_pair, "curves": {m: {"thresholds": thr, **curves[m]} for m in curves},
+        "pairs": [r["pair"] for r in per_pair],
+        "mean_error": means,
+        "extended_better_pairs": wins,
+        "per_pair": per_pair,
+        "curves": {m: {"thresholds": thr, **curves[m]} for m in curves},
     }
     return {"results": results, "timing": timing}

@@ -37,8 +37,7 @@ from .maps import no17_demo_map
 from .store import ShapeStore
 
 __all__ = ["ProtocolSettings", "ProtocolResult", "run_protocol", "method_label", "family_means", "area_curves",
-           "AREA_CRITERIA",
-           "METHODS", "STAGES"]
+           "AreaCurves", "perturbed_map", "AREA_CRITERIA", "METHODS", "STAGES"]
 
 METHODS = ("std", "l1", "l2", "B", "B_gain", "default", "p2p")  # plus "B@<rtol>"
 STAGES = ("approx", "transfer")
@@ -49,7 +48,7 @@ class ProtocolSettings:
     """Parameters of :func:`run_protocol` (the paper's values are the defaults)."""
 
     sizes: list  # [(k_M, k_N), ...] paper's counts
-    map_kind: str = "gt"  # "gt" | "computed"
+    map_kind: str = "gt"  # "gt" | "computed" | "perturbed" (ground truth plus seeded noise)
     families: list = field(default_factory=lambda: list(pfam.FAMILIES))
     methods: list = field(default_factory=lambda: ["std", "B"])
     rtol: float = 1e-3
@@ -61,6 +60,7 @@ class ProtocolSettings:
     no17_k_descr: int = 128
     seed: int = 0
     k_M_family: int | None = None  # basis size of the basis-dependent families (default: largest k_M)
+    noise: float = 0.25  # "perturbed": relative Frobenius size of the noise added to the ground-truth C
 
     def __post_init__(self):
         self.sizes = [(int(a), int(b)) for a, b in self.sizes]
@@ -71,8 +71,8 @@ class ProtocolSettings:
         if unknown:
             raise ValueError(f"unknown families {sorted(unknown)}; choose from {list(pfam.FAMILIES)}")
         self.families = [f for f in pfam.FAMILIES if f in self.families]  # paper order
-        if self.map_kind not in ("gt", "computed"):
-            raise ValueError(f"map_kind must be 'gt' or 'computed', got {self.map_kind!r}")
+        if self.map_kind not in ("gt", "computed", "perturbed"):
+            raise ValueError(f"map_kind must be 'gt', 'computed' or 'perturbed', got {self.map_kind!r}")
         if self.k_M_family is None:
             self.k_M_family = max(a for a, _ in self.sizes)
 
@@ -132,8 +132,12 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
         for (kM, kN) in s.sizes:
             b1, b2 = store.basis(sid1, kM + 1), store.basis(sid2, kN + 1)
             C_gt = fmap_from_p2p(gt, b1, b2)  # (kN+1, kM+1)
-            C = C_gt if s.map_kind == "gt" else no17_demo_map(store, sid1, sid2, gt, kM + 1, kN + 1,
-                                                              k_descr=s.no17_k_descr)
+            if s.map_kind == "gt":
+                C = C_gt
+            elif s.map_kind == "perturbed":
+                C = perturbed_map(C_gt, s.noise, seed=(s.seed, ip, kM, kN))
+            else:
+                C = no17_demo_map(store, sid1, sid2, gt, kM + 1, kN + 1, k_descr=s.no17_k_descr)
             map_dev[(kM, kN)].append(float(np.linalg.norm(C - C_gt) / np.linalg.norm(C_gt)))
             err = errors[(kM, kN)]
             a_std = b1.project(F)  # (kM+1, m)
@@ -175,6 +179,17 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
             print(f"pair {ip + 1:2d}/{len(pairs)} {sid1} -> {sid2}: {seconds[-1]:5.1f} s"
                   + "".join(f"  [{kM}/{kN}] map dev {map_dev[(kM, kN)][-1]:.3f}" for kM, kN in s.sizes), flush=True)
     return ProtocolResult(s, pairs, errors, cols, map_dev, ranks, gain_rtol, seconds)
+
+
+def perturbed_map(C_gt: np.ndarray, noise: float, seed) -> np.ndarray:
+    """``C_gt`` plus seeded Gaussian noise of relative Frobenius norm ``noise`` on the free columns.
+
+    Column 0 (the constant's image, fixed for any point map) is kept; ``seed`` may be a tuple.
+    """
+    rng = np.random.default_rng(np.random.SeedSequence(np.atleast_1d(seed).tolist()))
+    E = rng.standard_normal(C_gt.shape)
+    E[:, 0] = 0.0
+    return C_gt + noise * np.linalg.norm(C_gt) / np.linalg.norm(E) * E
 
 
 def method_label(method: str, table: str | None = None) -> str:
@@ -223,3 +238,38 @@ def area_curves(f: np.ndarray, g: np.ndarray, mass: np.ndarray, gamma: np.ndarra
     e = (f - g) ** 2 / ms[None, :]  # scale-free pointwise error
     sf = np.einsum("i,tij->tj", mass, (e[None] < gamma[:, None, None]).astype(float)) / mass.sum()
     return {"paper": paper, "scale_free": sf}
+
+
+class AreaCurves:
+    """Figure 8's accumulator: pass it as ``collect=`` to :func:`run_protocol`.
+
+    For every pair it stores, per criterion, stage (approximation on the source, transfer to the
+    target), method and family, the area-fraction curve averaged over the family's functions;
+    :meth:`mean` averages over pairs and :meth:`auc` integrates over ``gamma`` (trapezoid).
+    """
+
+    def __init__(self, gamma, families, methods):
+        self.gamma = np.asarray(gamma, float)  # (n_gamma,)
+        self.families, self.methods = list(families), list(methods)
+        self._curves = {c: {st: {m: [] for m in self.methods} for st in STAGES} for c in AREA_CRITERIA}
+
+    def __call__(self, ip, size, F, G, cols, b1, b2, outputs):
+        for m, (fa, ft) in outputs.items():
+            for st, f, g, mass in (("approx", fa, F, b1.mass), ("transfer", ft, G, b2.mass)):
+                cv = area_curves(f, g, mass, self.gamma)
+                for c in AREA_CRITERIA:
+                    self._curves[c][st][m].append({fam: cv[c][:, cols[fam]].mean(axis=1) for fam in self.families})
+
+    def mean(self) -> dict:
+        """``{criterion: {stage: {method: {family: (n_gamma,) curve}}}}`` averaged over pairs."""
+        return {c: {st: {m: {f: np.mean([d[f] for d in per_pair], axis=0) for f in self.families}
+                         for m, per_pair in by_m.items()} for st, by_m in by_st.items()}
+                for c, by_st in self._curves.items()}
+
+    def auc(self) -> dict:
+        """Area under each mean curve over ``gamma``, same nesting as :meth:`mean`."""
+        def integrate(by_f):
+            return {f: float(np.trapezoid(v, self.gamma)) for f, v in by_f.items()}
+
+        return {c: {st: {m: integrate(by_f) for m, by_f in by_m.items()} for st, by_m in by_st.items()}
+                for c, by_st in self.mean().items()}

@@ -69,9 +69,16 @@ def coordinate_reconstruction(mesh, ks, ks_curve=(), *, pairs: str = "ordered", 
             print(f"k = {k:2d}: std {errors['std'][key]['mean']:.4f}   prod ({pairs}) {errors['prod'][key]['mean']:.4f}"
                   f"   prod ({other}) {errors[f'prod_{other}'][key]['mean']:.4f}   [{ext.K} columns, rank kept "
                   f"{op.rank}; {time.perf_counter() - t1:.1f} s]")
-    return {"results": {"error_definition": "mean over x,y,z of sqrt(int (xhat_c-x_c)^2)/sqrt(int x_c^2), area-weighted",
-                        "pairs": pairs, "errors": errors, "sizes": sizes},
-            "recon": recon, "k_all": k_all}
+    return {
+        "results": {
+            "error_definition": "mean over x,y,z of sqrt(int (xhat_c-x_c)^2)/sqrt(int x_c^2), area-weighted",
+            "pairs": pairs,
+            "errors": errors,
+            "sizes": sizes,
+        },
+        "recon": recon,
+        "k_all": k_all,
+    }
 
 
 def higher_order_reconstruction(mesh, n_eig: int, orders, rtols, *, verbose: bool = True) -> dict:
@@ -103,9 +110,15 @@ def higher_order_reconstruction(mesh, n_eig: int, orders, rtols, *, verbose: boo
                 print(f"rtol {rtol:.0e}, order {r}: {s['columns']:5d} columns (rank kept {s['rank_kept']:4d}): "
                       f"error {e['mean']:.4f}  (x {e['x']:.4f}, y {e['y']:.4f}, z {e['z']:.4f})   "
                       f"[{time.perf_counter() - t1:.1f} s]")
-    return {"results": {"error_definition": "mean over x,y,z of sqrt(int (xhat_c-x_c)^2)/sqrt(int x_c^2), area-weighted",
-                        "pairs": "unique", "errors": errors, "sizes": sizes},
-            "recon": recon}
+    return {
+        "results": {
+            "error_definition": "mean over x,y,z of sqrt(int (xhat_c-x_c)^2)/sqrt(int x_c^2), area-weighted",
+            "pairs": "unique",
+            "errors": errors,
+            "sizes": sizes,
+        },
+        "recon": recon,
+    }
 
 
 def indicator_region(mesh, ks, region_center, region_radius: float, *, threshold: float = 0.5,
@@ -173,7 +186,10 @@ def lmh_reconstruction(mesh, *, k_mh: int, k_global: int, k_local: int, region_t
     for name, basis in (("MH", mh), ("LMH", lmh_basis)):
         X_std = basis.vecs @ basis.project(X)  # A-orthonormal basis: projection
         ext, op, X_prod = _extended_reconstruction(basis, X, pairs, rtol)
-        errors[name] = {"std": coordinate_errors(X_std, X, mass, region), "prod": coordinate_errors(X_prod, X, mass, region)}
+        errors[name] = {
+            "std": coordinate_errors(X_std, X, mass, region),
+            "prod": coordinate_errors(X_prod, X, mass, region),
+        }
         sizes[name] = {"std": basis.k, "extended": ext.K, "rank_kept": op.rank}
         recon[name] = (X_std, X_prod)
     results = {

@@ -71,6 +71,8 @@ def render_mesh(vertices, faces, scalars=None, *, clim=None, cmap="viridis", vie
         bounds. Pass the same bounds to every panel of a figure to keep one scale.
     region : optional boolean mask ``(n,)`` painted in ``region_color`` (e.g. a region in red).
     """
+    if scalars is not None and clim is None:
+        raise ValueError("pass clim with scalars: panels of one figure must share colour limits")
     import pyvista as pv
 
     pv.OFF_SCREEN = True
@@ -80,8 +82,6 @@ def render_mesh(vertices, faces, scalars=None, *, clim=None, cmap="viridis", vie
     p = pv.Plotter(off_screen=True, window_size=tuple(window_size), lighting="light_kit")
     p.set_background("white")
     if scalars is not None:
-        if clim is None:
-            raise ValueError("pass clim with scalars: panels of one figure must share colour limits")
         mesh.point_data["f"] = np.asarray(scalars, dtype=np.float64)
         p.add_mesh(mesh, scalars="f", clim=clim, cmap=cmap, show_scalar_bar=False,
                    interpolate_before_map=True, smooth_shading=False)

@@ -131,8 +131,10 @@ def truncation_study(store: ShapeStore, pairs, *, sizes, map_kinds, families, rt
                 "std_transfer": float(np.mean(o["std"])),
                 "rtol": {q: np.mean(o["rtol"][q], axis=0).tolist() for q in QUANTITIES},
                 "eps": {q: np.mean(o["eps"][q], axis=0).tolist() for q in QUANTITIES},
-                "chosen": {k: {"rtol_geomean": float(np.exp(np.mean(np.log(v["rtol"])))), "transfer": float(np.mean(v["err"]))}
-                           for k, v in o["chosen"].items()},
+                "chosen": {
+                    k: {"rtol_geomean": float(np.exp(np.mean(np.log(v["rtol"])))), "transfer": float(np.mean(v["err"]))}
+                    for k, v in o["chosen"].items()
+                },
             }
     gain_at = {key: {f"{r:g}": float(np.median([g[g[:, 0] > r, 1].max() for g in lst])) for r in RT}
                for key, lst in GAINS.items()}

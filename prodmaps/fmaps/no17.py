@@ -236,12 +236,16 @@ def no17_terms(
             f"got {d1.shape} and {d2.shape}"
         )
     if d1.shape[1] != d2.shape[1]:
-        raise ValueError(f"descr_1 and descr_2 must have the same number of columns; got {d1.shape[1]} and {d2.shape[1]}")
+        raise ValueError(
+            f"descr_1 and descr_2 must have the same number of columns; got {d1.shape[1]} and {d2.shape[1]}"
+        )
     if not (np.all(np.isfinite(d1)) and np.all(np.isfinite(d2))):
         raise ValueError("descriptors contain non-finite values")
     ws = np.array([w_descr, w_lap, w_dcomm], dtype=np.float64)
     if np.any(ws < 0) or ws.sum() <= 0:
-        raise ValueError(f"weights must be >= 0 with a positive sum; got w_descr={w_descr}, w_lap={w_lap}, w_dcomm={w_dcomm}")
+        raise ValueError(
+            f"weights must be >= 0 with a positive sum; got w_descr={w_descr}, w_lap={w_lap}, w_dcomm={w_dcomm}"
+        )
     if normalize not in NORMALIZATIONS:
         raise ValueError(f"normalize must be one of {NORMALIZATIONS}, got {normalize!r}")
     ws = ws / ws.sum()
@@ -272,7 +276,9 @@ def no17_terms(
     else:
         taus = (1.0, 1.0, 1.0)
     mus = ws / np.array(taus)
-    return NO17Terms(D1, D2, M1, M2, L, float(mus[0]), float(mus[1]), float(mus[2]), first_column(basis_1, basis_2), taus)
+    return NO17Terms(
+        D1, D2, M1, M2, L, float(mus[0]), float(mus[1]), float(mus[2]), first_column(basis_1, basis_2), taus
+    )
 
 
 def energy_and_gradient(C: np.ndarray, terms: NO17Terms) -> tuple[float, np.ndarray]:
@@ -418,7 +424,12 @@ def fit_no17(
             options={"ftol": factr * np.finfo(float).eps, "gtol": pgtol, "maxiter": maxiter, "maxfun": 10 * maxiter},
         )
         C[:, 1:] = res.x.reshape(k2, k1 - 1)
-        info = {"energy": float(res.fun), "nit": int(res.nit), "message": str(res.message), "success": bool(res.success)}
+        info = {
+            "energy": float(res.fun),
+            "nit": int(res.nit),
+            "message": str(res.message),
+            "success": bool(res.success),
+        }
     else:
         info = {"energy": energy_and_gradient(C, terms)[0], "nit": 0, "message": "nothing to fit", "success": True}
     info["time"] = time.perf_counter() - t0

@@ -5,7 +5,7 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-from .execute import mkdtemp_beside, swap_into_place
+from .execute import RunResult, mkdtemp_beside, swap_into_place
 from .registry import registry_path
 
 __all__ = ["baselines_dir", "update_baselines"]

@@ -75,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("results_dir", nargs="?", default="results/paper", help="e.g. results/paper (default)")
     rp.add_argument("--out", help="Markdown path (default paper/REPORT.md); HTML goes beside it")
     rp.add_argument("--registry", help="run registry file")
-    rp.add_argument("--published", help="published tables CSV (default paper/published_tables.csv)")
+    rp.add_argument("--published", help="published tables CSV (default: the one shipped with the package)")
     rp.add_argument("--copy-figures", action="store_true",
                     help="copy the PNGs into <report folder>/report_figures/ and link those")
     return p

@@ -279,7 +279,9 @@ def diff_runs(run_dir, baseline_dir, tolerances: dict | None = None, *,
     else:
         for p, side in ((rb, "baseline"), (rn, "run")):
             if not p.is_file():
-                rep.findings.append(Finding("key", "results.json", False, detail=f"no results.json in the {side} folder"))
+                rep.findings.append(
+                    Finding("key", "results.json", False, detail=f"no results.json in the {side} folder")
+                )
     rep.findings += diff_images(run_dir, baseline_dir, threshold=png_threshold, diff_dir=diff_dir)
     if write_report and not rep.ok:
         diff_dir.mkdir(parents=True, exist_ok=True)

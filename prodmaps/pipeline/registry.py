@@ -49,6 +49,7 @@ class Run:
     notebook: Path
     reproduces: str = ""
     title: str = ""
+    description: str = ""
     params: dict = field(default_factory=dict)
     tolerances: dict = field(default_factory=dict)
     claims: tuple = ()
@@ -136,12 +137,15 @@ def load_registry(path=None) -> dict[str, Run]:
         tol = entry.get("tolerances", {})
         if not isinstance(tol, dict):
             raise RegistryError(f"{where}: tolerances must be a table of key-glob = {{rtol, atol}}")
+        claims = entry.get("claims", [])
+        if not (isinstance(claims, list) and all(isinstance(c, str) for c in claims)):
+            raise RegistryError(f"{where}: claims must be a list of claim ids of the ledger, got {claims!r}")
         nb = Path(entry["notebook"])
         out[name] = Run(
             name=name, notebook=(nb if nb.is_absolute() else root / nb).resolve(),
             reproduces=str(entry.get("reproduces", "")), title=str(entry.get("title", "")),
             params={k: dict(v) for k, v in params.items()}, tolerances=dict(tol),
-            claims=tuple(str(c) for c in entry.get("claims", ())),
+            description=str(entry.get("description", "")), claims=tuple(claims),
         )
     return out
 

@@ -222,7 +222,9 @@ def test_principal_curvatures_on_sphere():
     np.testing.assert_allclose(np.median(c["gauss"]), 0.25, rtol=0.04)
     assert np.abs(c["mean"] - 0.5).max() < 0.05
     # principal directions are unit and tangent to their face
-    fn = np.cross(m.vertices[m.faces[:, 1]] - m.vertices[m.faces[:, 0]], m.vertices[m.faces[:, 2]] - m.vertices[m.faces[:, 0]])
+    fn = np.cross(
+        m.vertices[m.faces[:, 1]] - m.vertices[m.faces[:, 0]], m.vertices[m.faces[:, 2]] - m.vertices[m.faces[:, 0]]
+    )
     fn /= np.linalg.norm(fn, axis=1, keepdims=True)
     np.testing.assert_allclose(np.linalg.norm(c["dir_max"], axis=1), 1.0, rtol=1e-12)
     assert np.abs(np.einsum("ij,ij->i", c["dir_max"], fn)).max() < 1e-10

@@ -23,7 +23,9 @@ def _rel_fd_error(terms, C, rng, n_dir=4, h=1e-6):
     errs = []
     for _ in range(n_dir):
         D = rng.normal(size=C.shape)
-        num = (fmaps.energy_and_gradient(C + h * D, terms)[0] - fmaps.energy_and_gradient(C - h * D, terms)[0]) / (2 * h)
+        num = (fmaps.energy_and_gradient(C + h * D, terms)[0] - fmaps.energy_and_gradient(C - h * D, terms)[0]) / (
+            2 * h
+        )
         ana = float(np.sum(G * D))
         errs.append(abs(num - ana) / abs(ana))
     return max(errs)

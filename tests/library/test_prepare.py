@@ -21,7 +21,7 @@ from prodmaps.prepare import faust, tosca
 from prodmaps.prepare import variants as variants
 from prodmaps.prepare.archive import PrepareError
 
-SCRIPTS = Path(__file__).resolve().parents[1] / "data_scripts"  # the thin command-line wrappers
+SCRIPTS = Path(__file__).resolve().parents[2] / "data_scripts"  # the thin command-line wrappers
 
 
 def fib_sphere(n):

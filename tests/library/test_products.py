@@ -11,7 +11,11 @@ from prodmaps.products import multi_indices, n_columns
 
 @pytest.mark.parametrize("k, order", [(4, 2), (5, 3), (3, 4)])
 def test_column_counts(k, order):
-    assert multi_indices(k, order, "ordered").shape[0] == n_columns(k, order, "ordered") == sum(k**d for d in range(order + 1))
+    assert (
+        multi_indices(k, order, "ordered").shape[0]
+        == n_columns(k, order, "ordered")
+        == sum(k**d for d in range(order + 1))
+    )
     assert multi_indices(k, order, "unique").shape[0] == n_columns(k, order, "unique") == math.comb(k + order, order)
 
 

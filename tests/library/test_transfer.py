@@ -51,8 +51,15 @@ def test_identity_transfer_is_approximation(basis_0):
     F = np.random.default_rng(1).normal(size=(b.n, 2))
     ext = pm.product_basis(b, 2, "ordered")
     approx = ext.evaluate(pm.approximate(F, ext, "svd"))
-    np.testing.assert_allclose(pm.transfer(F, C, b, b, "prod"), approx, atol=1e-10)
+    np.testing.assert_allclose(pm.transfer(F, C, b, b, "prod", rtol=1e-3), approx, atol=1e-10)  # the paper's B
     np.testing.assert_allclose(pm.transfer(F, C, b, b, "std"), b.vecs @ b.project(F), atol=1e-12)
+    # the default: the map is exact, every product direction has gain 1 and no leak, h = 1/(1 + 1.5^-8)
+    op = pm.safe_transfer.safe_operator(C, b, b)
+    np.testing.assert_allclose(op.gain, 1.0, atol=1e-8)
+    np.testing.assert_allclose(op.leak, 0.0, atol=1e-8)
+    np.testing.assert_allclose(op.filter, 1 / (1 + 1.5**-8), rtol=1e-8)
+    assert np.all(pm.relative_error(pm.transfer(F, C, b, b, "prod"), F, b.mass)
+                  < pm.relative_error(b.vecs @ b.project(F), F, b.mass))
 
 
 def test_products_beat_std_for_hks_transfer(human_0, human_13):

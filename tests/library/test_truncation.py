@@ -71,7 +71,9 @@ def test_source_only_rules_return_a_candidate(human_0, human_pair):
         r, info = tr.select_rtol(b1, human_0.vertices, method=method, candidates=cand, return_info=True)
         assert r in cand and info["score"].shape == (4,) and np.all(np.isfinite(info["score"]))
     # the same split gives the same choice
-    assert tr.select_rtol(b1, human_0.vertices, method="cv", seed=3) == tr.select_rtol(b1, human_0.vertices, method="cv", seed=3)
+    assert tr.select_rtol(b1, human_0.vertices, method="cv", seed=3) == tr.select_rtol(
+        b1, human_0.vertices, method="cv", seed=3
+    )
 
 
 def test_bad_input(human_pair):

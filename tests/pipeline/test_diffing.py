@@ -51,7 +51,12 @@ def test_tolerance_longest_glob_wins_and_defaults():
     assert (t["rtol"], t["atol"], t["ignore"]) == (1e-6, 1e-9, False)
     assert tolerance_for("parameters.out_dir", None)["ignore"]
     assert tolerance_for("versions.numpy", None)["ignore"]
-    for timing in ("results.seconds", "results.seconds.per_pair.3", "results.render_seconds", "results.t.eig_seconds.k9"):
+    for timing in (
+        "results.seconds",
+        "results.seconds.per_pair.3",
+        "results.render_seconds",
+        "results.t.eig_seconds.k9",
+    ):
         assert tolerance_for(timing, None)["ignore"], timing
     for value in ("results.errors.k9", "results.secondsless", "results.seconds_note_x"):
         assert not tolerance_for(value, None)["ignore"], value

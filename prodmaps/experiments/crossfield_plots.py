@@ -1,0 +1,160 @@
+"""Small matplotlib helpers for cross fields and quad textures (orthographic views, no GL).
+
+Views are orthographic projections with a depth test on a coarse screen grid, so crosses and
+singularities on hidden parts are not drawn. ``VIEWS`` follow :mod:`prodmaps.experiments.render`: the
+embedded humans are z-up and face -y. All functions return matplotlib objects and draw
+deterministically (fixed sub-sampling seed). For pyvista renders of a quad texture use
+:func:`render_quad_texture` (call ``probe_rendering()`` first).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..fields.crossfield import field_vectors, singularities
+from ..fields.frames import tangent_frames
+
+__all__ = ["VIEWS", "plot_cross_field", "plot_quad_texture", "render_quad_texture", "figure14_figure"]
+
+VIEWS = {
+    "front": ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)),
+    "back": ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+    "side": ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+    "top": ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
+}
+
+
+def _camera(view):
+    d, up = (np.asarray(x, float) for x in VIEWS[view])
+    right = np.cross(up, d)
+    return d, up, right  # d points from the object to the camera
+
+
+def _visible_faces(P2, depth, front, cell):
+    """Faces whose centroid depth is within one cell of the nearest one in its screen cell."""
+    ij = np.floor((P2 - P2.min(0)) / cell).astype(np.int64)
+    key = ij[:, 0] * (ij[:, 1].max() + 1) + ij[:, 1]
+    best = np.full(key.max() + 1, np.inf)
+    np.minimum.at(best, key[front], -depth[front])
+    return front & (-depth <= best[key] + cell)
+
+
+def _shaded_mesh(ax, V, F, view, facecolors=None, shade=True):
+    from matplotlib.collections import PolyCollection
+
+    d, up, right = _camera(view)
+    fr = tangent_frames(V, F)
+    P = np.stack([V @ right, V @ up], axis=1)  # (n, 2)
+    depth = V @ d  # larger = closer
+    front = fr.normal @ d > 0
+    order = np.argsort(depth[F].mean(1))  # far first (painter)
+    order = order[front[order]]
+    lum = 0.35 + 0.65 * np.clip(fr.normal @ d, 0, 1)
+    if facecolors is None:
+        col = np.repeat(lum[:, None], 3, axis=1) * 0.92
+    else:
+        col = np.asarray(facecolors, float)[:, :3] * (lum[:, None] if shade else 1.0)
+    ax.add_collection(PolyCollection(P[F[order]], facecolors=col[order], edgecolors="none", antialiased=False))
+    ax.set_xlim(P[:, 0].min(), P[:, 0].max())
+    ax.set_ylim(P[:, 1].min(), P[:, 1].max())
+    ax.set_aspect("equal")
+    ax.axis("off")
+    return fr, P, depth, front
+
+
+def plot_cross_field(V, F, z, *, ax=None, view="front", n_glyphs=1500, glyph_scale=0.5,
+                     show_singularities=True, color="tab:blue", seed=0):
+    """Shaded mesh with crosses (two segments per sampled face) and singularities (red: positive
+    index, blue: negative). ``z`` ``(m,)`` is a 4-power field in the face frames. Returns the axes."""
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import LineCollection
+
+    V = np.asarray(V, float)
+    F = np.asarray(F, np.int64)
+    if ax is None:
+        _, ax = plt.subplots(figsize=(3, 5))
+    fr, P, depth, front = _shaded_mesh(ax, V, F, view)
+    d, up, right = _camera(view)
+    c3 = fr.centroids
+    c2 = np.stack([c3 @ right, c3 @ up], axis=1)
+    h = np.sqrt(fr.area.mean())
+    vis = _visible_faces(c2, c3 @ d, front, 2.0 * h)
+    cand = np.flatnonzero(vis)
+    rng = np.random.default_rng(seed)
+    pick = cand if cand.size <= n_glyphs else np.sort(rng.choice(cand, n_glyphs, replace=False,
+                                                                 p=fr.area[cand] / fr.area[cand].sum()))
+    X = field_vectors(np.asarray(z), fr, 4)[pick][:, :2, :]  # (g, 2, 3) two directions
+    L = glyph_scale * np.sqrt(np.sum(fr.area) / max(pick.size, 1)) / 2
+    segs = []
+    for a in range(2):
+        x2 = np.stack([X[:, a] @ right, X[:, a] @ up], axis=1)
+        segs.append(np.stack([c2[pick] - L * x2, c2[pick] + L * x2], axis=1))
+    ax.add_collection(LineCollection(np.concatenate(segs), colors=color, linewidths=0.6, antialiased=False))
+    if show_singularities:
+        v, ind = singularities(fr, np.asarray(z), 4)
+        if v.size:
+            vf = np.zeros(V.shape[0], bool)
+            vf[F[vis].ravel()] = True
+            keep = vf[v]
+            ax.scatter(P[v[keep], 0], P[v[keep], 1], s=10, c=np.where(ind[keep] > 0, "red", "blue"),
+                       zorder=3, linewidths=0)
+    return ax
+
+
+def plot_quad_texture(V, F, q, *, ax=None, view="front", binary=True, cmap="gray"):
+    """Shaded mesh coloured by the quad texture ``q`` ``(n,)`` (face mean; its sign if ``binary``)."""
+    import matplotlib.pyplot as plt
+    from matplotlib import colormaps
+
+    V = np.asarray(V, float)
+    F = np.asarray(F, np.int64)
+    if ax is None:
+        _, ax = plt.subplots(figsize=(3, 5))
+    qf = np.asarray(q, float)[F].mean(1)
+    val = 0.5 * (1 + (np.sign(qf) * 0.8 if binary else np.clip(qf, -1, 1)))
+    _shaded_mesh(ax, V, F, view, facecolors=colormaps[cmap](val))
+    return ax
+
+
+def render_quad_texture(V, F, q, **kwargs) -> np.ndarray:
+    """pyvista render of a quad texture (grey, ``clim = (-1, 1)``); returns an RGB image.
+
+    Uses :func:`prodmaps.experiments.render.render_mesh`;
+    call ``probe_rendering()`` first, VTK crashes instead of raising without a GL backend.
+    """
+    from .render import render_mesh
+    kwargs.setdefault("cmap", "gray")
+    return render_mesh(V, F, np.asarray(q, float), clim=(-1.0, 1.0), **kwargs)
+
+
+def figure14_figure(mesh_1, mesh_2, result: dict, names=("reference", "std", "ext"), *, view="front",
+                    n_glyphs=500, titles=None, suptitle=None):
+    """Figure-14-like panel: crosses (top) and quad textures (bottom) for the source and targets.
+
+    ``result`` is a :func:`~prodmaps.experiments.crossfields.figure14_experiment` output; ``titles``
+    maps a field name to its column title. Returns the figure.
+    """
+    import matplotlib.pyplot as plt
+
+    names = [n for n in names if n in result["fields"]]
+    cols = ["source"] + names
+    fig, axes = plt.subplots(2, len(cols), figsize=(2.6 * len(cols), 8.0), squeeze=False)
+    for c, name in enumerate(cols):
+        mesh = mesh_1 if name == "source" else mesh_2
+        plot_cross_field(mesh.vertices, mesh.faces, result["fields"][name], ax=axes[0, c], view=view,
+                         n_glyphs=n_glyphs)
+        if name in result.get("layouts", {}):
+            plot_quad_texture(mesh.vertices, mesh.faces, result["layouts"][name], ax=axes[1, c], view=view)
+        else:
+            axes[1, c].axis("off")
+        m = result["metrics"].get(name)
+        t = (titles or {}).get(name, name)
+        if m is not None and name != "reference":
+            t += f"\n{m['angle_mean_deg']:.1f}° mean, {m['angle_p90_deg']:.1f}° p90"
+        if m is not None and "layout_agreement" in m:
+            t += f"\nlayout {m['layout_agreement']:.2f}"
+        axes[0, c].set_title(t, fontsize=8)
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=9)
+    fig.tight_layout(rect=(0, 0, 1, 0.97) if suptitle else None)
+    return fig

@@ -1,0 +1,124 @@
+"""Evidence for the library's default extended transfer: std vs paper-B vs gain rule vs default.
+
+Over the conditions that matter — maps (ground truth, NO17, ground truth plus noise), sizes
+``(k_M, k_N)`` (9/9, 29/39, 27/35, 6/7), pair kinds (intra-, inter-subject, and targets remeshed
+with another connectivity) — and the nine function families, the relative transfer error of:
+``std`` (the standard transfer), ``B`` (the paper's Approach B, ``rtol = 1e-3``), ``B_gain``
+(Approach B with the threshold of the gain rule) and ``default`` (:mod:`prodmaps.safe_transfer`).
+Each condition runs :func:`prodmaps.experiments.protocol.run_protocol` on its pairs, with the
+basis-dependent families (hk k, HKS, WKS, Random) built from that condition's own ``k_M + 1``
+source eigenpairs (as in Figure 11, so HKS and WKS lie in the product span); errors are averaged
+over a family's functions, then the pairs.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .. import datasets
+from . import families as pfam
+from .protocol import ProtocolSettings, family_means, method_label, run_protocol
+from .store import ShapeStore
+
+__all__ = ["METHODS", "condition_key", "variant_pairs", "default_transfer_study", "summary", "figure"]
+
+METHODS = ("std", "B", "B_gain", "default")
+
+
+def condition_key(map_kind: str, size, kind: str) -> str:
+    return f"{map_kind}/{size[0]}_{size[1]}/{kind}"
+
+
+def variant_pairs(dataset: str, n: int | None = None) -> list:
+    """``(source, variant)`` pairs: each remeshed variant from its base shape and from another pose
+    of the same subject (the first ``n`` of them)."""
+    out = []
+    for vid in datasets.variants(dataset):
+        base = datasets.base_shape(dataset, vid)
+        cls = datasets.shape_class(dataset, base)
+        other = next(s for s in datasets.shape_ids(dataset) if datasets.shape_class(dataset, s) == cls and s != base)
+        out += [(base, vid), (other, vid)]
+    return out[:n] if n is not None else out
+
+
+def default_transfer_study(store: ShapeStore, pairs_by_kind: dict, *, map_kinds, sizes, families,
+                           variant_sizes=None, variant_maps=("gt",), noise: float = 0.25, no17_k_descr: int = 128,
+                           seed: int = 0, progress: bool = True) -> dict:
+    """Run every condition (module doc); returns ``{"results": ..., "seconds": ...}``.
+
+    ``pairs_by_kind`` maps a kind (``"intra"``, ``"inter"``, ``"variant"``) to its pairs; the
+    ``"variant"`` pairs run at ``variant_sizes`` (default ``sizes``) with ``variant_maps``.
+    ``results["errors"][condition][family label][method label]`` is the mean relative transfer
+    error; ``results["approx"]`` the same for the approximation on the source.
+    """
+    t0 = time.perf_counter()
+    errors, approx, n_pairs = {}, {}, {}
+    for kind, pairs in pairs_by_kind.items():
+        kind_sizes = variant_sizes if (kind == "variant" and variant_sizes) else sizes
+        maps = variant_maps if kind == "variant" else map_kinds
+        for mk in maps:
+            for size in kind_sizes:
+                st = ProtocolSettings(sizes=[tuple(size)], map_kind=mk, families=families, methods=list(METHODS),
+                                      no17_k_descr=no17_k_descr, seed=seed, noise=noise, k_M_family=int(size[0]))
+                if progress:
+                    print(f"== {kind} pairs, {mk} maps, k_M/k_N = {size[0]}/{size[1]}", flush=True)
+                res = run_protocol(store, pairs, st, progress=False)
+                means = family_means(res)
+                z = st.sizes[0]
+                key = condition_key(mk, z, kind)
+                n_pairs[key] = len(pairs)
+                for stage, out in (("transfer", errors), ("approx", approx)):
+                    out[key] = {pfam.PAPER_LABELS[f]: {method_label(m): means[(z[0], z[1], stage, method_label(m),
+                                                                                pfam.PAPER_LABELS[f])][0]
+                                                      for m in METHODS} for f in st.families}
+    return {"results": {"errors": errors, "approx": approx, "n_pairs": n_pairs,
+                        "pairs": {k: [list(p) for p in v] for k, v in pairs_by_kind.items()},
+                        "summary": summary(errors)},
+            "seconds": time.perf_counter() - t0}
+
+
+def summary(errors: dict) -> dict:
+    """Worst (method - std) over every condition x family, cells above std + 0.01, mean ratios."""
+    out = {}
+    for m in ("our_B", "our_B_gainrule", "our_default"):
+        d = [(c, f, v[m] - v["std"], v[m] / v["std"]) for c, fams in errors.items() for f, v in fams.items()]
+        worst = max(d, key=lambda x: x[2])
+        out[m] = {"worst_excess": worst[2], "worst_cell": f"{worst[0]}/{worst[1]}",
+                  "cells_above_std_plus_0.01": int(sum(x[2] > 0.01 for x in d)), "cells": len(d),
+                  "mean_ratio_to_std": float(np.mean([x[3] for x in d])),
+                  "ratio_of_means": float(np.mean([errors[c][f][m] for c, f, _, _ in d])
+                                          / np.mean([errors[c][f]["std"] for c, f, _, _ in d]))}
+    return out
+
+
+def figure(results: dict):
+    """Three heat maps (paper B, gain rule, default): log2 of the transfer error over the standard
+    transfer's, per condition (rows) and family (columns); blue below std, red above."""
+    import matplotlib.colors as mcolors
+
+    from .results import setup_matplotlib
+
+    plt = setup_matplotlib()
+    errors = results["errors"]
+    conds = list(errors)
+    fams = list(next(iter(errors.values())))
+    fig, axes = plt.subplots(1, 3, figsize=(15, 0.32 * len(conds) + 2.2), sharey=True)
+    for ax, (m, title) in zip(axes, (("our_B", "paper's Approach B (rtol 1e-3)"),
+                                     ("our_B_gainrule", "Approach B, gain-rule threshold"),
+                                     ("our_default", "library default"))):
+        R = np.array([[errors[c][f][m] / errors[c][f]["std"] for f in fams] for c in conds])
+        ax.imshow(np.log2(R), cmap="RdBu_r", norm=mcolors.TwoSlopeNorm(vmin=-3, vcenter=0, vmax=3), aspect="auto")
+        for i in range(len(conds)):
+            for j in range(len(fams)):
+                ax.text(j, i, f"{R[i, j]:.2f}", ha="center", va="center", fontsize=5.5,
+                        color="white" if abs(np.log2(R[i, j])) > 2 else "black")
+        ax.set_xticks(range(len(fams)), fams, fontsize=7, rotation=45)
+        s = results["summary"][m]
+        ax.set_title(f"{title}\nworst excess over std {s['worst_excess']:+.3f}, ratio of means "
+                     f"{s['ratio_of_means']:.2f}", fontsize=8)
+    axes[0].set_yticks(range(len(conds)), conds, fontsize=6.5)
+    fig.suptitle("Transfer error / standard transfer's, per condition (map/k_M_k_N/pairs) and family", fontsize=9)
+    fig.tight_layout()
+    return fig

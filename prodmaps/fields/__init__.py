@@ -1,0 +1,83 @@
+"""Tangent fields through functional maps: consistent cross fields and quad layouts (Figure 14).
+
+The paper's Section 5.4 adapts [ACBCO17]: cross fields on two surfaces are related through
+their action on real-valued functions, transported by a functional map; the paper's change is
+to let that transport use the extended basis (``C~``, products of basis functions). This
+subpackage implements the pieces on plain arrays:
+
+* :mod:`.frames` — face frames, complex tangent coordinates, transport, complex gradients.
+* :mod:`.crossfield` — ``N``-direction fields as power fields: connection Laplacian, smoothest
+  and curvature-aligned fields [KCPS13], singularities and indices, angles modulo ``2π/N``,
+  push-forward through a point map (evaluation only).
+* :mod:`.operators` — vector fields as derivations in a basis and the Leibniz extension to the
+  extended basis; the degree-N action of a cross field on functions.
+* :mod:`.consistency` — the consistency energy through ``C`` or ``C~`` and the design of a
+  target field (or both) by linear least squares.
+* :mod:`.stripes` — two coupled stripe patterns per cross field [KCPS15], the quad texture and
+  the layout-consistency score.
+
+The Figure 14 experiment (a dataset pair, the ground-truth reference, the measures) and its
+figures are in the experiments layer: :mod:`prodmaps.experiments.crossfields` and
+:mod:`prodmaps.experiments.crossfield_plots`.
+
+Conventions: faces frames ``(u, v, n)`` with ``u`` the unit edge ``F[:,0] -> F[:,1]``; fields
+are complex per face in those frames; a cross field is stored as its 4th power; ``C_12`` is
+``(k2, k1)`` and maps coefficients on shape 1 to shape 2; ``p2p_21`` is ``(n2,)``; bases are
+A-orthonormal (lumped area inner product) with the constant first; in this subpackage's
+experiment ``k`` is the paper's k (non-constant functions), in :func:`prodmaps.eigenbasis` it
+counts the constant.
+"""
+
+from .consistency import ConsistencyProblem, consistency_problem, design_consistent_field, design_joint
+from .crossfield import (
+    aligned_field,
+    angle_stats,
+    connection_laplacian,
+    cross_angle,
+    cross_field,
+    curvature_guide,
+    field_vectors,
+    normalize_field,
+    pushforward_field,
+    rotate_field,
+    singularities,
+    singularity_index,
+    smoothest_field,
+    vertex_power_field,
+)
+from .frames import (
+    Frames,
+    angle_defect,
+    as_frames,
+    complex_gradient,
+    face_to_vertex,
+    mesh_frames,
+    tangent_frames,
+    to_complex,
+    to_vectors,
+    vertex_holonomy,
+)
+from .operators import (
+    SpanProjector,
+    commutator_energy,
+    derivation_in,
+    derivation_matrix,
+    field_action,
+    leibniz_extension,
+    powered_gradients,
+    reduced_derivation,
+    span_projector,
+)
+from .stripes import layout_consistency, quad_texture, stripe_patterns
+
+__all__ = [
+    "Frames", "tangent_frames", "mesh_frames", "as_frames", "to_complex", "to_vectors", "complex_gradient",
+    "face_to_vertex", "angle_defect", "vertex_holonomy",
+    "connection_laplacian", "smoothest_field", "curvature_guide", "aligned_field", "cross_field",
+    "normalize_field", "rotate_field", "field_vectors", "cross_angle", "angle_stats", "singularity_index",
+    "singularities", "vertex_power_field", "pushforward_field",
+    "derivation_matrix", "reduced_derivation", "leibniz_extension", "SpanProjector", "span_projector",
+    "derivation_in", "field_action", "powered_gradients", "commutator_energy",
+    "ConsistencyProblem", "consistency_problem", "design_consistent_field", "design_joint",
+    "stripe_patterns", "quad_texture", "layout_consistency",
+]

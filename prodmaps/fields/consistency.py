@@ -1,0 +1,394 @@
+"""Consistency of direction fields across two shapes through a functional map.
+
+Only real-valued functions cross the map; no point map is used (except by the ``"p2p"``
+oracle, for evaluation).
+
+Setting
+-------
+Shape 1 carries a unit ``N``-power field ``z1`` (``N = 4``: a cross field), shape 2 the unknown
+``z2``. Fields act on functions by the degree-N action ``Q_z(f) = Re(conj(z) g(f)^N) |g|^(p-N)``
+(:func:`prodmaps.fields.operators.field_action`; ``p = 0`` by default, ``N = p = 1`` is the
+derivation ``<X, ∇f>``).
+Test functions: with the standard basis, the non-constant base functions ``f_j = φ^1_j`` of
+shape 1, ``j = 1..k`` (``k`` = the paper's k, non-constant functions; ``tests="pairs"`` adds the
+sums ``(φ_a + φ_b)/√2``, since a quartic form is not determined by its values on a basis), with
+images ``T f_j = Φ2 C e_j``. With the extended basis, every non-constant extended column: the
+``φ_j`` and their products ``φ_a φ_b``, whose images ``B2 C~ e`` are the exact products of the
+images (Lemma 2): the extended basis replaces the basis everywhere. Consistency asks the action
+to commute with the map,
+
+    ``T(Q_{z1}(f_j)) ≈ Q_{z2}(T f_j)``   for every test function,
+
+which for ``N = 1`` and the standard basis is the commutativity ``C D_1 ≈ D_2 C`` of
+[ABCO13] column by column. The two sides are compared in a subspace of functions on shape 2,
+through coordinates in an A-orthonormal basis ``Q2`` of it (area inner product):
+
+* ``"std"``: ``T h = Φ2 C Φ1ᵀ A1 h`` and ``Q2 = Φ2``; the energy is
+  ``Σ_j ||C Φ1ᵀA1 Q_{z1}(f_j) - Φ2ᵀA2 Q_{z2}(T f_j)||²``, i.e. ``||C Q_1 - Q_2 C||²`` for the
+  ``(k+1, k)`` "operators" ``Q_s`` whose columns are the actions on the test functions.
+* ``"ext"`` (the paper's change): ``T h = B2 C~ a(h)`` with ``a(h)`` the Approach-B
+  coefficients of ``h`` in the extended basis ``B1`` of shape 1 (SVD threshold ``rtol``),
+  ``C~ = extend_fmap(C, ..., pairs="unique")`` ``(K2, K1)``, and ``Q2`` an orthonormal basis of
+  the span of ``B2``: ``||C~ Q~_1 - Q~_2 C~||²`` on the extended test functions; products let
+  the map carry the high-frequency functions ``Q_z(f_j)``.
+* ``"p2p"`` (oracle, evaluation only): ``T h = h ∘ p2p_21`` and test images ``f_j ∘ p2p_21``,
+  compared in the span of ``B2``: what a perfect transfer would give in that span.
+
+Each test function's action is scaled by ``s_j = 1/||S1 |g(f_j)|^p||_{A1}`` (source side,
+both sides) so that all test functions weigh alike; the energy is divided by the squared
+norm of the data, so ``E = 1`` for ``z2 = 0`` and ``E = 0`` for perfect consistency.
+
+Design
+------
+Because ``Q_z`` is linear in ``z``, the consistency residual is real-linear in the unknown
+field(s). The target field minimises
+
+    ``E(z2) = E_cons(z1, z2) + μ · z2ᴴ L2 z2 / (λ_1 · area_2) + α · Σ_f A_f w_f |z2_f - q_f|² / area_2``
+
+(``L2`` the connection Laplacian, ``λ_1`` the first non-zero Laplace–Beltrami eigenvalue of
+shape 2, so ``μ`` is dimensionless; the optional alignment to the target's own guide ``q``,
+weights ``w``, is off by default so that the map alone carries the field). It is a sparse +
+low-rank real least-squares problem in ``2 m2`` unknowns, solved by preconditioned conjugate
+gradients (preconditioner: the connection Laplacian plus the diagonal of the data term,
+factorised once). The cross is read from ``z2 / |z2|``. :func:`design_joint` optimises both
+fields at once (ACBCO17's joint setting): smoothness and alignment on both shapes plus the
+consistency term, again one linear least-squares problem.
+
+[ABCO13] Azencot, Ben-Chen, Chazal, Ovsjanikov. An operator approach to tangent vector field
+processing. SGP 2013.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..basis import Basis
+from ..products import product_basis
+from ..transfer import extend_fmap
+from .crossfield import _check_N, connection_laplacian
+from .frames import Frames, as_frames, complex_gradient, face_to_vertex
+from .operators import SpanProjector, powered_gradients, span_projector
+
+__all__ = ["ConsistencyProblem", "consistency_problem", "design_consistent_field", "design_joint",
+           "KINDS", "TESTS"]
+
+KINDS = ("std", "ext", "p2p")
+TESTS = ("base", "pairs", "products")
+
+
+def _test_functions(k: int, pairs: bool) -> np.ndarray:
+    """``(k1, J)`` coefficient matrix of the test functions in the base basis (row 0 = constant)."""
+    cols = [np.eye(k + 1)[:, 1:]]
+    if pairs:
+        a, b = np.triu_indices(k, 1)
+        P = np.zeros((k + 1, a.size))
+        P[a + 1, np.arange(a.size)] = 1 / np.sqrt(2)
+        P[b + 1, np.arange(a.size)] = 1 / np.sqrt(2)
+        cols.append(P)
+    return np.concatenate(cols, axis=1)
+
+
+@dataclass(eq=False)
+class ConsistencyProblem:
+    """The linear consistency model between two shapes (build with :func:`consistency_problem`).
+
+    Each side ``s`` has ``W_s`` ``(m_s, r)`` and ``H_s`` ``(m_s, J)`` such that the coordinates of
+    its (transported) action in the comparison span are ``W_sᵀ Re(conj(z_s) H_s)`` ``(r, J)``.
+    """
+
+    kind: str
+    N: int
+    fr_1: Frames
+    fr_2: Frames
+    W_1: np.ndarray  # (m1, r)
+    H_1: np.ndarray  # (m1, J) complex, scaled g(f_j)^N on shape 1
+    W_2: np.ndarray  # (m2, r)
+    H_2: np.ndarray  # (m2, J) complex, scaled g(T f_j)^N on shape 2
+    lam_2: float  # first non-zero Laplace-Beltrami eigenvalue of shape 2 (smoothness scale)
+    lam_1: float
+    info: dict = field(default_factory=dict)
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    # ------------------------------------------------------------------ linear maps
+    def _parts(self, side: int):
+        if ("parts", side) not in self._cache:
+            W, H = (self.W_1, self.H_1) if side == 1 else (self.W_2, self.H_2)
+            self._cache[("parts", side)] = (W, np.ascontiguousarray(H.real), np.ascontiguousarray(H.imag))
+        return self._cache[("parts", side)]
+
+    def _apply(self, side: int, z):
+        W, Hr, Hi = self._parts(side)
+        z = np.asarray(z)
+        return W.T @ (z.real[:, None] * Hr + z.imag[:, None] * Hi)  # (r, J) = Wᵀ Re(conj(z) H)
+
+    def _adjoint(self, side: int, Y):
+        # gradient of <Y, Wᵀ Re(conj(z) H)> with respect to (Re z, Im z), as a complex vector
+        W, Hr, Hi = self._parts(side)
+        WY = W @ Y  # (m, J)
+        return np.einsum("ij,ij->i", Hr, WY) + 1j * np.einsum("ij,ij->i", Hi, WY)  # (m,)
+
+    def data(self, z1: np.ndarray) -> np.ndarray:
+        """Coordinates ``(r, J)`` of the transported source action ``T(Q_{z1}(f_j))``."""
+        return self._apply(1, z1)
+
+    def model(self, z2: np.ndarray) -> np.ndarray:
+        """Coordinates ``(r, J)`` of the target action ``Q_{z2}(T f_j)``."""
+        return self._apply(2, z2)
+
+    def energy(self, z1: np.ndarray, z2: np.ndarray) -> float:
+        """Relative consistency energy ``||data(z1) - model(z2)||² / ||data(z1)||²``."""
+        c = self.data(z1)
+        return float(np.sum((c - self.model(z2)) ** 2) / max(np.sum(c ** 2), 1e-300))
+
+    # ------------------------------------------------------------------ pieces for solvers
+    def laplacian(self, side: int):
+        key = ("L", side)
+        if key not in self._cache:
+            fr = self.fr_1 if side == 1 else self.fr_2
+            self._cache[key] = connection_laplacian(fr, self.N)[0]
+        return self._cache[key]
+
+    def data_diagonal(self, side: int) -> np.ndarray:
+        """Diagonal of the data term's normal matrix (per face, averaged over Re/Im)."""
+        W, H = (self.W_1, self.H_1) if side == 1 else (self.W_2, self.H_2)
+        return 0.5 * np.sum(np.abs(H) ** 2, axis=1) * np.sum(W ** 2, axis=1)
+
+
+def _check_C(C, k1, k2):
+    C = np.asarray(C, dtype=np.float64)
+    if C.ndim != 2 or C.shape[0] > k2 or C.shape[1] > k1:
+        raise ValueError(f"C_12 must be (k2, k1) with k1 <= {k1}, k2 <= {k2}; got {np.shape(C)}")
+    return C
+
+
+def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Basis, C_12=None, *,
+                        kind: str = "ext", N: int = 4, tests: str | None = None, rtol: float = 1e-3,
+                        p2p_21=None, span_k: int | None = None, power: float | None = 0.0) -> ConsistencyProblem:
+    """Build the consistency model of a pair of shapes.
+
+    Parameters
+    ----------
+    fr_1, fr_2 : face frames of the shapes (:func:`prodmaps.fields.frames.mesh_frames`) or the meshes.
+    basis_1, basis_2 : A-orthonormal bases (constant first). ``C_12`` ``(k2, k1)`` uses their
+        first ``k1``/``k2`` columns; ``k1 - 1`` is the paper's k (non-constant functions).
+    C_12 : functional map from shape 1 to shape 2 (``T f ≈ Φ2 C Φ1ᵀ A1 f``). For
+        ``kind="p2p"`` it may be None (then the images of the test functions are pulled back
+        through ``p2p_21`` too and ``span_k`` sets the comparison span).
+    kind : ``"std"`` (basis, ``C``), ``"ext"`` (extended basis, ``C~``, pairs="unique") or
+        ``"p2p"`` (oracle through the point map ``p2p_21``, evaluation only).
+    N : symmetry order of the fields (4 for cross fields, 1 for vector fields).
+    tests : test functions: ``"base"`` (the ``k`` non-constant base functions), ``"pairs"``
+        (plus their pairwise sums ``(φ_a + φ_b)/√2``) or ``"products"`` (every non-constant
+        column of the extended basis: the base functions and their products ``φ_a φ_b``, whose
+        images are the exact products of the images, ``B2 C~``). Default: ``"base"`` for
+        ``"std"``, ``"products"`` for ``"ext"`` and ``"p2p"`` (the extended basis replaces the
+        basis everywhere).
+    rtol : SVD threshold of the extended bases (Approach B, the paper's 1e-3).
+    p2p_21 : ``(n2,)`` point map, only for ``kind="p2p"``; ``span_k`` its basis size if ``C_12`` is None.
+    power : magnitude exponent ``p`` of the action (:func:`~prodmaps.fields.operators.field_action`):
+        0 (default) direction only; ``None`` for ``p = N``, the polynomial ``Re(conj(z) g^N)``.
+    """
+    N = _check_N(N)
+    fr_1, fr_2 = as_frames(fr_1), as_frames(fr_2)
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+    if kind == "p2p":
+        if p2p_21 is None:
+            raise ValueError("kind='p2p' needs p2p_21 (n2,)")
+        p2p_21 = np.asarray(p2p_21, dtype=np.int64)
+        if p2p_21.shape != (basis_2.n,):
+            raise ValueError(f"p2p_21 must have shape (n2,) = ({basis_2.n},); got {p2p_21.shape}")
+    if C_12 is None:
+        if kind != "p2p":
+            raise ValueError(f"kind={kind!r} needs C_12 (k2, k1)")
+        k1 = k2 = span_k or basis_1.k
+    else:
+        C = _check_C(C_12, basis_1.k, basis_2.k)
+        k2, k1 = C.shape
+    b1, b2 = basis_1.truncate(k1), basis_2.truncate(k2)
+    if b1.n != fr_1.n_vertices or b2.n != fr_2.n_vertices:
+        raise ValueError("bases and frames describe different meshes")
+    if not (b1.mass_is_diagonal and b2.mass_is_diagonal):
+        raise ValueError("fields need lumped (diagonal) masses")
+    if tests is None:
+        tests = "base" if kind == "std" else "products"
+    if tests not in TESTS:
+        raise ValueError(f"tests must be one of {TESTS}, got {tests!r}")
+    if tests == "products" and kind == "std":
+        raise ValueError("tests='products' needs the extended basis (kind='ext' or 'p2p'): a (k2, k1) "
+                         "map does not transfer products")
+    if k1 < 2:
+        raise ValueError("need at least one non-constant basis function (k1 >= 2)")
+    # test functions and their images on shape 2
+    Ct = None
+    if tests == "products":
+        F1 = product_basis(b1, 2, "unique").matrix[:, 1:]  # (n1, K1-1)
+        if C_12 is None:
+            F2 = F1[p2p_21]
+        else:
+            Ct = extend_fmap(C, b1, b2, order=2, pairs="unique")  # (K2, K1)
+            F2 = product_basis(b2, 2, "unique").evaluate(Ct[:, 1:])  # (n2, K1-1) exact products
+    else:
+        Tc = _test_functions(k1 - 1, tests == "pairs")  # (k1, J)
+        F1 = b1.vecs @ Tc  # (n1, J)
+        F2 = F1[p2p_21] if C_12 is None else b2.vecs @ (C @ Tc)  # (n2, J)
+    G1 = complex_gradient(fr_1)
+    G2 = complex_gradient(fr_2)
+    S1 = face_to_vertex(fr_1)  # (n1, m1)
+    S2 = face_to_vertex(fr_2)
+    g1 = G1 @ F1  # (m1, J)
+    g2 = G2 @ F2
+    p = N if power is None else float(power)
+    mag = S1 @ (np.abs(g1) ** p)  # (n1, J)
+    scale = 1.0 / np.sqrt(np.sum(b1.mass[:, None] * mag ** 2, axis=0))  # (J,)
+    H1 = powered_gradients(g1, N, p) * scale
+    H2 = powered_gradients(g2, N, p) * scale
+    # comparison span on shape 2 and the transfer of source functions into it: Tr (r, n1)
+    A1, A2 = b1.mass, b2.mass
+    info = {"k": k1 - 1, "J": F1.shape[1], "tests": tests}
+    if kind == "std":
+        Q2 = b2.vecs  # (n2, k2)
+        Tr = (C @ (b1.vecs.T * A1[None, :]))  # (k2, n1) = C Φ1ᵀ A1
+    else:
+        ext2 = product_basis(b2, 2, "unique") if k2 > 1 else None
+        proj2: SpanProjector = span_projector(ext2.matrix if ext2 else b2.vecs, A2, rtol)
+        Q2 = proj2.Q  # (n2, r)
+        if kind == "ext":
+            ext1 = product_basis(b1, 2, "unique")
+            proj1 = span_projector(ext1.matrix, A1, rtol)
+            if Ct is None:
+                Ct = extend_fmap(C, b1, b2, order=2, pairs="unique")  # (K2, K1)
+            # a(h) = V1 Σ1⁻¹ Q1ᵀ A1 h ; coords = Σ2 V2ᵀ C~ a(h)
+            P1 = proj1.Vt.T @ ((proj1.Q.T * A1[None, :]) / proj1.s[:, None])  # (K1, n1)
+            Tr = proj2.from_basis(Ct @ P1)  # (r, n1)
+            info.update(K1=ext1.K, K2=ext2.K, rank_1=proj1.rank, rank_2=proj2.rank)
+        else:  # p2p oracle: coords = Q2ᵀ A2 (h ∘ p2p)
+            w = Q2 * A2[:, None]  # (n2, r)
+            Tr = np.zeros((Q2.shape[1], b1.n))
+            np.add.at(Tr.T, p2p_21, w)
+            info.update(rank_2=proj2.rank)
+    W1 = S1.T @ Tr.T  # (m1, r): W1ᵀ h_face = Tr (S1 h_face)
+    W2 = S2.T @ (Q2 * A2[:, None])  # (m2, r): W2ᵀ h_face = Q2ᵀ A2 S2 h_face
+    info["r"] = Q2.shape[1]
+    lam1 = float(b1.evals[1]) if b1.k > 1 else 1.0 / fr_1.area.sum()
+    lam2 = float(b2.evals[1]) if b2.k > 1 else 1.0 / fr_2.area.sum()
+    return ConsistencyProblem(kind, N, fr_1, fr_2, np.ascontiguousarray(W1), H1, np.ascontiguousarray(W2), H2,
+                              lam2, lam1, info)
+
+
+# ----------------------------------------------------------------------------- solvers
+def _cg(apply, rhs_c: np.ndarray, precond, tol: float, maxiter: int):
+    """CG on the real form of a real-linear SPD operator given on complex vectors."""
+    m = rhs_c.size
+
+    def to_c(x):
+        return x[:m] + 1j * x[m:]
+
+    def to_r(z):
+        return np.concatenate([z.real, z.imag])
+
+    A = spla.LinearOperator((2 * m, 2 * m), matvec=lambda x: to_r(apply(to_c(x))), dtype=np.float64)
+    Mop = spla.LinearOperator((2 * m, 2 * m), matvec=lambda x: to_r(precond(to_c(x))), dtype=np.float64)
+    it = [0]
+
+    def cb(_):
+        it[0] += 1
+
+    x, flag = spla.cg(A, to_r(rhs_c), rtol=tol, maxiter=maxiter, M=Mop, callback=cb)
+    return to_c(x), {"cg_iterations": it[0], "cg_flag": int(flag)}
+
+
+def design_consistent_field(problem: ConsistencyProblem, z1: np.ndarray, *, smoothness: float = 1e-3,
+                            align: float = 0.0, guide: np.ndarray | None = None, tol: float = 1e-6,
+                            maxiter: int = 500, normalize: bool = True):
+    """The target field consistent with a fixed source field ``z1`` (see the module doc).
+
+    Parameters
+    ----------
+    z1 : unit ``N``-power field on shape 1 ``(m1,)``.
+    smoothness : ``μ``, weight of the connection-Laplacian smoothness (dimensionless).
+    align, guide : optional alignment of the target to its own guide ``q`` ``(m2,)`` (e.g.
+        :func:`prodmaps.fields.crossfield.curvature_guide`, whose weights are ``|q|``).
+
+    Returns ``(z2 (m2,), info)``: ``z2`` unit (``normalize``) or raw, ``info`` with the energy terms.
+    """
+    P = problem
+    z1 = np.asarray(z1, dtype=np.complex128)
+    if z1.shape != (P.fr_1.n_faces,):
+        raise ValueError(f"z1 must be (m1,) = ({P.fr_1.n_faces},); got {z1.shape}")
+    c = P.data(z1)  # (r, J)
+    nc = max(float(np.sum(c ** 2)), 1e-300)
+    L = P.laplacian(2)
+    area = P.fr_2.area
+    mu = smoothness / (P.lam_2 * area.sum())
+    wq = np.zeros_like(area) if guide is None or align == 0 else align * area * np.abs(guide) / area.sum()
+    q = np.zeros(area.size, np.complex128) if guide is None else normalize_guide(guide)
+
+    def apply(z):
+        return mu * (L @ z) + P._adjoint(2, P.model(z)) / nc + wq * z
+
+    rhs = P._adjoint(2, c) / nc + wq * q
+    pre = spla.splu((mu * L + sp.diags(P.data_diagonal(2) / nc + wq + 1e-12 * mu * P.lam_2 * area)).tocsc())
+    z2, info = _cg(apply, rhs, pre.solve, tol, maxiter)
+    info.update(consistency=P.energy(z1, z2), smooth=float(np.real(np.vdot(z2, L @ z2)) / (P.lam_2 * area.sum())),
+                kind=P.kind, **P.info)
+    from .crossfield import normalize_field
+
+    return (normalize_field(z2) if normalize else z2), info
+
+
+def normalize_guide(q):
+    from .crossfield import normalize_field
+
+    return normalize_field(q)
+
+
+def design_joint(problem: ConsistencyProblem, guide_1: np.ndarray, guide_2: np.ndarray, *,
+                 smoothness: float = 1e-3, align: float = 1.0, consistency: float = 1.0,
+                 tol: float = 1e-6, maxiter: int = 1000, normalize: bool = True):
+    """Design both fields at once (ACBCO17's joint setting), one linear least-squares problem.
+
+    Minimises over ``(z1, z2)``: ``Σ_s μ z_sᴴ L_s z_s/(λ_s area_s) + α Σ_f A_f w_f |z_s - q̂_s|²/area_s``
+    ``+ β ||data(z1) - model(z2)||² / ν`` with ``q̂ = q/|q|``, ``w = |q|`` from the guides and
+    ``ν`` the squared norm of ``data`` for the aligned source field alone (so ``β`` is
+    dimensionless). Returns ``(z1, z2, info)``.
+    """
+    from .crossfield import aligned_field, normalize_field
+
+    P = problem
+    m1 = P.fr_1.n_faces
+    L1, L2 = P.laplacian(1), P.laplacian(2)
+    a1, a2 = P.fr_1.area, P.fr_2.area
+    mu1 = smoothness / (P.lam_1 * a1.sum())
+    mu2 = smoothness / (P.lam_2 * a2.sum())
+    w1 = align * a1 * np.abs(guide_1) / a1.sum()
+    w2 = align * a2 * np.abs(guide_2) / a2.sum()
+    q1, q2 = normalize_field(guide_1), normalize_field(guide_2)
+    z_ref = aligned_field(P.fr_1, guide_1, P.N, L=L1)
+    nu = max(float(np.sum(P.data(z_ref) ** 2)), 1e-300)
+    beta = consistency / nu
+
+    def apply(z):
+        u1, u2 = z[:m1], z[m1:]
+        r = P.data(u1) - P.model(u2)
+        g1 = mu1 * (L1 @ u1) + w1 * u1 + beta * P._adjoint(1, r)
+        g2 = mu2 * (L2 @ u2) + w2 * u2 - beta * P._adjoint(2, r)
+        return np.concatenate([g1, g2])
+
+    rhs = np.concatenate([w1 * q1, w2 * q2])
+    pre1 = spla.splu((mu1 * L1 + sp.diags(beta * P.data_diagonal(1) + w1 + 1e-12 * mu1 * P.lam_1 * a1)).tocsc())
+    pre2 = spla.splu((mu2 * L2 + sp.diags(beta * P.data_diagonal(2) + w2 + 1e-12 * mu2 * P.lam_2 * a2)).tocsc())
+
+    def precond(z):
+        return np.concatenate([pre1.solve(z[:m1]), pre2.solve(z[m1:])])
+
+    z, info = _cg(apply, rhs, precond, tol, maxiter)
+    z1, z2 = z[:m1], z[m1:]
+    info.update(consistency=P.energy(z1, z2), kind=P.kind, **P.info)
+    if normalize:
+        z1, z2 = normalize_field(z1), normalize_field(z2)
+    return z1, z2, info

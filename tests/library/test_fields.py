@@ -1,0 +1,407 @@
+"""Tests of prodmaps.fields: frames, cross fields, operators, consistency, stripes."""
+
+import numpy as np
+import pytest
+
+import prodmaps as pm
+from prodmaps import fields as pf
+from prodmaps.fields import crossfield as cf
+from prodmaps.fields import stripes as st
+from prodmaps.fields.consistency import consistency_problem, design_consistent_field, design_joint
+from prodmaps.mesh import icosphere
+
+
+# ----------------------------------------------------------------------------- helpers
+def relabelled_copy(mesh, seed=0, angle=0.7):
+    """A rigidly rotated copy with permuted vertices, permuted faces and rolled face corners.
+
+    Returns ``(copy, p2p_21, R)``: vertex ``y`` of the copy is vertex ``p2p_21[y]`` of ``mesh``.
+    """
+    rng = np.random.default_rng(seed)
+    n = mesh.n_vertices
+    p = rng.permutation(n)
+    inv = np.argsort(p)
+    c, s = np.cos(angle), np.sin(angle)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    F2 = inv[mesh.faces]
+    shift = rng.integers(0, 3, F2.shape[0])
+    F2 = np.take_along_axis(F2, (np.arange(3)[None] + shift[:, None]) % 3, axis=1)[rng.permutation(F2.shape[0])]
+    return pm.Mesh(mesh.vertices[p] @ R.T, F2), p, R
+
+
+def complete_basis(mesh):
+    """All eigenpairs (k = n): projections are exact."""
+    import scipy.linalg as sla
+
+    W, A = pm.laplacian(mesh)
+    evals, vecs = sla.eigh(W.toarray(), np.diag(A))
+    evals[0] = 0.0
+    vecs[:, 0] = 1 / np.sqrt(A.sum())
+    return pm.Basis(vecs, np.maximum(evals, 0), A)
+
+
+def direction_guide(fr, a=(0.3, 0.5, 0.8), N=4):
+    """Unit N-power guide along the tangential projection of a fixed direction."""
+    a = np.asarray(a, float) / np.linalg.norm(a)
+    t = a[None] - (fr.normal @ a)[:, None] * fr.normal
+    return cf.normalize_field(pf.to_complex(t, fr) ** N)
+
+
+@pytest.fixture(scope="module")
+def ico2():
+    return icosphere(2)  # 162 vertices
+
+
+@pytest.fixture(scope="module")
+def pair3():
+    """icosphere(3), a relabelled rotated copy, bases (21 columns) and a smooth aligned cross field."""
+    m1 = icosphere(3)
+    m2, p, R = relabelled_copy(m1)
+    fr1, fr2 = pf.mesh_frames(m1), pf.mesh_frames(m2)
+    z1 = pf.aligned_field(fr1, direction_guide(fr1), 4, scale=0.1)
+    return {"m1": m1, "m2": m2, "p": p, "R": R, "fr1": fr1, "fr2": fr2, "z1": z1,
+            "b1": pm.eigenbasis(m1, 21), "b2": pm.eigenbasis(m2, 21)}
+
+
+# ----------------------------------------------------------------------------- frames
+def test_complex_gradient_of_linear_function_is_projected_gradient(ico2):
+    fr = pf.mesh_frames(ico2)
+    G = pf.complex_gradient(fr)
+    assert G.shape == (ico2.n_faces, ico2.n_vertices)
+    for axis in range(3):
+        g = pf.to_vectors(G @ ico2.vertices[:, axis], fr)
+        e = np.eye(3)[axis]
+        expected = e[None] - fr.normal[:, [axis]] * fr.normal
+        np.testing.assert_allclose(g, expected, atol=1e-12)
+
+
+def test_to_complex_roundtrip_and_rotation(ico2):
+    fr = pf.mesh_frames(ico2)
+    z = np.exp(1j * np.linspace(0, 5, ico2.n_faces))
+    np.testing.assert_allclose(pf.to_complex(pf.to_vectors(z, fr), fr), z, atol=1e-14)
+    # multiplying by i is the rotation n x X
+    np.testing.assert_allclose(pf.to_vectors(1j * z, fr), np.cross(fr.normal, pf.to_vectors(z, fr)), atol=1e-14)
+
+
+def test_holonomy_is_angle_defect_and_gauss_bonnet(ico2):
+    fr = pf.mesh_frames(ico2)
+    K = pf.angle_defect(ico2.vertices, ico2.faces)
+    assert K.sum() == pytest.approx(4 * np.pi)
+    np.testing.assert_allclose(pf.frames.wrap_angle(pf.vertex_holonomy(fr) - K), 0.0, atol=1e-12)
+    S = pf.face_to_vertex(fr)
+    np.testing.assert_allclose(np.asarray(S.sum(axis=1)).ravel(), 1.0)
+
+
+def test_igl_local_basis_crosscheck(ico2):
+    igl = pytest.importorskip("igl")
+    if not hasattr(igl, "local_basis"):
+        pytest.skip("this libigl wheel has no local_basis")
+    fr = pf.mesh_frames(ico2)
+    B1, B2, B3 = igl.local_basis(ico2.vertices, ico2.faces)
+    np.testing.assert_allclose(B1, fr.u, atol=1e-10)
+    np.testing.assert_allclose(np.abs(np.einsum("ij,ij->i", B3, fr.normal)), 1.0, atol=1e-10)
+
+
+# ----------------------------------------------------------------------------- cross fields
+def test_connection_laplacian_is_hermitian_psd_and_matches_edge_sum(ico2):
+    fr = pf.mesh_frames(ico2)
+    L, mass = pf.connection_laplacian(fr, 4)
+    assert abs(L - L.conj().T).max() < 1e-12
+    rng = np.random.default_rng(1)
+    z = rng.normal(size=ico2.n_faces) + 1j * rng.normal(size=ico2.n_faces)
+    de = pf.frames.dual_edges(fr)
+    c = fr.centroids
+    elen = np.linalg.norm(ico2.vertices[de["b"]] - ico2.vertices[de["a"]], axis=1)
+    w = elen / np.linalg.norm(c[de["g"]] - c[de["f"]], axis=1)
+    direct = np.sum(w * np.abs(z[de["g"]] - np.exp(4j * de["rho"]) * z[de["f"]]) ** 2)
+    assert np.real(np.vdot(z, L @ z)) == pytest.approx(direct, rel=1e-12)
+    _, lam = pf.smoothest_field(fr, 4, L=L)
+    assert lam > 0  # no parallel cross field on a sphere
+
+
+@pytest.mark.parametrize("N, expected", [(1, 2.0), (4, 2.0)])
+def test_smoothest_field_indices_sum_to_euler_characteristic(pair3, N, expected):
+    fr = pair3["fr1"]
+    z, lam = pf.smoothest_field(fr, N)
+    idx = pf.singularity_index(fr, z, N)
+    assert idx.sum() == pytest.approx(expected)
+    np.testing.assert_allclose(idx * N, np.round(idx * N), atol=1e-12)  # multiples of 1/N
+    v, ind = pf.singularities(fr, z, N)
+    if N == 4:
+        assert v.size == 8 and np.all(ind == 0.25)  # 8 x (+1/4) on the round sphere
+
+
+def test_singularities_match_libigl(pair3):
+    igl = pytest.importorskip("igl")
+    if not hasattr(igl, "find_cross_field_singularities"):
+        pytest.skip("this libigl wheel has no find_cross_field_singularities")
+    m, fr, z = pair3["m1"], pair3["fr1"], pair3["z1"]
+    X = pf.field_vectors(z, fr, 4)
+    _, ig = igl.find_cross_field_singularities(m.vertices, m.faces, X[:, 0].copy(), X[:, 1].copy(), False)
+    ours = np.round(4 * pf.singularity_index(fr, z, 4)).astype(int) % 4
+    np.testing.assert_array_equal(ours, np.asarray(ig).ravel() % 4)
+
+
+def test_human_cross_field_index_sum_is_two(human_0):
+    fr = pf.mesh_frames(human_0)
+    z = pf.cross_field(human_0)
+    assert z.shape == (human_0.n_faces,)
+    np.testing.assert_allclose(np.abs(z), 1.0)
+    v, ind = pf.singularities(fr, z)
+    assert ind.sum() == pytest.approx(2.0)
+    assert v.size > 0
+
+
+def test_cross_angle_is_modulo_90_degrees():
+    rng = np.random.default_rng(0)
+    z = np.exp(1j * rng.uniform(0, 2 * np.pi, 50))
+    for deg, expected in [(0, 0), (90, 0), (180, 0), (30, 30), (60, 30), (45, 45), (100, 10), (-20, 20)]:
+        a = np.degrees(pf.cross_angle(pf.rotate_field(z, np.radians(deg)), z))
+        np.testing.assert_allclose(a, expected, atol=1e-9)
+    # vector fields (N = 1) are compared modulo 360°
+    a = np.degrees(pf.cross_angle(pf.rotate_field(z, np.radians(90), N=1), z, N=1))
+    np.testing.assert_allclose(a, 90, atol=1e-9)
+
+
+def test_aligned_field_follows_curvature_on_ellipsoid():
+    m = icosphere(3)
+    m = pm.Mesh(m.vertices * [1.0, 1.0, 2.0], m.faces)
+    fr = pf.mesh_frames(m)
+    z = pf.cross_field(m, scale=0.05)
+    eq = np.abs(fr.centroids[:, 2]) < 0.3
+    horiz = np.cross([0.0, 0.0, 1.0], fr.normal)  # along the equator: the maximal curvature direction
+    ref = cf.normalize_field(pf.to_complex(horiz, fr) ** 4)
+    assert np.degrees(pf.cross_angle(z, ref)[eq]).mean() < 3.0
+    q, w = pf.curvature_guide(m, fr)
+    assert w.min() >= 0 and w.max() <= 1 and np.any(w == 0) is not None
+
+
+def test_alignment_scale_trades_guide_for_smoothness(pair3):
+    fr = pair3["fr1"]
+    q = direction_guide(fr)
+    L, _ = pf.connection_laplacian(fr)
+    e_s, e_a = [], []
+    for s in (0.01, 0.1, 1.0):
+        z = pf.aligned_field(fr, q, scale=s)
+        e_s.append(np.real(np.vdot(z, L @ z)))
+        e_a.append(np.degrees(pf.cross_angle(z, q)).mean())
+    assert e_s[0] > e_s[1] > e_s[2]
+    assert e_a[0] < e_a[1] < e_a[2]
+    assert e_a[0] < 5.0
+
+
+def test_pushforward_through_rigid_relabelled_copy_is_exact(pair3):
+    fr1, fr2, z1, p, R = pair3["fr1"], pair3["fr2"], pair3["z1"], pair3["p"], pair3["R"]
+    z2, ok = pf.pushforward_field(fr1, z1, fr2, p)
+    assert ok.all()
+    # expected: rotate the 3D cross of the same triangle and express it in the copy's frames
+    tri1 = {tuple(sorted(f)): i for i, f in enumerate(pair3["m1"].faces.tolist())}
+    src = np.array([tri1[tuple(sorted(f))] for f in p[pair3["m2"].faces].tolist()])
+    d = pf.field_vectors(z1, fr1)[src, 0] @ R.T
+    expected = cf.normalize_field(pf.to_complex(d, fr2) ** 4)
+    assert np.degrees(pf.cross_angle(z2, expected)).max() < 1e-8
+    # singularities follow the relabelling
+    np.testing.assert_array_equal(pf.singularity_index(fr2, z2), pf.singularity_index(fr1, z1)[p])
+    with pytest.raises(ValueError, match="p2p_21"):
+        pf.pushforward_field(fr1, z1, fr2, p[:-1])
+
+
+# ----------------------------------------------------------------------------- operators
+def test_leibniz_extension_is_the_product_rule(ico2):
+    b = pm.eigenbasis(ico2, 6)
+    ext = pm.product_basis(b, 2, pairs="unique")
+    rng = np.random.default_rng(0)
+    D = rng.normal(size=(6, 6))
+    D[:, 0] = 0
+    Dt = pf.leibniz_extension(D, ext.index, b.phi0)
+    assert Dt.shape == (ext.K, ext.K)
+    B, Phi = ext.matrix, b.vecs
+    for c, (i, j) in enumerate(ext.index):
+        if min(i, j) > 0:
+            rhs = Phi[:, i] * (Phi @ D[:, j]) + Phi[:, j] * (Phi @ D[:, i])
+            np.testing.assert_allclose(B @ Dt[:, c], rhs, atol=1e-12 * np.abs(rhs).max())
+    # a derivation conjugated by a map commutes with the product-preserving C~
+    C = np.eye(6)
+    C[1:, 1:] = rng.normal(size=(5, 5))
+    C[0, 1:] = rng.normal(size=5)
+    D2 = C @ D @ np.linalg.inv(C)
+    Ct = pm.extend_fmap(C, b, b, order=2, pairs="unique")
+    D2t = pf.leibniz_extension(D2, ext.index, b.phi0)
+    np.testing.assert_allclose(Ct @ Dt, D2t @ Ct, atol=1e-12 * np.abs(Ct @ Dt).max())
+    with pytest.raises(ValueError, match="unique"):
+        pf.leibniz_extension(D, pm.product_basis(b, 2, pairs="ordered").index, b.phi0)
+
+
+def test_discrete_derivation_of_killing_field(pair3):
+    m, fr = pair3["m1"], pair3["fr1"]
+    X = np.cross([0.0, 0.0, 1.0], fr.centroids)  # rotation about z, tangent to the sphere
+    X -= np.einsum("ij,ij->i", X, fr.normal)[:, None] * fr.normal
+    D = pf.derivation_matrix(fr, X)
+    np.testing.assert_allclose(D @ np.ones(m.n_vertices), 0.0, atol=1e-12)
+    b = pair3["b1"].truncate(9)
+    f, g = b.vecs[:, 1], b.vecs[:, 2]
+    lhs, rhs = D @ (f * g), f * (D @ g) + g * (D @ f)
+    assert np.linalg.norm(lhs - rhs) < 0.05 * np.linalg.norm(rhs)  # Leibniz up to discretisation
+    Dr = pf.reduced_derivation(b, D)
+    assert np.linalg.norm(Dr + Dr.T) < 0.05 * np.linalg.norm(Dr)  # Killing: skew-adjoint
+    # N = 1 degree-N action is the derivation per face
+    G = pf.complex_gradient(fr) @ b.vecs
+    action = pf.face_to_vertex(fr) @ pf.field_action(G, pf.to_complex(X, fr), 1)
+    np.testing.assert_allclose(action, D @ b.vecs, atol=1e-12)
+
+
+def test_field_action_is_frame_independent_and_symmetric():
+    rng = np.random.default_rng(3)
+    g = rng.normal(size=(40, 5)) + 1j * rng.normal(size=(40, 5))
+    z = np.exp(1j * rng.uniform(0, 2 * np.pi, 40))
+    beta = rng.uniform(0, 2 * np.pi, 40)
+    a = pf.field_action(g, z, 4)
+    b = pf.field_action(g * np.exp(-1j * beta)[:, None], z * np.exp(-4j * beta), 4)  # other frames
+    np.testing.assert_allclose(a, b, atol=1e-12)
+    # rotating the cross by 90° does not change its power field, rotating by 45° flips the action
+    np.testing.assert_allclose(pf.field_action(g, pf.rotate_field(z, np.pi / 4), 4), -a, atol=1e-12)
+
+
+def test_commutator_vanishes_for_exact_map_with_complete_bases():
+    ico1 = icosphere(1)  # 42 vertices: complete bases, and 903 extended columns
+    m2, p, R = relabelled_copy(ico1, seed=2)
+    fr1, fr2 = pf.mesh_frames(ico1), pf.mesh_frames(m2)
+    b1, b2 = complete_basis(ico1), complete_basis(m2)
+    C = pm.fmap_from_p2p(p, b1, b2)
+    X1 = np.cross([0.2, 0.3, 1.0], fr1.centroids)
+    X1 -= np.einsum("ij,ij->i", X1, fr1.normal)[:, None] * fr1.normal
+    tri1 = {tuple(sorted(f)): i for i, f in enumerate(ico1.faces.tolist())}
+    src = np.array([tri1[tuple(sorted(f))] for f in p[m2.faces].tolist()])
+    X2 = X1[src] @ R.T
+    D1 = pf.reduced_derivation(b1, pf.derivation_matrix(fr1, X1))
+    D2 = pf.reduced_derivation(b2, pf.derivation_matrix(fr2, X2))
+    assert pf.commutator_energy(C, D1, D2) < 1e-18
+    D2_wrong = pf.reduced_derivation(b2, pf.derivation_matrix(fr2, np.cross(fr2.normal, X2)))
+    assert pf.commutator_energy(C, D1, D2_wrong) > 0.1
+    # the cross-field consistency energy, standard and extended, vanishes for the pushed field
+    z1 = pf.aligned_field(fr1, direction_guide(fr1), scale=0.1)
+    z2, _ = pf.pushforward_field(fr1, z1, fr2, p)
+    for kind in ("std", "ext"):
+        P = consistency_problem(fr1, b1, fr2, b2, C, kind=kind, rtol=1e-7)
+        assert P.energy(z1, z2) < 1e-16
+        assert P.energy(z1, pf.rotate_field(z2, np.radians(20))) > 1e-2
+
+
+# ----------------------------------------------------------------------------- consistency design
+def test_design_recovers_source_on_relabelled_copy_and_rotates_with_it(pair3):
+    d = pair3
+    C = pm.fmap_from_p2p(d["p"], d["b1"], d["b2"])  # (21, 21): k = 20
+    z_ref, _ = pf.pushforward_field(d["fr1"], d["z1"], d["fr2"], d["p"])
+    P = consistency_problem(d["fr1"], d["b1"], d["fr2"], d["b2"], C, kind="std", power=0)
+    z2, info = design_consistent_field(P, d["z1"])
+    assert z2.shape == (d["m2"].n_faces,)
+    st_ = pf.angle_stats(z2, z_ref, d["fr2"].area)
+    assert st_["mean_deg"] < 3.0 and st_["p90_deg"] < 6.0
+    assert info["consistency"] < 0.05
+    beta = np.radians(20)
+    z2r, _ = design_consistent_field(P, pf.rotate_field(d["z1"], beta))
+    assert pf.angle_stats(z2r, pf.rotate_field(z2, beta), d["fr2"].area)["mean_deg"] < 3.0
+    assert pf.angle_stats(z2r, z2, d["fr2"].area)["mean_deg"] > 15.0
+
+
+def test_extended_design_beats_standard_on_small_copy(ico2):
+    m2, p, _ = relabelled_copy(ico2, seed=4)
+    fr1, fr2 = pf.mesh_frames(ico2), pf.mesh_frames(m2)
+    b1, b2 = pm.eigenbasis(ico2, 9), pm.eigenbasis(m2, 9)  # k = 8: complete l <= 2 bands of the sphere
+    C = pm.fmap_from_p2p(p, b1, b2)
+    z1 = pf.aligned_field(fr1, direction_guide(fr1), scale=0.1)
+    z_ref, _ = pf.pushforward_field(fr1, z1, fr2, p)
+    P = consistency_problem(fr1, b1, fr2, b2, C, kind="ext", power=0)
+    assert P.info["tests"] == "products" and P.info["J"] == 8 + 36
+    z_ext, info = design_consistent_field(P, z1)
+    z_std, _ = design_consistent_field(consistency_problem(fr1, b1, fr2, b2, C, kind="std", power=0), z1)
+    e_ext = pf.angle_stats(z_ext, z_ref, fr2.area)["mean_deg"]
+    e_std = pf.angle_stats(z_std, z_ref, fr2.area)["mean_deg"]
+    assert e_ext < 1.0 < 2.0 < e_std
+    assert P.energy(z1, z_ref) < 1e-3 < P.energy(z1, pf.rotate_field(z_ref, np.radians(30)))
+
+
+def test_joint_design_is_more_consistent_than_separate_fields(pair3):
+    d = pair3
+    C = pm.fmap_from_p2p(d["p"], d["b1"].truncate(11), d["b2"].truncate(11))
+    q1 = direction_guide(d["fr1"], (0.3, 0.5, 0.8))
+    q2 = direction_guide(d["fr2"], (0.9, 0.1, 0.3))  # an inconsistent guide on the target
+    P = consistency_problem(d["fr1"], d["b1"], d["fr2"], d["b2"], C, kind="std", power=0)
+    s1, s2 = pf.aligned_field(d["fr1"], q1, scale=0.1), pf.aligned_field(d["fr2"], q2, scale=0.1)
+    z1, z2, info = design_joint(P, q1, q2, consistency=10.0)
+    np.testing.assert_allclose(np.abs(z1), 1.0)
+    assert info["consistency"] < 0.5 * P.energy(s1, s2)
+
+
+def test_consistency_problem_rejects_bad_input(pair3):
+    d = pair3
+    C = pm.fmap_from_p2p(d["p"], d["b1"].truncate(6), d["b2"].truncate(6))
+    with pytest.raises(ValueError, match="C_12"):
+        consistency_problem(d["fr1"], d["b1"], d["fr2"], d["b2"], np.zeros((30, 6)))
+    with pytest.raises(ValueError, match="kind"):
+        consistency_problem(d["fr1"], d["b1"], d["fr2"], d["b2"], C, kind="sdt")
+    with pytest.raises(ValueError, match="products"):
+        consistency_problem(d["fr1"], d["b1"], d["fr2"], d["b2"], C, kind="std", tests="products")
+    with pytest.raises(ValueError, match="p2p_21"):
+        consistency_problem(d["fr1"], d["b1"], d["fr2"], d["b2"], C, kind="p2p")
+    P = consistency_problem(d["fr1"], d["b1"], d["fr2"], d["b2"], C, kind="std")
+    with pytest.raises(ValueError, match="z1"):
+        design_consistent_field(P, d["z1"][:-1])
+    with pytest.raises(ValueError, match="N"):
+        pf.connection_laplacian(d["fr1"], 0)
+
+
+# ----------------------------------------------------------------------------- stripes, layouts
+def test_stripe_patterns_follow_the_field(pair3):
+    fr, z = pair3["fr1"], pair3["z1"]
+    psi, info = pf.stripe_patterns(fr, z, return_info=True)
+    assert psi.shape == (fr.n_vertices, 2)
+    E, mm, om = info["edges"], info["mismatch"], info["omega"]
+    i, j = E[:, 0], E[:, 1]
+    x = np.stack([psi.real, psi.imag], axis=2).reshape(-1, 4)  # (n, 4)
+    xj = np.einsum("eab,eb->ea", st._S[mm], x[j])  # j's values in i's labelling
+    res = []
+    for c in range(2):
+        pj = xj[:, 2 * c] + 1j * xj[:, 2 * c + 1]
+        res.append(np.abs(np.angle(pj * np.conj(psi[i, c]) * np.exp(-1j * om[:, c]))))
+    strong = np.abs(psi).min(axis=1)
+    ok = (strong[i] > 0.3 * np.median(strong)) & (strong[j] > 0.3 * np.median(strong))
+    assert ok.mean() > 0.5
+    assert np.median(np.concatenate(res)[np.tile(ok, 2)]) < 0.1
+    with pytest.raises(ValueError, match="cross field"):
+        pf.stripe_patterns(fr, z, N=2)
+
+
+def test_quad_texture_is_labelling_invariant():
+    rng = np.random.default_rng(0)
+    psi = rng.normal(size=(30, 2)) + 1j * rng.normal(size=(30, 2))
+    q = pf.quad_texture(psi)
+    for S in st._S:
+        x = np.stack([psi.real, psi.imag], axis=2).reshape(-1, 4) @ S.T
+        np.testing.assert_allclose(pf.quad_texture(x[:, [0, 2]] + 1j * x[:, [1, 3]]), q, atol=1e-14)
+
+
+def test_layout_consistency_scores():
+    rng = np.random.default_rng(0)
+    n = 4000
+    q = rng.uniform(-1, 1, n)
+    A = rng.uniform(0.5, 1.5, n)
+    ident = np.arange(n)
+    assert pf.layout_consistency(q, q, ident, A) == pytest.approx({"agreement": 1.0, "correlation": 1.0})
+    assert pf.layout_consistency(q, -q, ident, A)["agreement"] == pytest.approx(1.0)
+    r = pf.layout_consistency(q, rng.uniform(-1, 1, n), ident, A)
+    assert 0.5 <= r["agreement"] < 0.56 and r["correlation"] < 0.1
+    with pytest.raises(ValueError):
+        pf.layout_consistency(q, q, ident[:-1], A)
+
+
+def test_layout_of_relabelled_copy_agrees(pair3):
+    d = pair3
+    z2, _ = pf.pushforward_field(d["fr1"], d["z1"], d["fr2"], d["p"])
+    per = 10 * st.mean_edge_length(d["m1"].vertices, d["m1"].faces)
+    q1 = pf.quad_texture(pf.stripe_patterns(d["fr1"], d["z1"], period=per))
+    q2 = pf.quad_texture(pf.stripe_patterns(d["fr2"], z2, period=per))
+    W, A2 = pm.laplacian(d["m2"])
+    assert pf.layout_consistency(q1, q2, d["p"], A2)["agreement"] > 0.95
+    q_rot = pf.quad_texture(pf.stripe_patterns(d["fr2"], pf.rotate_field(z2, np.pi / 4), period=per))
+    assert pf.layout_consistency(q1, q_rot, d["p"], A2)["agreement"] < 0.8

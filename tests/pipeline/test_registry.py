@@ -1,0 +1,303 @@
+"""prodmaps.pipeline.registry: the real paper/runs.toml, malformed registries, -p parsing, the project root."""
+
+from __future__ import annotations
+
+import datetime
+import re
+from pathlib import Path
+
+import pytest
+
+from prodmaps.experiments.claims import load_ledger
+from prodmaps.pipeline import registry
+from prodmaps.pipeline.registry import (
+    PROFILES,
+    RegistryError,
+    Run,
+    find_project_root,
+    load_registry,
+    parse_param,
+    parse_params,
+    project_root,
+    registry_path,
+)
+
+ROOT = find_project_root(Path(__file__).resolve().parent)  # the project these tests belong to
+REAL = ROOT / "paper" / "runs.toml"
+
+
+# ------------------------------------------------------------------------------ the real registry
+@pytest.fixture(scope="module")
+def real_runs():
+    return load_registry(REAL)
+
+
+def test_real_registry_loads_runs_in_file_order(real_runs):
+    headers = re.findall(r"^\[runs\.([A-Za-z0-9_-]+)\]\s*$", REAL.read_text(encoding="utf-8"), flags=re.M)
+    assert len(headers) == len(set(headers)), "a run is declared twice"
+    assert list(real_runs) == headers
+    assert len(real_runs) >= 20
+    for name in ("fig02", "tab01", "tab06", "study_truncation"):
+        assert name in real_runs
+    assert all(isinstance(r, Run) and r.name == n for n, r in real_runs.items())
+
+
+def test_real_registry_every_notebook_exists_inside_the_project(real_runs):
+    for name, run in real_runs.items():
+        assert run.notebook.is_absolute(), name
+        assert run.notebook.is_file(), f"{name}: {run.notebook} missing"
+        assert run.notebook.suffix == ".ipynb", name
+        assert run.notebook.relative_to(ROOT).parts[0] == "notebooks", name
+
+
+def test_real_registry_profiles_and_fields(real_runs):
+    for name, run in real_runs.items():
+        assert run.reproduces, f"{name}: empty `reproduces`"
+        assert set(run.params) == set(PROFILES), f"{name}: profiles {sorted(run.params)}"
+        for prof in PROFILES:
+            assert not {"profile", "out_dir"} & set(run.parameters(prof)), name
+    # the six table runs share one notebook and differ by the `table` parameter
+    tabs = [real_runs[f"tab0{i}"] for i in range(1, 7)]
+    assert len({r.notebook for r in tabs}) == 1
+    assert [r.parameters("paper")["table"] for r in tabs] == [f"T{i}" for i in range(1, 7)]
+
+
+def test_real_registry_claims_refer_to_ledger_and_ledger_to_runs(real_runs):
+    ledger = load_ledger()
+    for name, run in real_runs.items():
+        assert isinstance(run.claims, tuple), name
+        unknown = set(run.claims) - set(ledger)
+        assert not unknown, f"{name}: claims {sorted(unknown)} are not in the ledger"
+    for cid, claim in ledger.items():  # every claim is decided by registered runs
+        missing = set(claim.runs) - set(real_runs)
+        assert not missing, f"claim {cid}: runs {sorted(missing)} are not registered"
+
+
+def test_project_root_of_real_registry():
+    assert project_root(REAL) == ROOT
+    assert (ROOT / "prodmaps" / "pipeline" / "registry.py").is_file()
+
+
+# ------------------------------------------------------------------------------ synthetic registries
+def _write(tmp_path: Path, text: str, name: str = "runs.toml") -> Path:
+    paper = tmp_path / "paper"
+    paper.mkdir(parents=True, exist_ok=True)
+    p = paper / name
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+GOOD = """
+[runs.a]
+notebook = "notebooks/a.ipynb"
+reproduces = "Figure 1"
+title = "A"
+claims = ["fig02.rank"]
+[runs.a.params.smoke]
+k = 3
+[runs.a.params.paper]
+k = 30
+ks = [1, 2]
+[runs.a.tolerances]
+"results.x" = { rtol = 1e-3 }
+
+[runs."b.2-x"]
+notebook = "/abs/elsewhere/b.ipynb"
+"""
+
+
+def test_load_registry_fields_and_path_resolution(tmp_path):
+    runs = load_registry(_write(tmp_path, GOOD))
+    assert list(runs) == ["a", "b.2-x"]
+    a, b = runs["a"], runs["b.2-x"]
+    assert a.notebook == (tmp_path / "notebooks" / "a.ipynb").resolve()  # relative to paper/..
+    assert b.notebook == Path("/abs/elsewhere/b.ipynb")
+    assert (a.reproduces, a.title, a.claims) == ("Figure 1", "A", ("fig02.rank",))
+    assert (b.reproduces, b.title, b.claims, b.params, b.tolerances) == ("", "", (), {}, {})
+    assert a.parameters("smoke") == {"k": 3}
+    assert a.parameters("paper") == {"k": 30, "ks": [1, 2]}
+    assert a.parameters("other") == {}
+    assert a.tolerances == {"results.x": {"rtol": 1e-3}}
+    # parameters() is a copy: changing it leaves the run unchanged
+    p = a.parameters("smoke")
+    p["k"] = 99
+    p["new"] = 1
+    assert a.parameters("smoke") == {"k": 3}
+    with pytest.raises(AttributeError):
+        a.name = "other"  # frozen
+
+
+def test_root_key_relative_to_registry_file(tmp_path):
+    reg = _write(tmp_path, 'root = "proj"\n[runs.a]\nnotebook = "nb/a.ipynb"\n')
+    assert load_registry(reg)["a"].notebook == (tmp_path / "paper" / "proj" / "nb" / "a.ipynb").resolve()
+    assert project_root(reg) == (tmp_path / "paper" / "proj").resolve()
+    # default: the parent of the registry's folder
+    assert project_root(_write(tmp_path / "other", "[runs]\n")) == (tmp_path / "other").resolve()
+
+
+def test_empty_registry_has_no_runs(tmp_path):
+    assert load_registry(_write(tmp_path, "")) == {}
+    assert load_registry(_write(tmp_path, "[runs]\n")) == {}
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ('[runs.a]\nreproduces = "Figure 1"\n', "missing `notebook"),
+        ('[runs.a]\nnotebook = "a.ipynb"\nnotbook = "typo"\n', "unknown keys ['notbook']"),
+        ('[runs.a]\nnotebook = "a.ipynb"\n[runs.a]\nnotebook = "b.ipynb"\n', "not valid TOML"),
+        ('[runs.a]\nnotebook = "a.ipynb"\n[runs.b]\nnotebook = "b.ipynb"\n[runs.a.params.smoke]\n[runs.a]\n',
+         "not valid TOML"),
+        ("[runs.a\nnotebook = 1\n", "not valid TOML"),
+        ("runs = 3\n", "[runs] must be a table"),
+        ("[runs]\na = 3\n", "must be a table"),
+        ('[runs."bad name"]\nnotebook = "a.ipynb"\n', "run names may use"),
+        ('[runs."-a"]\nnotebook = "a.ipynb"\n', "run names may use"),
+        ('[runs.a]\nnotebook = "a.ipynb"\nparams = 3\n', "params must be tables"),
+        ('[runs.a]\nnotebook = "a.ipynb"\n[runs.a.params]\nsmoke = 3\n', "params must be tables"),
+        ('[runs.a]\nnotebook = "a.ipynb"\n[runs.a.params.smoke]\nprofile = "paper"\n', "must not set ['profile']"),
+        ('[runs.a]\nnotebook = "a.ipynb"\n[runs.a.params.paper]\nout_dir = "x"\n', "must not set ['out_dir']"),
+        ('[runs.a]\nnotebook = "a.ipynb"\ntolerances = 1e-3\n', "tolerances must be a table"),
+    ],
+)
+def test_malformed_registries_raise_registry_error(tmp_path, text, message):
+    reg = _write(tmp_path, text)
+    with pytest.raises(RegistryError) as exc:
+        load_registry(reg)
+    assert message in str(exc.value)
+    assert str(reg) in str(exc.value)  # names the file
+
+
+@pytest.mark.parametrize("value", ['"fig02.rank"', "3"])
+def test_claims_must_be_a_list_of_strings(tmp_path, value):
+    with pytest.raises(RegistryError, match="claims"):
+        load_registry(_write(tmp_path, f'[runs.a]\nnotebook = "a.ipynb"\nclaims = {value}\n'))
+
+
+def test_error_names_the_run(tmp_path):
+    with pytest.raises(RegistryError, match=r"run 'second'.*unknown keys \['colour'\]"):
+        load_registry(_write(tmp_path, '[runs.first]\nnotebook = "a.ipynb"\n[runs.second]\nnotebook = "b.ipynb"\n'
+                                       'colour = "red"\n'))
+
+
+def test_missing_registry_file(tmp_path):
+    with pytest.raises(RegistryError, match="not found"):
+        load_registry(tmp_path / "nope.toml")
+    assert issubclass(RegistryError, ValueError)
+
+
+def test_registry_error_is_not_raised_for_a_missing_notebook_file(tmp_path):
+    # load_registry checks the `notebook` key, not the file: the runner reports a missing file as a failed run
+    runs = load_registry(_write(tmp_path, '[runs.a]\nnotebook = "notebooks/missing.ipynb"\n'))
+    assert not runs["a"].notebook.exists()
+
+
+# ------------------------------------------------------------------------------ registry_path / project root
+def test_registry_path_precedence(tmp_path, monkeypatch):
+    reg = _write(tmp_path / "proj", "[runs]\n")
+    other = _write(tmp_path / "env", "[runs]\n")
+    sub = tmp_path / "proj" / "notebooks" / "deep"
+    sub.mkdir(parents=True)
+    monkeypatch.chdir(sub)
+    monkeypatch.delenv("PRODMAPS_RUNS", raising=False)
+    assert registry_path() == reg.resolve()  # found from the working directory
+    monkeypatch.setenv("PRODMAPS_RUNS", str(other))
+    assert registry_path() == other.resolve()  # the environment wins over the working directory
+    assert project_root() == (tmp_path / "env").resolve()
+    assert registry_path(reg) == reg.resolve()  # an explicit path wins over both
+
+
+def test_find_project_root_from_subfolder(tmp_path, monkeypatch):
+    _write(tmp_path / "proj", "[runs]\n")
+    deep = tmp_path / "proj" / "a" / "b" / "c"
+    deep.mkdir(parents=True)
+    assert find_project_root(deep) == (tmp_path / "proj").resolve()
+    assert find_project_root(tmp_path / "proj") == (tmp_path / "proj").resolve()
+    assert find_project_root(str(deep)) == (tmp_path / "proj").resolve()
+    monkeypatch.chdir(deep)
+    assert find_project_root() == (tmp_path / "proj").resolve()
+
+
+def test_find_project_root_nearest_wins(tmp_path):
+    _write(tmp_path / "outer", "[runs]\n")
+    _write(tmp_path / "outer" / "inner", "[runs]\n")
+    deep = tmp_path / "outer" / "inner" / "x"
+    deep.mkdir(parents=True)
+    assert find_project_root(deep) == (tmp_path / "outer" / "inner").resolve()
+
+
+def test_find_project_root_fails_outside_a_project(tmp_path, monkeypatch):
+    assert not any((p / "paper" / "runs.toml").is_file() for p in (tmp_path, *tmp_path.parents))
+    # a paper/ folder without runs.toml, or runs.toml in the wrong place, is not a project
+    (tmp_path / "paper").mkdir()
+    (tmp_path / "runs.toml").write_text("[runs]\n")
+    with pytest.raises(RegistryError, match=r"no paper/runs\.toml in"):
+        find_project_root(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delenv("PRODMAPS_RUNS", raising=False)
+    with pytest.raises(RegistryError):
+        find_project_root()
+    with pytest.raises(RegistryError):
+        registry_path()
+
+
+# ------------------------------------------------------------------------------ -p key=value
+@pytest.mark.parametrize(
+    "text, key, value",
+    [
+        ("k=3", "k", 3),
+        ("k = 3", "k", 3),
+        ("rtol=1e-3", "rtol", 1e-3),
+        ("x=2.5", "x", 2.5),
+        ("x=-4", "x", -4),
+        ("ks=[4, 8, 12]", "ks", [4, 8, 12]),
+        ("sizes=[[9, 9], [29, 39]]", "sizes", [[9, 9], [29, 39]]),
+        ("names=['a', 'b']", "names", ["a", "b"]),  # not JSON, a TOML array
+        ('dataset="faust"', "dataset", "faust"),
+        ("dataset='faust'", "dataset", "faust"),  # TOML literal string
+        ("dataset=faust", "dataset", "faust"),  # bare word: kept as a string
+        ("flag=true", "flag", True),
+        ("flag=false", "flag", False),
+        ("opt=null", "opt", None),
+        ("d={\"a\": 1}", "d", {"a": 1}),
+        ("d={a = 1}", "d", {"a": 1}),  # TOML inline table
+        ("day=2024-01-02", "day", datetime.date(2024, 1, 2)),
+        ("expr=a=b", "expr", "a=b"),  # split at the first '='
+        ("empty=", "empty", ""),
+        ("path=results/paper", "path", "results/paper"),
+    ],
+)
+def test_parse_param(text, key, value):
+    k, v = parse_param(text)
+    assert k == key
+    assert v == value
+    assert type(v) is type(value)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("k3", "must look like key=value"),
+    ("", "must look like key=value"),
+    ("=3", "not a valid Python identifier"),
+    ("1k=3", "not a valid Python identifier"),
+    ("a-b=3", "not a valid Python identifier"),
+    ("a.b=3", "not a valid Python identifier"),
+])
+def test_parse_param_bad_input(text, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        parse_param(text)
+
+
+def test_parse_params():
+    assert parse_params(None) == {}
+    assert parse_params([]) == {}
+    assert parse_params(["k=3", "rtol=1e-3", "dataset=faust", "ks=[1,2]"]) == {
+        "k": 3, "rtol": 1e-3, "dataset": "faust", "ks": [1, 2]}
+    assert parse_params(["k=1", "k=2"]) == {"k": 2}  # the last one wins
+    with pytest.raises(ValueError):
+        parse_params(["k=1", "oops"])
+
+
+def test_module_exports():
+    for name in registry.__all__:
+        assert hasattr(registry, name), name
+    assert PROFILES == ("smoke", "paper")

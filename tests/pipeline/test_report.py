@@ -1,0 +1,531 @@
+"""prodmaps.pipeline.report: the claims-first reproduction report from a synthetic results folder.
+
+The results folder and the registry are written here, as ``prodmaps reproduce`` writes them
+(``results.json``, ``manifest.json``, PNGs, ``executed.html``, ``error.txt``): no notebook runs.
+The claims are the package's ledger; the runs below cover a few of its claims and leave the
+others "not measured here".
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from prodmaps.experiments.claims import VERDICTS, load_ledger
+from prodmaps.experiments.published import load_published, published_values
+from prodmaps.pipeline.registry import load_registry
+from prodmaps.pipeline.report import build_report, collect_runs
+
+PUB1 = published_values("T1", "ground_truth")  # {(k_M, k_N, stage, method, function): value}
+PUB2 = published_values("T2", "computed_NO17")
+N_PUB = {t: sum(r["table"] == t for r in load_published()) for t in "123456"}
+
+REGISTRY = """
+[runs.fig02]
+notebook = "notebooks/fig02.ipynb"
+reproduces = "Figure 2"
+title = "Fourier functions and products"
+[runs.fig03]
+notebook = "notebooks/fig03.ipynb"
+reproduces = "Figure 3"
+[runs.fig04]
+notebook = "notebooks/fig04.ipynb"
+reproduces = "Figure 4"
+[runs.tab01]
+notebook = "notebooks/tables.ipynb"
+reproduces = "Table 1"
+title = "Transfer errors, ground-truth maps, 9/9"
+[runs.tab01.params.paper]
+table = "T1"
+[runs.study_truncation]
+notebook = "notebooks/study.ipynb"
+reproduces = "Study"
+"""
+
+FAMS = ("hk k", "HKS", "XYZ")
+
+
+def _fam(*values):
+    return dict(zip(FAMS, values))
+
+
+STD_T = _fam(0.06, 0.5, 0.3)
+STD_A = _fam(0.0, 0.54, 0.29)
+APPROX = {"std": STD_A, "our_B": _fam(0.01, 0.6, 0.3), "our_B_gainrule": _fam(0.01, 0.6, 0.3),
+          "our_default": _fam(0.0, 0.1, 0.1)}
+TRANSFER = {  # subset -> method -> family -> error
+    "": {"std": STD_T, "our_B": _fam(0.07, 0.2, 0.25), "our_B_gainrule": _fam(0.05, 0.3, 0.2),
+         "our_default": _fam(0.06, 0.4, 0.28), "p2p_transfer": _fam(0.1, 0.6, 0.4)},
+    "_intra": {"std": STD_T, "our_B": _fam(0.07, 0.6, 0.25), "our_B_gainrule": _fam(0.07, 0.4, 0.2),
+               "our_default": _fam(0.06, 0.45, 0.29)},
+    "_inter": {"std": STD_T, "our_B": _fam(0.07, 0.6, 0.35), "our_B_gainrule": _fam(0.07, 0.55, 0.29),
+               "our_default": _fam(0.06, 0.5, 0.3)},
+}
+# our table values: published + delta (|delta| = 0.010, 0.050, 0.100, 0.004: 2 within 0.02, mean 0.041, max 0.100)
+DELTAS = {("transfer", "std", "HKS"): 0.010, ("transfer", "our_B", "HKS"): -0.050,
+          ("transfer", "our_B", "XYZ"): 0.100, ("approx", "std", "Indicator"): -0.004}
+TABLE1 = [
+    {"table": 1, "fmap": "ground_truth", "k_M": 9, "k_N": 9, "function": "HKS", "stage": "transfer", "method": "std",
+     "value": PUB1[(9, 9, "transfer", "std", "HKS")] + 0.010},
+    {"table": "T1", "function": "HKS", "stage": "transfer", "method": "our_B",
+     "value": PUB1[(9, 9, "transfer", "our_B", "HKS")] - 0.050},
+    {"table": "Table 1", "function": "XYZ", "column": "transfer_our_B",
+     "value": PUB1[(9, 9, "transfer", "our_B", "XYZ")] + 0.100},
+    {"table": 1, "function": "Indicator", "stage": "approx", "method": "std",
+     "value": PUB1[(9, 9, "approx", "std", "Indicator")] - 0.004},
+    {"table": 1, "function": "Nope", "stage": "transfer", "method": "std", "value": 0.5},  # matches nothing
+]
+
+# what the ledger's rules give on these numbers: claim -> (verdict of "all", marks paper/rule/default, intra/inter)
+EXPECTED = {
+    "fig02.rank": ("holds", ("yes", "—", "—"), "", "rank 9 of the extended basis = 2k+1 = 9"),
+    "fig02.dependency": ("does not hold", ("no", "—", "—"), "", "residual 1.0e-03 with λ = -0.797885"),
+    "fig02.higher_frequencies": ("holds", ("yes", "—", "—"), "", "products reach frequency 8, the basis 4"),
+    "tab01.products_improve_transfer": (
+        "holds", ("yes", "yes", "yes"), "intra: holds with the threshold rule; inter: does not hold",
+        "transfer error ours/std at most 0.83 over the families but hk k"),
+    "tab01.products_improve_approximation": (
+        "does not hold", ("no", "no", "yes"), "intra: does not hold; inter: does not hold",
+        "approximation error ours/std at most 1.11"),
+    "tab01.point_map_transfer_worse": (
+        "holds", ("yes", "—", "—"), "intra: not measured here; inter: not measured here",
+        "point-map transfer worse than std for 3 of 3 families"),
+}
+PRESENT_WITH_RESULTS = {"fig02", "tab01", "study_truncation", "extra_run"}
+
+
+def _doc(results, **params):
+    return {"parameters": {"profile": "paper", **params}, "results": results, "prodmaps_version": "0.1.0",
+            "versions": {"numpy": "2", "scipy": "1"}}
+
+
+def _manifest(name, status, seconds):
+    return {"run": name, "profile": "paper", "status": status, "hash": "0" * 64, "inputs": {},
+            "notebook": f"notebooks/{name}.ipynb", "seconds": seconds, "finished": "2026-01-01T00:00:00+00:00",
+            "python": "3.11.0", "outputs": {}}
+
+
+def _png(path: Path, seed: int):
+    rng = np.random.default_rng(seed)
+    Image.fromarray(rng.integers(0, 256, size=(6, 5, 3), dtype=np.uint8)).save(path)
+
+
+def _run(results_dir: Path, name, doc=None, manifest=None, pngs=(), html=True, error=None):
+    d = results_dir / name
+    d.mkdir(parents=True)
+    if doc is not None:
+        (d / "results.json").write_text(json.dumps(doc, indent=2, sort_keys=True, ensure_ascii=False))
+    if manifest is not None:
+        (d / "manifest.json").write_text(json.dumps(manifest))
+    for i, p in enumerate(pngs):
+        _png(d / p, i)
+    if html:
+        (d / "executed.ipynb").write_text("{}")
+        (d / "executed.html").write_text(f"<html><body>{name}</body></html>")
+    if error is not None:
+        (d / "error.txt").write_text(error)
+    return d
+
+
+def make_project(root: Path) -> tuple[Path, Path]:
+    """``root/paper/runs.toml`` and ``root/results/<run>/``: returns (registry, results folder)."""
+    (root / "paper").mkdir(parents=True)
+    reg = root / "paper" / "runs.toml"
+    reg.write_text(REGISTRY)
+    res = root / "results"
+    res.mkdir()
+    fig02 = {"rank_extended": 9, "rank_expected": 9, "dependency_lambda": -0.7978845608,
+             "dependency_residual": 1e-3, "max_frequency": {"φ0": 0, "φ1": 1, "φ4": 4, "φ1⊙φ4": 5, "φ4⊙φ4": 8}}
+    _run(res, "fig02", _doc(fig02), pngs=["fourier.png"])  # no manifest: status from results.json
+    _run(res, "fig03", None, _manifest("fig03", "failed", 1.5),
+         error="\n".join(f"error line {i}" for i in range(1, 21)))
+    tab01 = {f"errors{sub}": {"k9_9": {"approx": APPROX, "transfer": tr}} for sub, tr in TRANSFER.items()}
+    tab01["table"] = TABLE1
+    _run(res, "tab01", _doc(tab01, table="T1"), _manifest("tab01", "ok", 12.34), pngs=["table.png"])
+    study = {
+        "median_max_gain_of_kept_directions": {"gt_9_9": {"0.001": 123.44, "0.01": 5.62}},
+        "summary": {"gt_9_9": {
+            "HKS": {"chosen": {"gain": {"transfer": 0.2}, "paper": {"transfer": 0.3}, "oracle": {"transfer": 0.19}},
+                    "std_transfer": 0.25},
+            "XYZ": {"chosen": {"gain": {"transfer": 0.4}, "paper": {"transfer": 0.35}, "oracle": {"transfer": 0.3}},
+                    "std_transfer": 0.5},
+            "SHOT": {"chosen": {"gain": {"transfer": 0.4}}, "std_transfer": 0.5},  # incomplete: not counted
+        }},
+    }
+    _run(res, "study_truncation", _doc(study), _manifest("study_truncation", "ok", 4.0), pngs=["gains.png"])
+    # not registered; its table values sit at the top level of results.json
+    _run(res, "extra_run", {"table": [{"table": 2, "function": "HKS", "stage": "transfer", "method": "std",
+                                       "value": PUB2[(29, 39, "transfer", "std", "HKS")] + 0.03}]}, html=False)
+    _run(res, ".hidden", _doc({}), html=False)  # hidden: ignored
+    (res / "junk").mkdir()  # neither results.json nor manifest.json: ignored
+    (res / "stray.png").write_bytes(b"")  # a file, not a run
+    return reg, res
+
+
+@pytest.fixture(scope="module")
+def project(tmp_path_factory):
+    root = tmp_path_factory.mktemp("proj")
+    reg, res = make_project(root)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("PRODMAPS_RUNS", str(reg))  # the report's own project-root look-ups find this project
+        md, html = build_report(res, root / "paper" / "REPORT.md", registry=reg)
+    return {"root": root, "registry": reg, "results": res, "md": md, "html": html,
+            "text": md.read_text(encoding="utf-8"), "html_text": html.read_text(encoding="utf-8")}
+
+
+# ------------------------------------------------------------------------------ helpers
+def _section(text: str, heading: str) -> str:
+    """The text of a ``## heading`` section, up to the next ``## `` heading."""
+    m = re.search(rf"^## {re.escape(heading)}.*?$(.*?)(?=^## |\Z)", text, flags=re.M | re.S)
+    assert m, f"no section {heading!r}"
+    return m.group(1)
+
+
+def _cells(line: str) -> list[str]:
+    return [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", line.strip()[1:-1])]
+
+
+def _tables(section: str) -> list[list[list[str]]]:
+    """Markdown tables of a section: header row first, without the ``|---|`` line."""
+    out, cur = [], None
+    for line in section.splitlines():
+        if line.startswith("|"):
+            if cur is None:
+                cur = []
+                out.append(cur)
+            if not re.fullmatch(r"\|(---\|)+", line.strip()):
+                cur.append(_cells(line))
+        else:
+            cur = None
+    return out
+
+
+def _claim_rows(text: str) -> dict[str, dict]:
+    (table,) = _tables(_section(text, "Claims of the paper"))
+    header, rows = table[0], table[1:]
+    assert header == ["claim", "where", "the paper's words", "verdict", "paper", "rule", "default", "intra / inter",
+                      "evidence", "notebook"]
+    out = {}
+    for r in rows:
+        assert len(r) == len(header), r
+        cid = r[0].strip("`")
+        assert cid not in out, f"claim {cid} listed twice"
+        out[cid] = dict(zip(header, r))
+    return out
+
+
+# ------------------------------------------------------------------------------ collect_runs
+def test_collect_runs_registry_order_then_other_folders(project):
+    infos = collect_runs(project["results"], project["registry"])
+    assert [i.name for i in infos] == ["fig02", "fig03", "fig04", "tab01", "study_truncation", "extra_run"]
+    by = {i.name: i for i in infos}
+    assert (by["fig02"].status, by["fig02"].seconds) == ("ok", None)  # results.json without manifest
+    assert (by["fig03"].status, by["fig03"].seconds) == ("failed", 1.5)
+    assert (by["fig04"].status, by["fig04"].doc, by["fig04"].figures) == ("missing", {}, [])
+    assert (by["tab01"].status, by["tab01"].seconds) == ("ok", 12.34)
+    assert (by["extra_run"].status, by["extra_run"].reproduces) == ("ok", "")
+    assert (by["tab01"].reproduces, by["tab01"].title) == ("Table 1", "Transfer errors, ground-truth maps, 9/9")
+    assert by["tab01"].doc["parameters"]["table"] == "T1"
+    assert by["tab01"].manifest["status"] == "ok"
+    assert [p.name for p in by["study_truncation"].figures] == ["gains.png"]
+    assert by["fig02"].folder == project["results"] / "fig02"
+
+
+def test_collect_runs_without_registry(tmp_path):
+    _, res = make_project(tmp_path)
+    infos = collect_runs(res, tmp_path / "no-such-registry.toml")  # unreadable registry: folders only, sorted
+    assert [i.name for i in infos] == ["extra_run", "fig02", "fig03", "study_truncation", "tab01"]
+    assert all(i.reproduces == "" for i in infos)
+    assert collect_runs(tmp_path / "nothing", tmp_path / "no-such-registry.toml") == []
+
+
+# ------------------------------------------------------------------------------ claims first
+def test_report_files_and_return_value(project):
+    assert project["md"] == (project["root"] / "paper" / "REPORT.md").resolve()
+    assert project["html"] == project["md"].with_suffix(".html")
+    assert project["md"].is_file() and project["html"].is_file()
+    assert not list(project["md"].parent.glob("*.tmp"))  # written atomically
+
+
+def test_claims_section_comes_first(project):
+    text = project["text"]
+    headings = [ln for ln in text.splitlines() if ln.startswith("#")]
+    assert headings[0] == "# Reproduction report: Improved Functional Mappings via Product Preservation"
+    assert headings[1] == "## Claims of the paper, judged on these results"
+    level2 = [h for h in headings if h.startswith("## ")]
+    assert [h.split(":")[0] for h in level2] == [
+        "## Claims of the paper, judged on these results", "## Tables 1–6",
+        "## Study", "## Runs", "## Figures", "## Appendix"]
+    # nothing but the one paragraph of provenance between the title and the claims
+    between = text.split(headings[0], 1)[1].split(headings[1], 1)[0].strip()
+    assert "\n" not in between and between.startswith("Nogneng, Melzi")
+    assert "`results`" in between  # the results folder, shown relative to the project
+
+
+def test_every_ledger_claim_has_a_verdict(project):
+    ledger = load_ledger()
+    rows = _claim_rows(project["text"])
+    assert list(rows) == list(ledger)  # one row per claim, ledger order
+    for cid, row in rows.items():
+        claim = ledger[cid]
+        assert row["verdict"].strip("*") in VERDICTS, (cid, row["verdict"])
+        assert row["where"] == claim.where
+        if cid in EXPECTED:
+            continue
+        # a claim whose runs' results are absent here is not measured
+        assert not set(claim.runs) <= PRESENT_WITH_RESULTS, f"{cid}: add it to EXPECTED"
+        assert row["verdict"] == "not measured here", cid
+        assert (row["paper"], row["rule"], row["default"]) == ("—", "—", "—"), cid
+        m = re.fullmatch(r"not measured: run '(\w+)' not available", row["evidence"])
+        assert m and m.group(1) in set(claim.runs) - PRESENT_WITH_RESULTS, (cid, row["evidence"])
+
+
+def test_verdicts_of_the_measured_claims(project):
+    rows = _claim_rows(project["text"])
+    for cid, (verdict, marks, kinds, evidence) in EXPECTED.items():
+        row = rows[cid]
+        shown = f"**{verdict}**" if verdict == "does not hold" else verdict
+        assert row["verdict"] == shown, cid
+        assert (row["paper"], row["rule"], row["default"]) == marks, cid
+        assert row["intra / inter"] == kinds, cid
+        assert row["evidence"].startswith(evidence), (cid, row["evidence"])
+
+
+def test_claims_totals_and_quotes(project):
+    text, ledger = project["text"], load_ledger()
+    rows = _claim_rows(text)
+    n_holds = sum(v[0] == "holds" for v in EXPECTED.values())
+    n_not = sum(v[0] == "does not hold" for v in EXPECTED.values())
+    n_unmeasured = len(ledger) - len(EXPECTED)
+    assert (n_holds, n_not) == (4, 2)
+    totals = (f"Totals over {len(ledger)} claims: {n_holds} holds, {n_not} does not hold, "
+              f"{n_unmeasured} not measured here.")
+    assert totals in _section(text, "Claims of the paper")
+    for cid, row in rows.items():
+        q = ledger[cid].quote
+        assert row["the paper's words"] == f"“{q[:110]}{'…' if len(q) > 110 else ''}”"
+
+
+def test_no_reproduced_wording(project):
+    for text in (project["text"], project["html_text"]):
+        assert not re.search(r"\d+\s+of\s+\d+\s+published values reproduced", text)
+        assert "reproduced" not in text.lower()
+
+
+# ------------------------------------------------------------------------------ tables
+SUMMARY_HEADER = ["table", "cells compared", "within ±0.02", "mean |diff|", "largest |diff|",
+                  "products beat std: paper B (all · intra · inter)", "gain rule", "default"]
+
+
+def _summary_rows(text):
+    (table,) = _tables(_section(text, "Tables 1–6"))
+    assert table[0][0] == "table"  # (the header row itself: see test_markdown_table_headers_escape_pipes)
+    assert all(len(r) == len(SUMMARY_HEADER) for r in table[1:])
+    return {r[0]: r for r in table[1:]}
+
+
+def test_markdown_table_headers_escape_pipes(project):
+    (table,) = _tables(_section(project["text"], "Tables 1–6"))
+    assert table[0] == SUMMARY_HEADER
+    header_line = next(ln for ln in _section(project["text"], "Tables 1–6").splitlines() if ln.startswith("|"))
+    assert len(re.findall(r"(?<!\\)\|", header_line)) == len(SUMMARY_HEADER) + 1
+
+
+def test_table_summaries_count_mean_and_largest_difference(project):
+    rows = _summary_rows(project["text"])
+    assert list(rows) == [f"Table {t}" for t in range(1, 7)]
+    diffs = sorted(abs(d) for d in DELTAS.values())
+    assert sum(d <= 0.02 for d in diffs) == 2 and abs(np.mean(diffs) - 0.041) < 1e-12
+    t1 = rows["Table 1"]
+    assert t1[1:5] == [f"4 of {N_PUB['1']}", "2", "0.041", "0.100"]
+    # products beat std, per method, over all · intra · inter pairs (3 families, one size)
+    assert t1[5:] == ["2/3 · 1/3 · 0/3", "3/3 · 2/3 · 1/3", "2/3 · 2/3 · 0/3"]
+    # Table 2: one value from an unregistered run (top-level "table"), no tab02 run for the product columns
+    assert rows["Table 2"][1:] == [f"1 of {N_PUB['2']}", "0", "0.030", "0.030", "— · — · —", "— · — · —",
+                                   "— · — · —"]
+    for t in "3456":
+        assert rows[f"Table {t}"][1:5] == [f"0 of {N_PUB[t]}", "—", "—", "—"]
+    assert "Systematic differences (stated once):" in _section(project["text"], "Tables 1–6")
+
+
+def test_table_summaries_against_a_custom_published_csv(tmp_path):
+    _, res = make_project(tmp_path)
+    csv = tmp_path / "pub.csv"
+    csv.write_text("table,fmap,k_M,k_N,function,stage,method,value\n"
+                   "1,ground_truth,9,9,HKS,transfer,std,0.50\n"  # ours 0.55: diff 0.05
+                   "1,ground_truth,9,9,HKS,transfer,our_B,0.11\n"  # ours 0.10: diff 0.01
+                   "1,ground_truth,9,9,WKS,transfer,std,0.20\n"  # not measured by us
+                   "3,ground_truth,6,7,HKS,transfer,std,0.40\n")
+    md, _ = build_report(res, tmp_path / "out" / "R.md", registry=tmp_path / "paper" / "runs.toml", published=csv)
+    text = md.read_text(encoding="utf-8")
+    rows = _summary_rows(text)
+    assert list(rows) == ["Table 1", "Table 3"]
+    assert rows["Table 1"][1:5] == ["2 of 3", "1", "0.030", "0.050"]
+    assert rows["Table 3"][1:5] == ["0 of 1", "—", "—", "—"]
+    app = _section(text, "Appendix")
+    assert "| HKS | transfer | std | 0.50 | 0.550 | +0.050 | tab01 |" in app
+    assert "| HKS | transfer | our_B | 0.11 | 0.100 | -0.010 | tab01 |" in app
+    assert "| WKS | transfer | std | 0.20 | — |  |  |" in app
+
+
+def test_no_published_csv_means_no_table_sections(tmp_path):
+    _, res = make_project(tmp_path)
+    md, _ = build_report(res, tmp_path / "R.md", registry=tmp_path / "paper" / "runs.toml",
+                         published=tmp_path / "missing.csv")
+    text = md.read_text(encoding="utf-8")
+    assert "## Tables 1–6" not in text and "## Appendix" not in text
+    assert text.index("## Claims of the paper") < text.index("## Runs")
+
+
+def test_appendix_lists_every_published_value(project):
+    app = _section(project["text"], "Appendix")
+    heads = re.findall(r"^### (.*)$", app, flags=re.M)
+    assert heads[0] == "Table 1: ground_truth, k_M = 9, k_N = 9"
+    assert heads[-1] == "Table values that match no published number"
+    tables = _tables(app)
+    assert len(tables) == 7  # six paper tables and the unmatched values
+    t1 = tables[0]
+    assert t1[0] == ["function", "stage", "method", "published", "ours", "difference", "run"]
+    assert len(t1) - 1 == N_PUB["1"]
+    by = {(r[1], r[2], r[0]): r for r in t1[1:]}
+    for key, delta in DELTAS.items():
+        pub = PUB1[(9, 9) + key]
+        assert by[key][3:] == [f"{pub:.2f}", f"{pub + delta:.3f}", f"{delta:+.3f}", "tab01"], key
+    assert by[("transfer", "std", "WKS")][4:] == ["—", "", ""]
+    assert tables[2][0][:3] == ["k_M", "k_N", "function"]  # Table 3 has two settings
+    t2 = {(r[1], r[2], r[0]): r for r in tables[1][1:]}
+    assert t2[("transfer", "std", "HKS")][6] == "extra_run"
+    unmatched = tables[-1]
+    assert unmatched[0] == ["run", "entry", "reason"]
+    assert len(unmatched) == 2
+    assert unmatched[1][0] == "tab01" and '"function": "Nope"' in unmatched[1][1]
+    assert unmatched[1][2] == "no published value with these keys"
+
+
+# ------------------------------------------------------------------------------ study, runs, figures
+def test_study_section_conclusions(project):
+    study = _section(project["text"], "Study")
+    assert ("- `gt_9_9`: median over pairs of the largest transfer gain kept at rtol = 1e-3: 123.4; at 1e-2: 5.6"
+            in study)
+    # HKS: gain 0.2 <= paper 0.3, <= 1.1 oracle, <= std; XYZ: gain 0.4 > paper 0.35, > 1.1 * 0.3, <= std 0.5
+    assert ("- `gt_9_9`: the gain rule is at least as good as the paper's 1e-3 for 1 of 2 families, within 10 % of "
+            "the oracle threshold for 1, and below the standard transfer for 2") in study
+    assert "![study_truncation gains](../results/study_truncation/gains.png)" in study
+    assert project["text"].count("gains.png") == 1  # not repeated under Figures
+
+
+def test_runs_table_status_time_and_links(project):
+    runs = _section(project["text"], "Runs")
+    (table,) = _tables(runs)
+    assert table[0] == ["run", "reproduces", "status", "time (s)", "figures", "read"]
+    by = {r[0].strip("`"): r for r in table[1:]}
+    assert list(by) == ["fig02", "fig03", "fig04", "tab01", "study_truncation", "extra_run"]
+    assert by["tab01"][1:] == ["Table 1", "ok", "12.3", "1", "[executed notebook](../results/tab01/executed.html)"]
+    assert by["fig03"][1:] == ["Figure 3", "failed", "1.5", "0", "[executed notebook](../results/fig03/executed.html)"]
+    assert by["fig04"][1:] == ["Figure 4", "missing", "", "0", "executed notebook"]  # no file: no link
+    assert by["extra_run"][1:] == ["", "ok", "", "0", "executed notebook"]
+    assert "**Failed or not run:** `fig03`, `fig04`." in runs
+
+
+def test_figures_section(project):
+    figs = _section(project["text"], "Figures")
+    assert re.findall(r"^### (.*)$", figs, flags=re.M) == ["fig02 — Figure 2", "fig03 — Figure 3", "tab01 — Table 1"]
+    assert "![fig02 fourier](../results/fig02/fourier.png)" in figs
+    assert "![tab01 table](../results/tab01/table.png)" in figs
+    assert "Status **ok**, 12.3 s; outputs in `../results/tab01`;" in figs
+    # the failed run shows the first 15 lines of its error.txt
+    block = re.search(r"```\n(.*?)\n```", figs, flags=re.S).group(1).splitlines()
+    assert block == [f"error line {i}" for i in range(1, 16)]
+
+
+def test_links_to_executed_notebooks_are_relative(project):
+    base = project["md"].parent
+    text = project["text"]
+    links = re.findall(r"\]\(([^)\s]+)\)", text)
+    assert links, "no links in the report"
+    for link in links:
+        assert not link.startswith("/") and "://" not in link and not re.match(r"^[A-Za-z]:", link), link
+        assert (base / link).resolve().is_file(), link
+    executed = {lk for lk in links if lk.endswith("executed.html")}
+    assert executed == {f"../results/{r}/executed.html" for r in ("fig02", "fig03", "tab01", "study_truncation")}
+    rows = _claim_rows(text)
+    assert rows["tab01.products_improve_transfer"]["notebook"] == "[tables_transfer](../results/tab01/executed.html)"
+    assert rows["fig02.rank"]["notebook"] == "[fig02_fourier_products](../results/fig02/executed.html)"
+    assert rows["fig04.products_improve"]["notebook"] == "fig04_coordinate_reconstruction"  # no run: no link
+    assert str(project["results"]) not in text  # no absolute paths to the results
+
+
+def test_html_report(project):
+    h = project["html_text"]
+    assert h.startswith("<!DOCTYPE html>") and h.rstrip().endswith("</body></html>")
+    assert "<title>prodmaps reproduction report</title>" in h
+    h2 = re.findall(r"<h2>(.*?)</h2>", h)
+    assert h2[0] == "Claims of the paper, judged on these results"
+    assert h.index("<h1>") < h.index("<h2>Claims")
+    assert '<a href="../results/tab01/executed.html">tables_transfer</a>' in h
+    assert '<img src="../results/tab01/table.png" alt="tab01 table">' in h
+    assert "<b>does not hold</b>" in h and "**" not in h
+    hrefs = re.findall(r'(?:href|src)="([^"]+)"', h)
+    assert hrefs and all(not x.startswith("/") and "://" not in x for x in hrefs)
+    md_tables = sum(len(_tables(_section(project["text"], s))) for s in ("Claims", "Tables", "Runs", "Appendix"))
+    assert h.count("<table>") == md_tables == 10
+
+
+def test_html_written_where_requested_and_figures_copied(tmp_path, monkeypatch):
+    reg, res = make_project(tmp_path)
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    out = tmp_path / "paper" / "R.md"
+    html_out = tmp_path / "paper" / "site.html"
+    md, html = build_report(res, out, registry=reg, html_out=html_out, copy_figures=True)
+    assert (md, html) == (out.resolve(), html_out)
+    assert html_out.is_file() and not out.with_suffix(".html").exists()
+    text = md.read_text(encoding="utf-8")
+    assert "![tab01 table](report_figures/tab01/table.png)" in text
+    copied = tmp_path / "paper" / "report_figures" / "tab01" / "table.png"
+    assert copied.read_bytes() == (res / "tab01" / "table.png").read_bytes()
+    assert (tmp_path / "paper" / "report_figures" / "study_truncation" / "gains.png").is_file()
+    assert 'src="report_figures/study_truncation/gains.png"' in html_out.read_text(encoding="utf-8")
+
+
+def test_explicit_registry_works_from_any_working_directory(tmp_path, monkeypatch):
+    reg, res = make_project(tmp_path / "proj")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    monkeypatch.delenv("PRODMAPS_RUNS", raising=False)
+    md, _ = build_report(res, tmp_path / "proj" / "paper" / "R.md", registry=reg)
+    assert "## Claims of the paper" in md.read_text(encoding="utf-8")
+
+
+def test_html_links_resolve_from_the_html_folder(tmp_path, monkeypatch):
+    reg, res = make_project(tmp_path)
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    _, html = build_report(res, tmp_path / "paper" / "R.md", registry=reg, html_out=tmp_path / "paper" / "R2.html")
+    links = re.findall(r'(?:href|src)="([^"]+)"', html.read_text(encoding="utf-8"))
+    assert links
+    for link in links:
+        assert (html.parent / link).resolve().is_file(), link
+    # the links are shared by both files: an HTML report in another folder is refused, not broken
+    with pytest.raises(ValueError, match="html_out must be in the folder"):
+        build_report(res, tmp_path / "paper" / "R.md", registry=reg, html_out=tmp_path / "site" / "R.html")
+
+
+def test_default_output_is_the_projects_paper_report(tmp_path, monkeypatch):
+    reg, res = make_project(tmp_path)
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    md, html = build_report(res)  # registry and output from $PRODMAPS_RUNS
+    assert md == (tmp_path / "paper" / "REPORT.md").resolve()
+    assert html == md.with_suffix(".html") and html.is_file()
+    assert _runs_names(md.read_text(encoding="utf-8")) == ["fig02", "fig03", "fig04", "tab01", "study_truncation",
+                                                            "extra_run"]
+    assert len(load_registry(reg)) == 5
+
+
+def _runs_names(text):
+    (table,) = _tables(_section(text, "Runs"))
+    return [r[0].strip("`") for r in table[1:]]
