@@ -25,7 +25,7 @@ from .eigensolver import smallest_eigenpairs
 from .laplacian import laplacian
 from .mesh import Mesh
 
-__all__ = ["Basis", "eigenbasis", "fourier_basis", "fix_signs", "from_arrays"]
+__all__ = ["Basis", "eigenbasis", "fourier_basis", "fix_signs", "from_arrays", "check_basis"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,6 +123,13 @@ class Basis:
     def __repr__(self) -> str:
         label = f"{self.name!r}, " if self.name else ""
         return f"Basis({label}n={self.n}, k={self.k})"
+
+
+def check_basis(basis, name: str = "basis") -> Basis:
+    """``basis`` if it is a :class:`Basis`, else a ``TypeError`` naming the argument."""
+    if not isinstance(basis, Basis):
+        raise TypeError(f"{name} must be a prodmaps.Basis, got {type(basis).__name__}")
+    return basis
 
 
 def fix_signs(vecs: np.ndarray) -> np.ndarray:

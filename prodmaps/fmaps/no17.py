@@ -71,8 +71,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..basis import Basis
-from ..transfer import check_fmap, fmap_from_p2p
+from ..basis import Basis, check_basis
+from ..transfer import fmap_from_p2p
 
 __all__ = [
     "ground_truth",
@@ -91,14 +91,6 @@ NORMALIZATIONS = ("expected", "sum", None)
 
 
 # ---------------------------------------------------------------------------- helpers
-def _check_basis(basis, name: str) -> Basis:
-    if not isinstance(basis, Basis):
-        raise TypeError(f"{name} must be a prodmaps.Basis, got {type(basis).__name__}")
-    return basis
-
-
-def _check_fmap(C, basis_1: Basis, basis_2: Basis) -> np.ndarray:
-    return check_fmap(C, basis_1, basis_2, allow_truncation=True)
 
 
 def ground_truth(p2p_21, basis_1: Basis, basis_2: Basis) -> np.ndarray:
@@ -108,8 +100,8 @@ def ground_truth(p2p_21, basis_1: Basis, basis_2: Basis) -> np.ndarray:
     direction). The projection uses the area inner product of shape 2 (``Φ2ᵀA2Φ2 = I``).
     Equal to :func:`prodmaps.fmap_from_p2p`.
     """
-    _check_basis(basis_1, "basis_1")
-    _check_basis(basis_2, "basis_2")
+    check_basis(basis_1, "basis_1")
+    check_basis(basis_2, "basis_2")
     return fmap_from_p2p(p2p_21, basis_1, basis_2)  # (k2, k1)
 
 
@@ -222,8 +214,8 @@ def no17_terms(
     weight and normalisation. ``w_orient`` (the orientation term of Ren et al. 2018) is not
     implemented: it must be 0.
     """
-    _check_basis(basis_1, "basis_1")
-    _check_basis(basis_2, "basis_2")
+    check_basis(basis_1, "basis_1")
+    check_basis(basis_2, "basis_2")
     if w_orient != 0:
         raise NotImplementedError("w_orient != 0: the orientation-preserving term is not implemented; use w_orient=0")
     d1 = np.asarray(descr_1, dtype=np.float64)

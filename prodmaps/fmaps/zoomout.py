@@ -8,20 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..basis import Basis
+from ..basis import Basis, check_basis
 from ..transfer import check_fmap
 
 __all__ = ["zoomout"]
 
 
-def _check_basis(basis, name: str) -> Basis:
-    if not isinstance(basis, Basis):
-        raise TypeError(f"{name} must be a prodmaps.Basis, got {type(basis).__name__}")
-    return basis
-
-
-def _check_fmap(C, basis_1: Basis, basis_2: Basis) -> np.ndarray:
-    return check_fmap(C, basis_1, basis_2, allow_truncation=True)
 
 
 def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return_p2p: bool = False):
@@ -41,9 +33,9 @@ def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return
     """
     from ..p2p import from_fmap
 
-    _check_basis(basis_1, "basis_1")
-    _check_basis(basis_2, "basis_2")
-    C = _check_fmap(C_12, basis_1, basis_2)
+    check_basis(basis_1, "basis_1")
+    check_basis(basis_2, "basis_2")
+    C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)
     k2, k1 = C.shape
     if isinstance(k_final, (int, np.integer)):
         K2, K1 = int(k_final), int(k_final)

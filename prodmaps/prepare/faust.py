@@ -104,7 +104,7 @@ def prepare_faust(archive, data_root=None, *, force: bool = False, n_shapes: int
             manifest = {
                 "dataset": "faust",
                 "format_version": 1,
-                "prepared_by": "data_scripts/prepare_faust.py",
+                "prepared_by": "python -m prodmaps.prepare faust",
                 "source": {"archive": src.name,
                            "sha256": sha256_file(src) if src.is_file() else None},
                 "n_vertices": n_vertices,

@@ -167,7 +167,7 @@ def prepare_tosca(archive, data_root=None, *, force: bool = False, repair: bool 
             manifest = {
                 "dataset": "tosca",
                 "format_version": 1,
-                "prepared_by": "data_scripts/prepare_tosca.py",
+                "prepared_by": "python -m prodmaps.prepare tosca",
                 "source": {"archive": src.name, "sha256": sha256_file(src) if src.is_file() else None},
                 "ground_truth": "identity within a class (shared triangulation); none across classes",
                 "classes": class_info,
