@@ -37,8 +37,9 @@ first two:
 * ``not measured here`` — the results needed are missing (e.g. FAUST/TOSCA not prepared).
 
 Rules are Python expressions over the values (and ``all``, ``any``, ``min``, ``max``, ``abs``,
-``len``, ``sum``, ``sorted``, ``mean``), evaluated without builtins; the ledger is part of the
-package, not user input.
+``len``, ``sum``, ``sorted``, ``mean``, and ``lower(a, b)`` / ``not_higher(a, b)``: ``<`` / ``<=``
+with ties within ``TIE_REL`` relative, so that rounding never decides a verdict), evaluated
+without builtins; the ledger is part of the package, not user input.
 """
 
 from __future__ import annotations
@@ -60,8 +61,22 @@ def _mean(values) -> float:
     return sum(values) / len(values)
 
 
+TIE_REL = 1e-9  # errors this close are a tie (e.g. the default on hk k, which is the standard transfer)
+
+
+def lower(a: float, b: float) -> bool:
+    """``a < b`` by more than rounding: ``a < b - TIE_REL·max(|a|, |b|)``."""
+    return a < b - TIE_REL * max(abs(a), abs(b))
+
+
+def not_higher(a: float, b: float) -> bool:
+    """``a <= b`` up to rounding: ``not lower(b, a)``."""
+    return not lower(b, a)
+
+
 _FUNCS = {"all": all, "any": any, "min": min, "max": max, "abs": abs, "len": len, "sum": sum,
-          "sorted": sorted, "round": round, "range": range, "zip": zip, "mean": _mean}
+          "sorted": sorted, "round": round, "range": range, "zip": zip, "mean": _mean,
+          "lower": lower, "not_higher": not_higher}
 
 
 @dataclass(frozen=True)

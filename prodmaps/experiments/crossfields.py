@@ -1,9 +1,9 @@
 """Figure 14 (Section 5.4): consistent cross fields and quad layouts through a functional map.
 
-:func:`figure14_experiment` runs, for one pair of shapes,
-
 The cross-field library is :mod:`prodmaps.fields`; this module is the experiment of the Figure 14
 notebook (layer 2: it reads datasets and compares with a ground truth).
+
+:func:`figure14_experiment` runs, for one pair of shapes,
 
 1. a source cross field on shape 1 (curvature-aligned, :func:`~prodmaps.fields.crossfield.cross_field`);
 2. the **reference**: its push-forward through the ground-truth point map (evaluation only);
