@@ -146,8 +146,9 @@ class SafeTransfer:
         Z = evaluate_products(Psi, ext_u.index)[:, k1:] - Psi @ H  # (n2, Kp) images of the Q columns (Lemma 2)
         Y = Z @ V  # (n2, r) images y_i of the directions
         rho = np.sqrt(basis_2.area / basis_1.area)
-        U, s, _ = np.linalg.svd(C, full_matrices=False)
-        Uc = U[:, s > 1e-10 * s[0]]  # (k2, rank) orthonormal basis of range(C)
+        U, s, Vt = np.linalg.svd(C, full_matrices=False)
+        rk = s > 1e-10 * s[0]
+        Uc = U[:, rk]  # (k2, rank) orthonormal basis of range(C)
         Q2 = basis_2.vecs @ Uc  # (n2, rank) A2-orthonormal basis of range(Ψ)
         T = Q2.T @ (m2[:, None] * Y)  # (rank, r) coordinates of Π y_i
         raw = np.sqrt(np.einsum("ij,ij->j", Y, m2[:, None] * Y))  # (r,) ||y_i||_A2
@@ -164,8 +165,8 @@ class SafeTransfer:
         self._Y = np.ascontiguousarray(Y[:, keep])  # (n2, r_kept)
         self._W = np.ascontiguousarray(V[:, keep] * (h[keep] / lam[keep]))  # (Kp, r_kept): filtered pseudo-inverse
         self._V = np.ascontiguousarray(V[:, keep])
-        # the removed parts Π y_i = Φ2 Uc T_i = Φ2 C d_i with d_i = C⁺ Uc T_i: their coefficients on shape 1
-        self._D = np.ascontiguousarray(np.linalg.pinv(C) @ (Uc @ T[:, keep]))  # (k1, r_kept)
+        # the removed parts Π y_i = Φ2 Uc T_i = Φ2 C d_i with d_i = C⁺ Uc T_i = V_c Σ_c⁻¹ T_i (same SVD)
+        self._D = np.ascontiguousarray((Vt[rk].T / s[rk]) @ T[:, keep])  # (k1, r_kept)
 
     @property
     def rank(self) -> int:

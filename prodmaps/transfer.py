@@ -204,7 +204,7 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, or
         return basis_2.vecs @ (C @ basis_1.project(F))
     if method != "prod":
         raise ValueError(f"method must be 'std' or 'prod', got {method!r}")
-    if rtol is None and approx in (None, "safe"):
+    if rtol is None and approx is None:
         if order != 2:
             raise ValueError("the default extended transfer uses pairwise products (order=2); pass rtol=... "
                              "for the paper's Approach B with higher orders")

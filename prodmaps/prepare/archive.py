@@ -15,6 +15,7 @@ Safety rules implemented here:
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import json
 import os
@@ -167,6 +168,14 @@ def parse_mesh_bytes(data: bytes, suffix: str, scratch: Path):
         return read_mesh_arrays(tmp)
     finally:
         tmp.unlink()
+
+
+def argument_parser(doc: str, force_help: str) -> argparse.ArgumentParser:
+    """The prepare scripts' parser: the first paragraph of ``doc``, ``--data-root`` and ``--force``."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    ap.add_argument("--data-root", default=None, help="default: $PRODMAPS_DATA, else ~/.local/share/prodmaps")
+    ap.add_argument("--force", action="store_true", help=force_help)
+    return ap
 
 
 def run_cli(main_fn, argv=None) -> int:

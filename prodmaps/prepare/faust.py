@@ -15,7 +15,6 @@ plus ``manifest.json`` and ``SHA256SUMS``. The data root defaults to ``$PRODMAPS
 
 from __future__ import annotations
 
-import argparse
 import re
 import sys
 from pathlib import Path
@@ -25,6 +24,7 @@ import numpy as np
 from .archive import (
     Archive,
     PrepareError,
+    argument_parser,
     default_data_root,
     parse_mesh_bytes,
     run_cli,
@@ -118,10 +118,8 @@ def prepare_faust(archive, data_root=None, *, force: bool = False, n_shapes: int
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argument_parser(__doc__, "replace an existing prepared faust/ folder")
     ap.add_argument("--archive", required=True, help="MPI-FAUST.zip (or the unpacked MPI-FAUST folder)")
-    ap.add_argument("--data-root", default=None, help="default: $PRODMAPS_DATA, else ~/.local/share/prodmaps")
-    ap.add_argument("--force", action="store_true", help="replace an existing prepared faust/ folder")
     args = ap.parse_args(argv)
     prepare_faust(args.archive, args.data_root, force=args.force)
 

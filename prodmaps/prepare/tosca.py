@@ -25,7 +25,6 @@ holds inside the class), recording the kept original vertex indices in
 
 from __future__ import annotations
 
-import argparse
 import re
 import sys
 from collections import defaultdict
@@ -36,6 +35,7 @@ import numpy as np
 from .archive import (
     Archive,
     PrepareError,
+    argument_parser,
     default_data_root,
     run_cli,
     sha256_file,
@@ -179,10 +179,8 @@ def prepare_tosca(archive, data_root=None, *, force: bool = False, repair: bool 
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argument_parser(__doc__, "replace an existing prepared tosca/ folder")
     ap.add_argument("--archive", required=True, help="toscahires-asci.zip (or the unpacked folder)")
-    ap.add_argument("--data-root", default=None, help="default: $PRODMAPS_DATA, else ~/.local/share/prodmaps")
-    ap.add_argument("--force", action="store_true", help="replace an existing prepared tosca/ folder")
     ap.add_argument("--repair", action="store_true",
                     help="repair a class's shared triangulation once and apply it to all members")
     args = ap.parse_args(argv)

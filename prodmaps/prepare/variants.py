@@ -23,7 +23,6 @@ Usage (from the repository):
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import sys
@@ -31,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .archive import PrepareError, default_data_root, run_cli
+from .archive import PrepareError, argument_parser, default_data_root, run_cli
 
 RECIPES = ("remesh_iso", "remesh_nonuniform", "thin")
 
@@ -187,16 +186,14 @@ def make_variants(dataset: str, shape_ids, recipes=RECIPES, data_root=None, *, s
 
 
 def main(argv=None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argument_parser(__doc__, "replace existing variant files")
     ap.add_argument("--dataset", required=True, choices=("anny_humans", "faust", "tosca"))
     ap.add_argument("--shapes", nargs="+", required=True, help="family shape ids, e.g. tr_reg_000")
     ap.add_argument("--recipes", nargs="+", default=list(RECIPES), choices=RECIPES)
-    ap.add_argument("--data-root", default=None, help="default: $PRODMAPS_DATA, else ~/.local/share/prodmaps")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--axis", type=int, default=0, choices=(0, 1, 2), help="coarse side: coordinate < median")
     ap.add_argument("--coarse-ratio", type=float, default=0.25)
     ap.add_argument("--iso-scale", type=float, default=1.15)
-    ap.add_argument("--force", action="store_true")
     args = ap.parse_args(argv)
     make_variants(args.dataset, args.shapes, args.recipes, args.data_root, seed=args.seed, axis=args.axis,
                   coarse_ratio=args.coarse_ratio, iso_scale=args.iso_scale, force=args.force)

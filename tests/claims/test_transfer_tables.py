@@ -32,27 +32,9 @@ from prodmaps.experiments.published import load_published, match_entries
 pytestmark = pytest.mark.notebook
 
 
-@pytest.fixture(scope="module")
-def tab01(smoke_results):
-    return smoke_results("tab01")
-
-@pytest.fixture(scope="module")
-def tab02(smoke_results):
-    return smoke_results("tab02")
-
-@pytest.fixture(scope="module")
-def fig08(smoke_results):
-    return smoke_results("fig08")
-
-@pytest.fixture(scope="module")
-def study(smoke_results):
-    return smoke_results("study_truncation")
-
-
-
 # ------------------------------------------------------------------------------ Table 1
-def test_table1_outputs_well_formed(tab01):
-    d, res = tab01
+def test_table1_outputs_well_formed(smoke_results):
+    d, res = smoke_results("tab01")
     for f in ("T1_ours.csv", "T1_vs_published.csv", "table.json", "T1_vs_published.png"):
         assert (d / f).is_file(), f
     assert len(res["pairs"]) == 2 and res["fmap"] == "ground_truth"
@@ -65,23 +47,23 @@ def test_table1_outputs_well_formed(tab01):
     assert res["map_deviation_from_gt"]["k9_9"]["mean"] < 1e-12  # the ground-truth map
 
 
-def test_table1_hkk_in_span(tab01):
-    _, res = tab01
+def test_table1_hkk_in_span(smoke_results):
+    _, res = smoke_results("tab01")
     e = res["errors"]["k9_9"]
     assert e["approx"]["std"]["hk k"] < 1e-8  # the heat kernels from k_M + 1 eigenpairs lie in the basis
 
 
 @pytest.mark.parametrize("fam", ["WKS", "Random"])
 @pytest.mark.parametrize("method", ["our_l1", "our_l2", "our_B"])
-def test_table1_products_far_below_std_transfer(tab01, fam, method):
-    _, res = tab01
+def test_table1_products_far_below_std_transfer(smoke_results, fam, method):
+    _, res = smoke_results("tab01")
     t = res["errors"]["k9_9"]["transfer"]
     assert t[method][fam] < 0.5 * t["std"][fam], (fam, method, t[method][fam], t["std"][fam])
 
 
 @pytest.mark.parametrize("fam", ["WKS", "Random", "XYZ", "Indicator"])
-def test_table1_products_improve_approximation(tab01, fam):
-    _, res = tab01
+def test_table1_products_improve_approximation(smoke_results, fam):
+    _, res = smoke_results("tab01")
     a = res["errors"]["k9_9"]["approx"]
     for method in ("our_l1", "our_l2", "our_B"):
         assert a[method][fam] < a["std"][fam], (fam, method)
@@ -89,8 +71,8 @@ def test_table1_products_improve_approximation(tab01, fam):
 
 # ------------------------------------------------------------------------------ Table 2
 @pytest.mark.slow
-def test_table2_computed_maps_well_formed(tab02):
-    _, res = tab02
+def test_table2_computed_maps_well_formed(smoke_results):
+    _, res = smoke_results("tab02")
     assert res["fmap"] == "computed_NO17" and res["settings"] == [[29, 39]]
     matches, unmatched = match_entries(res["table"], load_published())
     assert not unmatched and len(matches) == len(res["table"]) > 0
@@ -103,8 +85,8 @@ def test_table2_computed_maps_well_formed(tab02):
 
 # ------------------------------------------------------------------------------ Figure 8
 @pytest.mark.slow
-def test_fig08_curves_are_area_fractions(fig08):
-    d, res = fig08
+def test_fig08_curves_are_area_fractions(smoke_results):
+    d, res = smoke_results("fig08")
     assert (d / "fig08_area_curves.png").is_file()
     g = np.asarray(res["gamma"])
     assert g[0] == 0.0 and g[-1] == 1.0
@@ -118,8 +100,8 @@ def test_fig08_curves_are_area_fractions(fig08):
 
 
 @pytest.mark.slow
-def test_fig08_products_improve_indicator_approximation(fig08):
-    _, res = fig08
+def test_fig08_products_improve_indicator_approximation(smoke_results):
+    _, res = smoke_results("fig08")
     for crit in ("paper", "scale_free"):
         auc = res["auc"][crit]["approx"]
         assert auc["B"]["Indicator"] > auc["std"]["Indicator"]
@@ -128,8 +110,8 @@ def test_fig08_products_improve_indicator_approximation(fig08):
 
 # ------------------------------------------------------------------------------ truncation study
 @pytest.mark.slow
-def test_study_gains_explain_the_threshold(study):
-    _, res = study
+def test_study_gains_explain_the_threshold(smoke_results):
+    _, res = smoke_results("study_truncation")
     for key, g in res["median_max_gain_of_kept_directions"].items():
         assert g["0.001"] > 5.0, key    # 1e-3 keeps directions amplified several times by the transfer
         assert g["0.1"] < 2.0, key      # the leading directions are transferred with gain about 1
@@ -138,8 +120,8 @@ def test_study_gains_explain_the_threshold(study):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("fam", ["XYZ", "Indicator"])
-def test_study_1e2_beats_paper_threshold_and_gain_rule_helps(study, fam):
-    _, res = study
+def test_study_1e2_beats_paper_threshold_and_gain_rule_helps(smoke_results, fam):
+    _, res = smoke_results("study_truncation")
     rt = [float(r) for r in res["rtols"]]
     for key, summ in res["summary"].items():
         s = summ[fam]
@@ -153,8 +135,8 @@ def test_study_1e2_beats_paper_threshold_and_gain_rule_helps(study, fam):
 
 
 @pytest.mark.slow
-def test_study_wks_products_far_below_std_at_every_threshold(study):
-    _, res = study
+def test_study_wks_products_far_below_std_at_every_threshold(smoke_results):
+    _, res = smoke_results("study_truncation")
     for key, summ in res["summary"].items():
         s = summ["WKS"]
         assert max(s["rtol"]["transfer"]) < 0.5 * s["std_transfer"], key

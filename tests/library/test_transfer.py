@@ -89,13 +89,3 @@ def test_mismatched_shapes_are_rejected(basis_0, basis_13):
         pm.transfer(np.zeros(b1.n), np.zeros((12, 10)), b1, b2, "nearest")
 
 
-def test_relative_error_and_area_curve():
-    mass = np.array([1.0, 1.0, 2.0])
-    g = np.array([1.0, 1.0, 1.0])
-    assert pm.relative_error(g, g, mass) == 0
-    np.testing.assert_allclose(pm.relative_error(2 * g, g, mass), 1.0)
-    curve = pm.area_fraction_curve(np.array([1.0, 1.0, 3.0]), g, mass, [0.0, 1.0, 3.0])
-    # (f-g)² = [0, 0, 4] ; sqrt(∫g²) = 2 -> threshold γ·2
-    np.testing.assert_allclose(curve, [0.0, 0.5, 1.0])
-    with pytest.raises(ValueError, match="zero"):
-        pm.relative_error(g, 0 * g, mass)
