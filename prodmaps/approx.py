@@ -31,6 +31,33 @@ picks ``"gram"`` then and ``"svd"`` below.
 For ``pairs="ordered"`` product bases every solver runs on the scaled unique basis (see
 :mod:`prodmaps.products`), which has exactly the ordered basis' singular values; results
 are mapped back with ``Sᵀ`` and equal the direct ordered computation.
+
+Normalisation (Approaches A and B)
+----------------------------------
+The threshold ``rtol`` (and Approach A's weights) act on the singular values of
+``sqrt(A) B D``, where the diagonal ``D`` says how the basis functions are normalised before
+their products are taken. It matters: with A-orthonormal eigenfunctions, scaling a mesh by
+``s`` leaves the columns ``sqrt(A) φ_i`` at norm 1 but scales product columns by ``1/s``, so a
+threshold relative to ``σ_max`` selects different product directions in metres and in
+centimetres. ``normalization`` names ``D`` (coefficients are always returned for the basis'
+own columns, ``a = D a'``; only the truncation and the penalties see ``D``):
+
+``"euclidean"``
+    each factor ``φ_i`` (the constant included) scaled to unit Euclidean norm, as a standard
+    eigensolver returns eigenvectors; products of the scaled factors. Free of the mesh's units.
+``"unit_area"``
+    A-orthonormal factors of the mesh scaled to total area 1 (``D`` multiplies a degree-``d``
+    column by ``area^(d/2)``). Free of the mesh's units.
+``"columns"``
+    every column of ``sqrt(A) B`` scaled to unit norm. Free of the mesh's units.
+``"area"``
+    A-orthonormal factors in the mesh's own units (``D = I``): depends on the units of the
+    mesh (it was this package's only reading before 0.3). Kept to measure that dependence.
+``"area@<s>"`` (e.g. ``"area@100"``)
+    ``"area"`` as if the mesh were scaled by ``s`` first (metres to centimetres: 100): a
+    degree-``d`` column is weighted by ``s^-d``. For studies of the unit dependence.
+
+The default is :data:`DEFAULT_NORMALIZATION`.
 """
 
 from __future__ import annotations
@@ -43,14 +70,26 @@ import scipy.linalg as sla
 from .basis import Basis
 from .products import ProductBasis
 
-__all__ = ["ApproximationOperator", "approximation_operator", "approximate", "check_functions"]
+__all__ = ["ApproximationOperator", "approximation_operator", "approximate", "check_functions", "column_weights",
+           "NORMALIZATIONS", "DEFAULT_NORMALIZATION"]
 
 METHODS = ("std", "svd", "ridge", "lasso")
+NORMALIZATIONS = ("euclidean", "unit_area", "columns", "area")
+DEFAULT_NORMALIZATION = "area"
 
 
 def check_functions(F, n: int, what: str = "f") -> np.ndarray:
-    """Validate a function or a matrix of functions on ``n`` points; returns float64."""
-    F = np.asarray(F, dtype=np.float64)
+    """Validate a function or a matrix of functions on ``n`` points; returns float64.
+
+    Raises ``ValueError`` for a wrong shape, complex values (transfer the real and imaginary
+    parts separately) or non-finite values, ``TypeError`` for values that are not numbers.
+    """
+    F = np.asarray(F)
+    if np.iscomplexobj(F):
+        raise ValueError(f"{what} is complex; functions are real: transfer F.real and F.imag separately")
+    if F.dtype.kind not in "biuf":
+        raise TypeError(f"{what} must be a real numeric array; got dtype {F.dtype}")
+    F = F.astype(np.float64, copy=False)
     if F.ndim not in (1, 2) or F.shape[0] != n:
         raise ValueError(f"{what} must have shape ({n},) or ({n}, m); got {F.shape}")
     if not np.all(np.isfinite(F)):
@@ -72,6 +111,59 @@ def _solver_parts(basis):
     raise TypeError(f"expected a prodmaps.Basis or ProductBasis, got {type(basis).__name__}")
 
 
+def column_weights(basis, normalization: str = DEFAULT_NORMALIZATION) -> np.ndarray | None:
+    """The diagonal ``D`` ``(K_u,)`` of the solver columns for ``normalization`` (module doc).
+
+    ``K_u`` counts the solver's columns: the basis' own for a Basis or a ``pairs="unique"``
+    ProductBasis, the unique multisets for ``pairs="ordered"`` (where ``(l, m)`` and ``(m, l)``
+    share a weight). Returns ``None`` for ``"area"`` (``D = I``).
+
+    Examples
+    --------
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import icosphere
+    >>> b = pm.eigenbasis(icosphere(2), 4)
+    >>> w = column_weights(b, "euclidean")
+    >>> bool(np.allclose(np.linalg.norm(b.vecs * w, axis=0), 1.0))
+    True
+    """
+    scale = _area_scale(normalization)
+    if normalization == "area":
+        return None
+    _, base, _, _ = _solver_parts(basis)
+    if normalization == "columns":
+        G = _gram(basis)
+        return 1.0 / np.sqrt(np.maximum(np.diag(G), np.finfo(float).tiny))
+    if scale is not None:  # "area@<s>": A-orthonormal factors of the mesh scaled by s are φ / s
+        c = np.full(base.k, 1.0 / scale)
+    elif normalization == "unit_area":
+        c = np.full(base.k, np.sqrt(base.area))  # (k,) per factor
+    else:  # euclidean
+        c = 1.0 / np.linalg.norm(base.vecs, axis=0)  # (k,) per factor
+    if not isinstance(basis, ProductBasis):
+        return c
+    idx = basis.unique_index  # (K_u, order), factors 1-based, 0 pads; row 0 is the constant
+    fac = np.where(idx > 0, c[idx], 1.0)
+    w = np.prod(fac, axis=1)
+    w[0] = c[0]
+    return w
+
+
+def _area_scale(normalization) -> float | None:
+    """``s`` of ``"area@<s>"`` (None for the other names); raises ``ValueError`` on unknown names."""
+    if isinstance(normalization, str) and normalization.startswith("area@"):
+        try:
+            s = float(normalization[5:])
+        except ValueError:
+            s = float("nan")
+        if not (np.isfinite(s) and s > 0):
+            raise ValueError(f"normalization {normalization!r}: the scale after 'area@' must be a positive number")
+        return s
+    if normalization not in NORMALIZATIONS:
+        raise ValueError(f"normalization must be one of {NORMALIZATIONS} or 'area@<scale>', got {normalization!r}")
+    return None
+
+
 @dataclass(frozen=True, eq=False)
 class ApproximationOperator:
     """Reusable approximation operator for one basis (build with :func:`approximation_operator`).
@@ -88,7 +180,8 @@ class ApproximationOperator:
     _P: np.ndarray | None = None  # (K_u, r):   a_s = P @ (U_rᵀ sqrt(A) f)   [svd route]
     _U: np.ndarray | None = None  # (n, r)
     _sV: np.ndarray | None = None  # (r, K_u):  ã = (Σ_r V_rᵀ) @ (S a)
-    _G: np.ndarray | None = None  # (K_u, K_u) Gram, lasso
+    _G: np.ndarray | None = None  # (K_u, K_u) Gram of the scaled columns, lasso
+    _d: np.ndarray | None = None  # (K_u,) column weights D of the lasso (None: D = I)
 
     @property
     def rank(self) -> int | None:
@@ -131,25 +224,33 @@ class ApproximationOperator:
 
 
 def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, eps: float = 1e-4,
-             route: str = "auto", tol: float = 1e-6, max_iter: int = 5000) -> ApproximationOperator:
+                           route: str = "auto", tol: float = 1e-6, max_iter: int = 5000,
+                           normalization: str | None = None) -> ApproximationOperator:
     """Build the approximation operator of ``basis`` for ``method`` (see module doc).
 
     Parameters
     ----------
-    rtol : Approach B threshold relative to σ_max (paper: 1e-3).
+    rtol : Approach B threshold relative to σ_max (paper: 1e-3), on ``sqrt(A) B D``.
     eps : Approach A weight, relative (ridge: to σ_max²; lasso: to ||Bᵀ A f||_∞).
     route : Approach B route, ``"auto"`` | ``"svd"`` | ``"gram"``.
     tol, max_iter : lasso stopping rule.
+    normalization : ``D`` of Approaches A and B (module doc; default :data:`DEFAULT_NORMALIZATION`).
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if normalization is None:
+        normalization = DEFAULT_NORMALIZATION
     B_s, base, E, K = _solver_parts(basis)
     if method == "std":
         if isinstance(basis, ProductBasis):
             raise ValueError("method='std' projects on an orthonormal Basis; pass ext.base, "
                              "or use 'svd'/'ridge'/'lasso' for a ProductBasis")
         return ApproximationOperator(basis, method, {})
-    params = {"rtol": rtol, "eps": eps, "route": route, "tol": tol, "max_iter": max_iter}
+    if isinstance(rtol, (str, bytes)) or isinstance(eps, (str, bytes)):
+        raise TypeError(f"rtol and eps are numbers; got rtol={rtol!r}, eps={eps!r}")
+    d = column_weights(basis, normalization)  # (K_u,) or None for D = I
+    params = {"rtol": rtol, "eps": eps, "route": route, "tol": tol, "max_iter": max_iter,
+              "normalization": normalization}
     if method == "svd":
         if not (0 <= rtol < 1):
             raise ValueError(f"rtol must be in [0, 1), got {rtol}")
@@ -161,44 +262,54 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
             if B_s is None:
                 B_s = basis.solver_basis()[0]
             X = np.sqrt(base.mass)[:, None] * B_s  # (n, K_u)
+            if d is not None:
+                X = X * d
             U, s, Vt = sla.svd(X, full_matrices=False, lapack_driver="gesdd")
             r = int(np.sum(s > rtol * s[0]))
-            return ApproximationOperator(
-                basis, method, params | {"route": "svd"},
-                _P=Vt[:r].T / s[:r], _U=np.ascontiguousarray(U[:, :r]), _sV=s[:r, None] * Vt[:r],
-            )
+            P, sV = Vt[:r].T / s[:r], s[:r, None] * Vt[:r]  # (K_u, r), (r, K_u) in the scaled columns
+            if d is not None:
+                P, sV = d[:, None] * P, sV / d
+            return ApproximationOperator(basis, method, params | {"route": "svd"},
+                                         _P=P, _U=np.ascontiguousarray(U[:, :r]), _sV=sV)
         if route != "gram":
             raise ValueError(f"route must be 'auto', 'svd' or 'gram', got {route!r}")
-        w, V, side = _gram_eig(basis)
+        w, V, side = _gram_eig(basis, normalization)
         s = np.sqrt(np.maximum(w, 0.0))
         r = int(np.sum(s > rtol * s[0]))
         Vr = V[:, :r]
-        if side == "primal":  # V: right singular vectors (K_u, K_u)
-            return ApproximationOperator(
-                basis, method, params | {"route": "gram"},
-                _M=(Vr / s[:r] ** 2) @ Vr.T, _sV=s[:r, None] * Vr.T,
-            )
+        if side == "primal":  # V: right singular vectors (K_u, K_u) of sqrt(A) B_s D
+            M, sV = (Vr / s[:r] ** 2) @ Vr.T, s[:r, None] * Vr.T
+            if d is not None:
+                M, sV = d[:, None] * M * d, sV / d
+            return ApproximationOperator(basis, method, params | {"route": "gram"}, _M=M, _sV=sV)
         X = np.sqrt(base.mass)[:, None] * basis.solver_basis()[0]  # (n, K_u); V: left vectors (n, n)
+        if d is not None:
+            X = X * d
         XtU = X.T @ Vr  # (K_u, r) = V_r Σ_r
-        return ApproximationOperator(
-            basis, method, params | {"route": "gram", "side": "dual"},
-            _P=XtU / s[:r] ** 2, _U=np.ascontiguousarray(Vr), _sV=XtU.T.copy(),
-        )
+        P, sV = XtU / s[:r] ** 2, XtU.T.copy()
+        if d is not None:
+            P, sV = d[:, None] * P, sV / d
+        return ApproximationOperator(basis, method, params | {"route": "gram", "side": "dual"},
+                                     _P=P, _U=np.ascontiguousarray(Vr), _sV=sV)
     G = _gram(basis)
+    if d is not None:
+        G = d[:, None] * G * d  # Gram of the scaled columns
     if method == "ridge":
         if eps <= 0:
             raise ValueError(f"ridge needs eps > 0, got {eps}")
         smax2 = sla.eigh(G, eigvals_only=True, subset_by_index=[G.shape[0] - 1] * 2)[0]
         M = sla.solve(G + eps * smax2 * np.eye(G.shape[0]), np.eye(G.shape[0]), assume_a="pos")
+        if d is not None:
+            M = d[:, None] * M * d
         return ApproximationOperator(basis, method, params, _M=M)
     # lasso
     if eps <= 0:
         raise ValueError(f"lasso needs eps > 0, got {eps}")
-    return ApproximationOperator(basis, method, params, _G=G)
+    return ApproximationOperator(basis, method, params, _G=G, _d=d)
 
 
-def _gram_eig(basis):
-    """Eigenpairs, descending, of the smaller Gram matrix of ``X = sqrt(A) B_s``.
+def _gram_eig(basis, normalization: str = "area"):
+    """Eigenpairs, descending, of the smaller Gram matrix of ``X = sqrt(A) B_s D``.
 
     Returns ``(w, V, side)``: ``side="primal"``: ``XᵀX = V diag(w) Vᵀ`` (``K_u x K_u``);
     ``side="dual"`` when ``K_u > n`` (e.g. order-4 products): ``XXᵀ = U diag(w) Uᵀ``
@@ -208,17 +319,21 @@ def _gram_eig(basis):
     def compute():
         base = basis.base if isinstance(basis, ProductBasis) else basis
         K_u = basis.unique_index.shape[0] if isinstance(basis, ProductBasis) else basis.k
+        d = column_weights(basis, normalization)
         if isinstance(basis, ProductBasis) and K_u > base.n and base.mass_is_diagonal:
             X = np.sqrt(base.mass)[:, None] * basis.solver_basis()[0]
+            if d is not None:
+                X = X * d
             w, V = sla.eigh(X @ X.T)
             side = "dual"
         else:
-            w, V = sla.eigh(_gram(basis))
+            G = _gram(basis)
+            w, V = sla.eigh(G if d is None else d[:, None] * G * d)
             side = "primal"
         return w[::-1], V[:, ::-1], side
 
     if isinstance(basis, ProductBasis):
-        return basis.cache.get("gram_eig", compute)
+        return basis.cache.get("gram_eig" if normalization == "area" else ("gram_eig", normalization), compute)
     return compute()
 
 
@@ -251,10 +366,12 @@ def _fista(op: ApproximationOperator, F: np.ndarray) -> np.ndarray:
     """
     basis = op.basis
     B_s, base, E, K = _solver_parts(basis)
-    G_s = op._G
+    G_s, d = op._G, op._d  # Gram of the scaled columns B_s D; the solution is a = D x
     one = F.ndim == 1
     F2 = F[:, None] if one else F
     b_s = _rmatmul(basis, base.apply_mass(F2))  # (K_u, m)
+    if d is not None:
+        b_s = d[:, None] * b_s
     if E is None:
         def gram(x):
             return G_s @ x
@@ -278,6 +395,8 @@ def _fista(op: ApproximationOperator, F: np.ndarray) -> np.ndarray:
         x, t = x_new, t_new
         if _lasso_violation(gram(x) - b, x, lam) < tol:
             break
+    if d is not None:
+        x = (d[:, None] if E is None else (abs(E).sign() @ d)[:, None]) * x  # back to the basis' columns
     return x[:, 0] if one else x
 
 

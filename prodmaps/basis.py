@@ -23,7 +23,7 @@ import scipy.sparse as sp
 from .cache import Cache
 from .eigensolver import smallest_eigenpairs
 from .laplacian import laplacian
-from .mesh import Mesh
+from .mesh import Mesh, MeshError
 
 __all__ = ["Basis", "eigenbasis", "fourier_basis", "fix_signs", "from_arrays", "check_basis"]
 
@@ -162,6 +162,16 @@ def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped") ->
             f"k={k} is out of range for a mesh with {n} vertices: need 1 <= k < {n} "
             "(k counts the constant; the paper's k_M = 9 is k = 10)"
         )
+    from .mesh import _components
+
+    ncomp, labels = _components(n, mesh.faces)
+    if ncomp > 1:  # a mesh loaded with validate=False: the constant is not the only zero mode
+        sizes = np.bincount(labels)
+        raise MeshError(
+            f"eigenbasis needs a connected mesh: {mesh.name or 'this mesh'} has {ncomp} connected components "
+            f"(vertex counts {sorted(sizes.tolist(), reverse=True)[:5]}); each has its own constant eigenfunction, "
+            "so the conventions (one constant column, A-orthonormal) cannot hold. Keep the largest with "
+            "pm.mesh.largest_component(mesh.vertices, mesh.faces), or load with pm.load_mesh_repaired(path)")
     W, A = laplacian(mesh, kind=kind, mass=mass)
     evals, vecs = smallest_eigenpairs(W, A, k)  # ascending, A-normalised
     # fix the constant exactly (round-off only) and the signs

@@ -102,7 +102,9 @@ _REGISTRY = {
         "MPI-FAUST training registrations: 10 subjects x 10 poses, 6890 vertices, one triangulation",
         "Register at https://faust.is.tue.mpg.de, accept the licence (research only, no "
         "redistribution), download MPI-FAUST.zip, then run: "
-        "python data_scripts/prepare_faust.py --archive MPI-FAUST.zip [--data-root DIR]",
+        "python -m prodmaps.prepare faust --archive MPI-FAUST.zip [--data-root DIR] "
+        "(any subset works, e.g. the eight public registrations: "
+        "--archive FundCG-s1-2018 --archive Laplacian-Mesh, see python -m prodmaps.prepare faust --help)",
         "div10",
         True,
     ),
@@ -126,6 +128,18 @@ def names() -> list[str]:
 
 
 EMBEDDED = ("anny_humans",)
+
+
+def prepared() -> list[str]:
+    """Names of the datasets that can be loaded here: the embedded ones and those prepared
+    under the data root (a folder with shapes in ``shapes/*.ply``).
+
+    Examples
+    --------
+    >>> "anny_humans" in prepared()
+    True
+    """
+    return [n for n in names() if any((dataset_dir(n) / "shapes").glob("*.ply"))]
 
 
 def embedded_root() -> Path:

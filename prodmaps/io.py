@@ -490,7 +490,11 @@ def _read_off(fh):
 
 # ------------------------------------------------------------------------------ OBJ
 def _read_obj(fh):
-    text = fh.read().decode("utf-8-sig", errors="replace")
+    raw = fh.read()
+    head = raw[:4096]
+    if b"\x00" in head or (head and sum(c < 9 or 13 < c < 32 for c in head) > 0.05 * len(head)):
+        raise MeshError("not a text OBJ file: its first bytes are binary (a different format, or a damaged file)")
+    text = raw.decode("utf-8-sig", errors="replace")
     verts, rows = [], []
     pending = ""
     for ln in text.splitlines():
@@ -529,7 +533,15 @@ def save_mesh(path, mesh_or_vertices, faces=None) -> Path:
     """Write a mesh as binary little-endian PLY (float64 xyz) or ASCII OFF, chosen by suffix.
 
     The file is written to a temporary name and renamed, so a crash leaves no partial file.
+    Raises ``TypeError`` when the arguments are swapped (``save_mesh(path, mesh)`` is the order)
+    and :class:`MeshError` for a folder, an unknown suffix or a non-triangle mesh.
     """
+    if isinstance(path, Mesh):
+        raise TypeError("save_mesh(path, mesh): the path comes first, the mesh second")
+    if not isinstance(path, (str, Path)) and not hasattr(path, "__fspath__"):
+        raise TypeError(f"save_mesh(path, mesh): path must be a file name, got {type(path).__name__}")
+    if Path(path).is_dir():
+        raise MeshError(f"{path}: is a folder; give a file name ending in .ply or .off")
     if isinstance(mesh_or_vertices, Mesh):
         v, f = mesh_or_vertices.vertices, mesh_or_vertices.faces
     else:

@@ -204,7 +204,12 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, or
         return basis_2.vecs @ (C @ basis_1.project(F))
     if method != "prod":
         raise ValueError(f"method must be 'std' or 'prod', got {method!r}")
+    from .products import _check_pairs
+
+    _check_pairs(pairs)
     if rtol is None and approx is None:
+        # the default works on the unique multisets: the ordered pairs span the same space and its rule
+        # does not see duplicated columns, so both conventions give the same transfer
         if order != 2:
             raise ValueError("the default extended transfer uses pairwise products (order=2); pass rtol=... "
                              "for the paper's Approach B with higher orders")

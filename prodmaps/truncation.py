@@ -50,22 +50,30 @@ __all__ = ["singular_directions", "transfer_gains", "select_rtol", "DEFAULT_CAND
 DEFAULT_CANDIDATES = tuple(float(v) for v in np.logspace(-4, -1, 13))  # 1e-4 ... 1e-1, 4 per decade
 
 
-def singular_directions(basis_1: Basis, order: int = 2, pairs: str = "ordered"):
-    """``(sigma (K_u,), V (K_u, K_u))`` of ``sqrt(A1) B_s`` (descending), ``B_s`` the solver basis.
+def singular_directions(basis_1: Basis, order: int = 2, pairs: str = "ordered", normalization: str | None = None):
+    """``(sigma (K_u,), V (K_u, K_u))`` of ``sqrt(A1) B_s D`` (descending), ``B_s`` the solver basis.
 
     ``B_s`` is the scaled unique-multiset basis of :class:`prodmaps.ProductBasis` (it has exactly
-    the singular values of the paper's ordered basis); ``ext.expand() @ V`` gives the
-    directions as coefficients of ``pairs``' basis. Diagonalises the Gram matrix ``B_sᵀ A B_s``
-    (fast for ``n >> K``; squares the condition number: ``sigma_i`` has a relative error of about
-    ``1e-16 (sigma_max / sigma_i)²``, below ``1e-7`` for the thresholds ``>= 1e-4`` studied here).
+    the singular values of the paper's ordered basis) and ``D`` the column weights of
+    ``normalization`` (:func:`prodmaps.approx.column_weights`; default
+    :data:`prodmaps.approx.DEFAULT_NORMALIZATION`). Direction ``i`` is the function
+    ``B_s D V[:, i]``; ``ext.expand() @ (D V)`` gives the directions as coefficients of ``pairs``'
+    basis. Diagonalises the Gram matrix ``D B_sᵀ A B_s D`` (fast for ``n >> K``; squares the
+    condition number: ``sigma_i`` has a relative error of about ``1e-16 (sigma_max / sigma_i)²``,
+    below ``1e-7`` for the thresholds ``>= 1e-4`` studied here).
     """
+    from .approx import DEFAULT_NORMALIZATION, column_weights
+
     ext = product_basis(basis_1, order, pairs)
-    w, V = np.linalg.eigh(ext.solver_gram())
+    d = column_weights(ext, normalization or DEFAULT_NORMALIZATION)
+    G = ext.solver_gram()
+    w, V = np.linalg.eigh(G if d is None else d[:, None] * G * d)
     w, V = w[::-1], V[:, ::-1]
     return np.sqrt(np.maximum(w, 0.0)), V
 
 
-def transfer_gains(C_12, basis_1: Basis, basis_2: Basis, order: int = 2, pairs: str = "ordered"):
+def transfer_gains(C_12, basis_1: Basis, basis_2: Basis, order: int = 2, pairs: str = "ordered",
+                   normalization: str | None = None):
     """Transfer gain ``g_i = ||B2 C~ v_i||_A2 / sigma_i`` of every singular direction of the source.
 
     ``C_12`` is ``(basis_2.k, basis_1.k)`` (maps coefficients on shape 1 to shape 2). Returns a
@@ -75,7 +83,12 @@ def transfer_gains(C_12, basis_1: Basis, basis_2: Basis, order: int = 2, pairs: 
     C = check_fmap(C_12, basis_1, basis_2)
     ext1 = product_basis(basis_1, order, pairs)
     ext2 = product_basis(basis_2, order, pairs)
-    sigma, V = singular_directions(basis_1, order, pairs)
+    from .approx import DEFAULT_NORMALIZATION, column_weights
+
+    sigma, V = singular_directions(basis_1, order, pairs, normalization)
+    d = column_weights(ext1, normalization or DEFAULT_NORMALIZATION)
+    if d is not None:
+        V = d[:, None] * V  # directions as solver coefficients
     Ct = extend_fmap(C, basis_1, basis_2, order, pairs)  # (K2, K1)
     img = ext2.evaluate(Ct @ (ext1.expand() @ V))  # (n2, K_u) images of the directions
     m2 = basis_2.mass if basis_2.mass_is_diagonal else np.asarray(basis_2.mass.sum(axis=1)).ravel()
@@ -94,7 +107,8 @@ def _check_candidates(candidates) -> np.ndarray:
 
 def select_rtol(basis_1: Basis, F=None, *, method: str = "gain", C_12=None, basis_2: Basis | None = None,
                 candidates=DEFAULT_CANDIDATES, max_gain: float = 2.0, holdout: float = 0.2, seed: int = 0,
-                order: int = 2, pairs: str = "ordered", return_info: bool = False):
+                order: int = 2, pairs: str = "ordered", normalization: str | None = None,
+                return_info: bool = False):
     """Pick Approach B's ``rtol`` without ground truth (see the module doc for the rules).
 
     Parameters
@@ -117,7 +131,7 @@ def select_rtol(basis_1: Basis, F=None, *, method: str = "gain", C_12=None, basi
             raise ValueError("method='gain' needs the functional map C_12 and basis_2")
         if not max_gain > 0:
             raise ValueError(f"max_gain must be > 0, got {max_gain}")
-        g = transfer_gains(C_12, basis_1, basis_2, order, pairs)
+        g = transfer_gains(C_12, basis_1, basis_2, order, pairs, normalization)
         worst = np.array([g["gain"][g["rel"] > r].max() for r in cand])  # (n_cand,)
         ok = np.flatnonzero(worst <= max_gain)
         rtol = float(cand[ok[0]] if ok.size else cand[-1])
@@ -131,8 +145,14 @@ def select_rtol(basis_1: Basis, F=None, *, method: str = "gain", C_12=None, basi
             raise ValueError(f"F must be finite with {basis_1.n} rows; got shape {F.shape}")
         if not basis_1.mass_is_diagonal:
             raise ValueError("select_rtol needs a lumped (diagonal) mass")
+        from .approx import DEFAULT_NORMALIZATION, column_weights
+
         ext = product_basis(basis_1, order, pairs)
         B_s, _ = ext.solver_basis()  # (n, K_u)
+        norm = normalization or DEFAULT_NORMALIZATION
+        d = column_weights(ext, norm)
+        if d is not None:
+            B_s = B_s * d  # the truncation sees the normalised columns (coefficients are not returned)
         sq = np.sqrt(basis_1.mass)
         if method == "cv":
             if not 0 < holdout < 1:
@@ -144,7 +164,7 @@ def select_rtol(basis_1: Basis, F=None, *, method: str = "gain", C_12=None, basi
                 X = sq[~test, None] * B_s[~test]  # (n_train, K_u)
                 return (test,) + tuple(np.linalg.svd(X, full_matrices=False))
 
-            test, U, s, Vt = ext.cache.get(("select_rtol_cv_svd", float(holdout), int(seed)), split_svd)
+            test, U, s, Vt = ext.cache.get(("select_rtol_cv_svd", float(holdout), int(seed), norm), split_svd)
             beta = U.T @ (sq[~test, None] * F2[~test])  # (K_u, m)
             Bt = sq[test, None] * B_s[test]  # (n_test, K_u)
             Ft = sq[test, None] * F2[test]
@@ -155,7 +175,7 @@ def select_rtol(basis_1: Basis, F=None, *, method: str = "gain", C_12=None, basi
                 a = Vt[keep].T @ (beta[keep] / s[keep, None])  # (K_u, m)
                 score.append(float(np.mean(np.sqrt(np.sum((Bt @ a - Ft) ** 2, axis=0) / den))))
         else:
-            U, s = ext.cache.get(("select_rtol_gcv_svd",),
+            U, s = ext.cache.get(("select_rtol_gcv_svd", norm),
                                  lambda: np.linalg.svd(sq[:, None] * B_s, full_matrices=False)[:2])
             Y = sq[:, None] * F2
             beta = U.T @ Y

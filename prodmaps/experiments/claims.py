@@ -36,10 +36,27 @@ first two:
 * ``does not hold`` — measured, and it holds neither at the paper's settings nor with the rule;
 * ``not measured here`` — the results needed are missing (e.g. FAUST/TOSCA not prepared).
 
+The first two carry the suffix ``" within rounding"`` when the rule's outcome hinges on a
+comparison whose margin is so thin that floating-point rounding (another BLAS kernel, another
+machine) could flip it, see below.
+
 Rules are Python expressions over the values (and ``all``, ``any``, ``min``, ``max``, ``abs``,
 ``len``, ``sum``, ``sorted``, ``mean``, and ``lower(a, b)`` / ``not_higher(a, b)``: ``<`` / ``<=``
-with ties within ``TIE_REL`` relative, so that rounding never decides a verdict), evaluated
-without builtins; the ledger is part of the package, not user input.
+with the tie rule of :mod:`prodmaps.experiments.compare`), evaluated without builtins; the ledger
+is part of the package, not user input. Every comparison of two measured numbers in a rule goes
+through ``lower`` / ``not_higher`` (never a bare ``<``), and rules are monotone in them (no
+``not``), so that each rule is judged three ways:
+
+* *exact*: ties within ``TIE_REL`` (1e-5) relative are ties, everything else compares as is;
+* *pessimistic*: in addition, every comparison whose relative margin is within ``ROUNDING_REL``
+  (1e-3) goes against the claim;
+* *optimistic*: every such comparison goes for the claim.
+
+A rule that holds pessimistically holds whatever rounding does; one that fails optimistically
+fails whatever rounding does; one in between is decided by margins under ``ROUNDING_REL``, and
+the verdict says "… within rounding" on every machine instead of flipping between them. The
+"holds" of a setting (the *paper* / *rule* / *default* columns) is the optimistic one, and
+``within_rounding`` records whether the pessimistic one disagrees.
 """
 
 from __future__ import annotations
@@ -50,33 +67,37 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .compare import ROUNDING_REL, TIE_REL, relative_difference
+
 __all__ = ["Claim", "Verdict", "load_ledger", "evaluate", "evaluate_folder", "verdicts_for_run",
            "format_table", "setting_mark", "LEDGER", "VERDICTS"]
 
 LEDGER = Path(str(importlib.resources.files("prodmaps.experiments") / "claims.toml"))
-VERDICTS = ("holds", "holds with the threshold rule", "does not hold", "not measured here")
+VERDICTS = ("holds", "holds within rounding", "holds with the threshold rule",
+            "holds with the threshold rule within rounding", "does not hold", "not measured here")
 SUBSET_SUFFIX = {"all": "", "intra": "_intra", "inter": "_inter"}
 def _mean(values) -> float:
     values = list(values)
     return sum(values) / len(values)
 
 
-TIE_REL = 1e-9  # errors this close are a tie (e.g. the default on hk k, which is the standard transfer)
+def _comparators(mode: str) -> dict:
+    """``lower`` / ``not_higher`` for one way of judging (``exact``, ``pessimistic``, ``optimistic``)."""
 
+    def decide(a, b, strict: bool) -> bool:
+        d = relative_difference(a, b)
+        if abs(d) <= TIE_REL:
+            return not strict  # a tie: never lower, always not higher
+        if mode != "exact" and abs(d) <= ROUNDING_REL:
+            return mode == "optimistic"
+        return d < 0
 
-def lower(a: float, b: float) -> bool:
-    """``a < b`` by more than rounding: ``a < b - TIE_REL·max(|a|, |b|)``."""
-    return a < b - TIE_REL * max(abs(a), abs(b))
-
-
-def not_higher(a: float, b: float) -> bool:
-    """``a <= b`` up to rounding: ``not lower(b, a)``."""
-    return not lower(b, a)
+    return {"lower": lambda a, b: decide(a, b, True), "not_higher": lambda a, b: decide(a, b, False)}
 
 
 _FUNCS = {"all": all, "any": any, "min": min, "max": max, "abs": abs, "len": len, "sum": sum,
-          "sorted": sorted, "round": round, "range": range, "zip": zip, "mean": _mean,
-          "lower": lower, "not_higher": not_higher}
+          "sorted": sorted, "round": round, "range": range, "zip": zip, "mean": _mean}
+_MODES = ("exact", "pessimistic", "optimistic")
 
 
 @dataclass(frozen=True)
@@ -202,18 +223,25 @@ def _judge(claim: Claim, results: dict, method: str, subset: str) -> dict:
     except _Missing as exc:
         return {"holds": None, "evidence": f"not measured: {exc}"}
     try:
-        scope = {"__builtins__": {}, **env}  # one namespace: generator expressions see the values
-        holds = bool(eval(claim.holds, scope))  # noqa: S307 - the ledger is package data, not user input
+        ways = {}
+        for mode in _MODES:
+            scope = {"__builtins__": {}, **env, **_comparators(mode)}  # one namespace: generators see the values
+            ways[mode] = bool(eval(claim.holds, scope))  # noqa: S307 - the ledger is package data, not user input
+        scope = {"__builtins__": {}, **env, **_comparators("exact")}
         margin = eval(claim.margin, scope) if claim.margin else None  # noqa: S307
     except (KeyError, NameError, TypeError, ZeroDivisionError, ValueError) as exc:
         return {"holds": None, "evidence": f"not measured: rule failed on these results ({type(exc).__name__}: {exc})"}
+    holds = ways["optimistic"]
+    within_rounding = ways["optimistic"] != ways["pessimistic"]
     fmt = {k: v for k, v in env.items() if k not in _FUNCS}
     fmt.update({f"n_{k}": len(v) for k, v in fmt.items() if isinstance(v, dict)})
     try:
         ev = claim.evidence.format(margin=margin, **fmt) if claim.evidence else ""
     except (KeyError, IndexError, ValueError, TypeError) as exc:
         ev = f"(evidence template failed: {exc})"
-    return {"holds": holds, "margin": margin, "evidence": ev}
+    if within_rounding:
+        ev += f" (decided by a margin under {ROUNDING_REL:g} relative: within rounding)"
+    return {"holds": holds, "margin": margin, "evidence": ev, "within_rounding": within_rounding}
 
 
 def evaluate(claim: Claim, results: dict) -> list[Verdict]:
@@ -230,9 +258,10 @@ def evaluate(claim: Claim, results: dict) -> list[Verdict]:
         if not measured:
             verdict = "not measured here"
         elif settings["paper"]["holds"]:
-            verdict = "holds"
+            verdict = "holds" + (" within rounding" if settings["paper"]["within_rounding"] else "")
         elif settings.get("rule", {}).get("holds"):
-            verdict = "holds with the threshold rule"
+            verdict = "holds with the threshold rule" + (" within rounding" if settings["rule"]["within_rounding"]
+                                                          else "")
         else:
             verdict = "does not hold"
         out.append(Verdict(claim, subset, verdict, settings))

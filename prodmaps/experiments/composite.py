@@ -37,6 +37,7 @@ from ..products import product_basis
 from ..safe_transfer import safe_operator
 from ..transfer import fmap_from_p2p, transfer
 from ..truncation import select_rtol
+from .compare import compare
 
 __all__ = ["composite_function", "triangle_quality", "function_transfer", "remeshing_transfer"]
 
@@ -199,7 +200,8 @@ def remeshing_transfer(dataset: str, targets, sizes, *, source_ids=None, laplaci
         for lap, by_size in by_lap.items():
             for key, e in by_size.items():
                 summary[f"{tgt}/{lap}/{key}"] = {
-                    "prod_better": bool(e["variant"]["prod"] < e["variant"]["std"]),
+                    "prod": e["variant"]["prod"], "std": e["variant"]["std"],
+                    "prod_vs_std": compare(e["variant"]["prod"], e["variant"]["std"]),
                     "std_change_vs_reference": e["variant"]["std"] - e["reference"]["std"],
                     "prod_change_vs_reference": e["variant"]["prod"] - e["reference"]["prod"],
                 }

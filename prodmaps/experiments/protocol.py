@@ -61,6 +61,7 @@ class ProtocolSettings:
     seed: int = 0
     k_M_family: int | None = None  # basis size of the basis-dependent families (default: largest k_M)
     noise: float = 0.25  # "perturbed": relative Frobenius size of the noise added to the ground-truth C
+    normalization: str | None = None  # Approaches A/B (prodmaps.approx); None: the library's default
 
     def __post_init__(self):
         self.sizes = [(int(a), int(b)) for a, b in self.sizes]
@@ -96,14 +97,15 @@ class ProtocolResult:
 
 
 def _operator(ext1, method: str, s: ProtocolSettings):
+    norm = {} if s.normalization is None else {"normalization": s.normalization}
     if method == "B":
-        return ext1.operator("svd", rtol=s.rtol)
+        return ext1.operator("svd", rtol=s.rtol, **norm)
     if method.startswith("B@"):
-        return ext1.operator("svd", rtol=float(method[2:]))
+        return ext1.operator("svd", rtol=float(method[2:]), **norm)
     if method == "l2":
-        return ext1.operator("ridge", eps=s.eps_ridge)
+        return ext1.operator("ridge", eps=s.eps_ridge, **norm)
     if method == "l1":
-        return ext1.operator("lasso", eps=s.eps_lasso, max_iter=s.lasso_max_iter)
+        return ext1.operator("lasso", eps=s.eps_lasso, max_iter=s.lasso_max_iter, **norm)
     raise ValueError(method)
 
 
@@ -160,9 +162,11 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
                         outputs[m] = (op.approximate(F), op(F))
                         continue
                     if m == "B_gain":
-                        r_g = truncation.select_rtol(b1, method="gain", C_12=C, basis_2=b2, max_gain=s.max_gain)
+                        r_g = truncation.select_rtol(b1, method="gain", C_12=C, basis_2=b2, max_gain=s.max_gain,
+                                                     normalization=s.normalization)
                         gain_rtol[(kM, kN)].append(r_g)
-                        op = ext1.operator("svd", rtol=r_g)
+                        op = ext1.operator("svd", rtol=r_g, **({} if s.normalization is None
+                                                                else {"normalization": s.normalization}))
                     else:
                         op = _operator(ext1, m, s)
                     a = op.coefficients(F)  # (K1, m)

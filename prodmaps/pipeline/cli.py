@@ -73,7 +73,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     rp = sub.add_parser("report", help="write paper/REPORT.md and REPORT.html from a results folder")
     rp.add_argument("results_dir", nargs="?", default="results/paper", help="e.g. results/paper (default)")
-    rp.add_argument("--out", help="Markdown path (default paper/REPORT.md); HTML goes beside it")
+    rp.add_argument("--out", help="Markdown path (default: paper/REPORT.md for OUT/paper of the default "
+                    "registry, else RESULTS_DIR/REPORT.md); HTML goes beside it")
     rp.add_argument("--registry", help="run registry file")
     rp.add_argument("--published", help="published tables CSV (default: the one shipped with the package)")
     rp.add_argument("--copy-figures", action="store_true",
@@ -149,6 +150,7 @@ def _cmd_claims(a) -> int:
 
     from ..experiments import claims
 
+    _check_results_folder(Path(a.results_dir), {r for c in claims.load_ledger().values() for r in c.runs})
     verdicts = claims.evaluate_folder(a.results_dir)
     if a.json:
         print(json.dumps([v.to_dict() for v in verdicts], indent=1, default=str))
@@ -157,10 +159,32 @@ def _cmd_claims(a) -> int:
     return 0
 
 
+def _check_results_folder(folder: Path, runs) -> None:
+    """Refuse a folder that holds no run of ``runs`` (a typo, or the ``--out`` root instead of
+    ``OUT/<profile>``), naming the folder expected."""
+    if not folder.is_dir():
+        raise FileNotFoundError(f"{folder}: no such results folder; expected OUT/<profile>, e.g. results/paper")
+    if not any((folder / r / "results.json").is_file() for r in runs):
+        inner = [p.name for p in sorted(folder.iterdir()) if p.is_dir() and any((p / r / "results.json").is_file()
+                                                                              for r in runs)]
+        hint = (f"; it holds the profile folder(s) {inner}: pass {folder / inner[0]}" if inner
+                else "; expected OUT/<profile> (e.g. results/paper) with one subfolder per run")
+        raise FileNotFoundError(f"{folder}: no run results here (no <run>/results.json){hint}")
+
+
 def _cmd_report(a) -> int:
+    from . import registry
     from .report import build_report
 
-    md, html = build_report(a.results_dir, a.out, registry=a.registry, published=a.published,
+    folder = Path(a.results_dir)
+    _check_results_folder(folder, set(registry.load_registry(a.registry)))
+    out = a.out
+    if out is None:  # only the paper profile of the default registry writes the committed report
+        root = registry.project_root(a.registry)
+        default_registry = registry.registry_path(a.registry) == root / registry.REGISTRY
+        out = (root / "paper" / "REPORT.md" if folder.resolve().name == "paper" and default_registry
+               else folder / "REPORT.md")
+    md, html = build_report(a.results_dir, out, registry=a.registry, published=a.published,
                             copy_figures=a.copy_figures)
     print(f"report: {md} and {html}")
     return 0

@@ -239,6 +239,32 @@ def _check_declared(run, params: dict, where: str) -> None:
         raise ParameterError(
             f"run {run.name!r}: {where} {unknown} not declared in the parameters cell of "
             f"{run.notebook.name}; it declares {sorted(declared)}")
+    for k, v in params.items():
+        default = _literal(declared[k]["default"])
+        if not _same_kind(v, default):
+            raise ParameterError(
+                f"run {run.name!r}: parameter {k}={v!r} ({type(v).__name__}) does not match the type of its "
+                f"default {declared[k]['default']} ({type(default).__name__}) in {run.notebook.name}")
+
+
+def _literal(text):
+    import ast
+
+    try:
+        return ast.literal_eval(text) if text is not None else None
+    except (ValueError, SyntaxError):
+        return None
+
+
+def _same_kind(value, default) -> bool:
+    """A value may replace ``default`` if the default is None (any value: the profile decides) or of
+    the same kind (bool, number, string, list/tuple, dict); ``None`` always resets to the profile."""
+    if default is None or value is None:
+        return True
+    if isinstance(default, bool) or isinstance(value, bool):
+        return isinstance(default, bool) and isinstance(value, bool)
+    kinds = ((int, float), (str,), (list, tuple), (dict,))
+    return any(isinstance(default, k) and isinstance(value, k) for k in kinds)
 
 
 def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, overrides=None,

@@ -165,7 +165,11 @@ def parse_param(text: str):
     try:
         return key, _toml().loads(f"v = {raw}")["v"]
     except Exception:
-        return key, raw
+        pass
+    if raw.strip()[:1] in "[{(\"'" and raw.strip():
+        raise ValueError(f"parameter {key}={raw!r} looks like a list, table or quoted string but does not parse "
+                         "as JSON or TOML (e.g. -p 'k_values=[4, 8]', -p 'name=\"x\"')")
+    return key, raw
 
 
 def parse_params(items) -> dict:

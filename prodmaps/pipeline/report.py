@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..experiments import claims as ledger
+from ..experiments import compare
 from ..experiments.published import PUBLISHED_CSV, TABLE_KEYS, load_published, match_entries
 from .registry import RegistryError, load_registry, project_root
 
@@ -236,8 +237,7 @@ SYSTEMATIC_DIFFERENCES = [
 
 
 def _verdict_cell(v) -> str:
-    return {"holds": "holds", "holds with the threshold rule": "holds with the threshold rule",
-            "does not hold": "**does not hold**", "not measured here": "not measured here"}[v.verdict]
+    return f"**{v.verdict}**" if v.verdict == "does not hold" else v.verdict
 
 
 def _link(path: Path, base: Path, text: str) -> str:
@@ -249,7 +249,9 @@ def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path) -> None:
     d.p("One row per entry of the claims ledger (`prodmaps/experiments/claims.toml`). The verdict is "
         "computed from the runs' numbers by the entry's rule: **holds** at the paper's settings, **holds "
         "with the threshold rule** (Approach B with `select_rtol(method=\"gain\")`, no ground truth) but not "
-        "at the paper's, **does not hold**, or **not measured here**. The columns *paper*, *rule* and "
+        "at the paper's, **does not hold**, or **not measured here**; \"within rounding\" when a margin under "
+        f"{compare.ROUNDING_REL:g} relative decides it (rounding on another machine could flip it), ties "
+        f"within {compare.TIE_REL:g} relative never count as wins. The columns *paper*, *rule* and "
         "*default* say whether the rule holds at the paper's settings, with the threshold rule and with the "
         "library's default extended transfer. Table claims are also judged on intra- and inter-subject "
         "pairs separately.")
@@ -301,7 +303,7 @@ def _table_summaries(d: "_Doc", infos, published_rows, matches) -> None:
                 for size in errs.values():
                     tr = size.get("transfer", {})
                     if lab in tr and "std" in tr:
-                        n_b += sum(ledger.lower(tr[lab][f], tr["std"][f]) for f in tr["std"])
+                        n_b += sum(compare.lower(tr[lab][f], tr["std"][f]) for f in tr["std"])
                         n_f += len(tr["std"])
                 parts.append(f"{n_b}/{n_f}" if n_f else "—")
             beat.append(" · ".join(parts))
@@ -334,9 +336,9 @@ def _study_section(d: "_Doc", infos, base: Path, copy_figures: bool) -> None:
                 wins.setdefault(case, []).append((fam, ch["paper"]["transfer"], ch["gain"]["transfer"],
                                                   ch["oracle"]["transfer"], v["std_transfer"]))
     for case, rows in wins.items():
-        better = sum(g <= p for _, p, g, _, _ in rows)
-        near = sum(g <= 1.1 * o for _, _, g, o, _ in rows)
-        below_std = sum(g <= s for _, _, g, _, s in rows)
+        better = sum(compare.not_higher(g, p) for _, p, g, _, _ in rows)
+        near = sum(compare.not_higher(g, 1.1 * o) for _, _, g, o, _ in rows)
+        below_std = sum(compare.not_higher(g, s) for _, _, g, _, s in rows)
         lines.append(f"`{case}`: the gain rule is at least as good as the paper's 1e-3 for {better} of {len(rows)} "
                      f"families, within 10 % of the oracle threshold for {near}, and below the standard transfer "
                      f"for {below_std}")

@@ -89,7 +89,8 @@ def test_fig12_13_measurements_well_formed(smoke_results):
             y = np.asarray(c[method])
             assert np.all(np.diff(y) >= 0) and 0.0 <= y[0] and y[-1] <= 1.0
             assert 0.0 < r["mean_error"][m][method] < 0.5
-        assert 0 <= r["extended_better_pairs"][m] <= len(r["pairs"])
+        assert set(r["extended_vs_std_pairs"][m]) == {"better", "tie", "worse"}
+        assert sum(r["extended_vs_std_pairs"][m].values()) == len(r["pairs"])
     # the ground-truth map is better than the computed one with the standard conversion
     assert r["mean_error"]["gt"]["std"] < r["mean_error"]["no17"]["std"]
     assert (d / "fig12_13_p2p.png").is_file()

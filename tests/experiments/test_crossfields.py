@@ -5,13 +5,16 @@ import pytest
 
 import prodmaps as pm
 from prodmaps.experiments import crossfields as cf
-from prodmaps.mesh import icosphere
+from prodmaps.mesh import ellipsoid, icosphere
 
 
 # ----------------------------------------------------------------------------- experiment, plots
 @pytest.fixture(scope="module")
 def small_experiment():
-    m1 = icosphere(2)
+    # the source is an ellipsoid, not the round icosphere: k = 4 takes 1 of the sphere's five l = 2
+    # eigenfunctions, a machine-dependent choice (the std layout agreement was 0.55-0.75 across
+    # OpenBLAS kernels, against the bound 0.5); the ellipsoid's spectrum is simple
+    m1 = ellipsoid(2)  # 162 vertices
     m2 = pm.Mesh(m1.vertices * [1.0, 1.1, 1.3], m1.faces)  # a stretched copy, same triangulation
     p = np.arange(m1.n_vertices)
     res = cf.figure14_experiment(m1, m2, p, k=4, kinds=("std", "ext"), source_scale=0.1)

@@ -83,3 +83,22 @@ def test_one_eigensolver_dense_and_sparse_routes_agree(human_0):
     with pytest.raises(ValueError, match="1 <= k"):
         eigensolver.smallest_eigenpairs(W, A, human_0.n_vertices)
     assert eigensolver.shift(W, A) < 0
+
+
+def test_eigenbasis_refuses_a_disconnected_mesh_loaded_without_validation():
+    from prodmaps.mesh import icosphere
+
+    a, b = icosphere(1), icosphere(1)
+    v = np.vstack([a.vertices, b.vertices + 3.0])
+    f = np.vstack([a.faces, b.faces + a.n_vertices])
+    m = pm.Mesh(v, f, validate=False)
+    with pytest.raises(pm.MeshError, match="2 connected components.*largest_component.*load_mesh_repaired"):
+        pm.eigenbasis(m, 5)
+
+
+def test_unreferenced_vertices_error_names_both_fixes():
+    from prodmaps.mesh import icosphere
+
+    s = icosphere(1)
+    with pytest.raises(pm.MeshError, match="remove_unreferenced_vertices.*load_mesh_repaired"):
+        pm.Mesh(np.vstack([s.vertices, [[5.0, 5.0, 5.0]]]), s.faces)

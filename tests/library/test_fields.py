@@ -8,7 +8,7 @@ from prodmaps import fields as pf
 from prodmaps.fields import crossfield as cf
 from prodmaps.fields import stripes as st
 from prodmaps.fields.consistency import consistency_problem, design_consistent_field, design_joint
-from prodmaps.mesh import icosphere
+from prodmaps.mesh import ellipsoid, icosphere
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -52,15 +52,35 @@ def ico2():
     return icosphere(2)  # 162 vertices
 
 
-@pytest.fixture(scope="module")
-def pair3():
-    """icosphere(3), a relabelled rotated copy, bases (21 columns) and a smooth aligned cross field."""
-    m1 = icosphere(3)
+def _pair(m1):
+    """``m1``, a relabelled rotated copy, bases (21 columns) and a smooth aligned cross field."""
     m2, p, R = relabelled_copy(m1)
     fr1, fr2 = pf.mesh_frames(m1), pf.mesh_frames(m2)
     z1 = pf.aligned_field(fr1, direction_guide(fr1), 4, scale=0.1)
     return {"m1": m1, "m2": m2, "p": p, "R": R, "fr1": fr1, "fr2": fr2, "z1": z1,
             "b1": pm.eigenbasis(m1, 21), "b2": pm.eigenbasis(m2, 21)}
+
+
+@pytest.fixture(scope="module")
+def pair3():
+    """The round icosphere(3) and its copy (see :func:`_pair`): for the tests of the geometry.
+
+    Its Laplacian has repeated eigenvalues (2 x3, 6 x5, ...), so the eigenvectors inside an
+    eigenspace, and anything built from individual ones, depend on the LAPACK/BLAS kernel: tests
+    on it may only use the span of complete eigenspaces (or no eigenvectors at all).
+    """
+    return _pair(icosphere(3))
+
+
+@pytest.fixture(scope="module")
+def ell_pair3():
+    """ellipsoid(3) (642 vertices, simple spectrum) and its copy (see :func:`_pair`).
+
+    For the consistency designs: the standard design's test functions are the individual basis
+    functions (a quartic form is not determined by a span), so it needs eigenvectors that are
+    unique up to sign, the same on every machine.
+    """
+    return _pair(ellipsoid(3))
 
 
 # ----------------------------------------------------------------------------- frames
@@ -238,10 +258,14 @@ def test_discrete_derivation_of_killing_field(pair3):
     X -= np.einsum("ij,ij->i", X, fr.normal)[:, None] * fr.normal
     D = pf.derivation_matrix(fr, X)
     np.testing.assert_allclose(D @ np.ones(m.n_vertices), 0.0, atol=1e-12)
-    b = pair3["b1"].truncate(9)
-    f, g = b.vecs[:, 1], b.vecs[:, 2]
-    lhs, rhs = D @ (f * g), f * (D @ g) + g * (D @ f)
-    assert np.linalg.norm(lhs - rhs) < 0.05 * np.linalg.norm(rhs)  # Leibniz up to discretisation
+    b = pair3["b1"].truncate(9)  # complete l <= 2 bands of the sphere: their span is machine independent
+    # Leibniz up to discretisation, for all products f g of the l = 1 eigenspace at once. The three
+    # eigenvectors the eigensolver returns there are any orthonormal basis of it (machine dependent), so
+    # the test sums over all pairs: the sum is the same for every orthonormal basis of the span.
+    f = b.vecs[:, 1:4]  # (n, 3)
+    lhs = np.stack([D @ (f[:, a] * f[:, c]) for a in range(3) for c in range(3)], axis=1)  # (n, 9)
+    rhs = np.stack([f[:, a] * (D @ f[:, c]) + f[:, c] * (D @ f[:, a]) for a in range(3) for c in range(3)], axis=1)
+    assert np.linalg.norm(lhs - rhs) < 0.05 * np.linalg.norm(rhs)
     Dr = pf.reduced_derivation(b, D)
     assert np.linalg.norm(Dr + Dr.T) < 0.05 * np.linalg.norm(Dr)  # Killing: skew-adjoint
     # N = 1 degree-N action is the derivation per face
@@ -288,14 +312,17 @@ def test_commutator_vanishes_for_exact_map_with_complete_bases():
 
 
 # ----------------------------------------------------------------------------- consistency design
-def test_design_recovers_source_on_relabelled_copy_and_rotates_with_it(pair3):
-    d = pair3
+def test_design_recovers_source_on_relabelled_copy_and_rotates_with_it(ell_pair3):
+    d = ell_pair3
     C = pm.fmap_from_p2p(d["p"], d["b1"], d["b2"])  # (21, 21): k = 20
     z_ref, _ = pf.pushforward_field(d["fr1"], d["z1"], d["fr2"], d["p"])
     P = consistency_problem(d["fr1"], d["b1"], d["fr2"], d["b2"], C, kind="std", power=0)
     z2, info = design_consistent_field(P, d["z1"])
     assert z2.shape == (d["m2"].n_faces,)
     st_ = pf.angle_stats(z2, z_ref, d["fr2"].area)
+    # bounds as on the round icosphere; this ellipsoid measures mean 2.02 / p90 4.14 degrees,
+    # consistency 7.9e-4, then 2.80 and 20.0 degrees below (the same on the three OpenBLAS kernels;
+    # the sphere's machine-dependent bases gave mean 1.17-1.35, p90 1.8-2.9, 1.27-1.67)
     assert st_["mean_deg"] < 3.0 and st_["p90_deg"] < 6.0
     assert info["consistency"] < 0.05
     beta = np.radians(20)
@@ -304,10 +331,14 @@ def test_design_recovers_source_on_relabelled_copy_and_rotates_with_it(pair3):
     assert pf.angle_stats(z2r, z2, d["fr2"].area)["mean_deg"] > 15.0
 
 
-def test_extended_design_beats_standard_on_small_copy(ico2):
-    m2, p, _ = relabelled_copy(ico2, seed=4)
-    fr1, fr2 = pf.mesh_frames(ico2), pf.mesh_frames(m2)
-    b1, b2 = pm.eigenbasis(ico2, 9), pm.eigenbasis(m2, 9)  # k = 8: complete l <= 2 bands of the sphere
+def test_extended_design_beats_standard_on_small_copy():
+    # an ellipsoid, not the round icosphere: the standard design tests the individual base
+    # functions, which on the sphere are any orthonormal basis of the l <= 2 eigenspaces (machine
+    # dependent: e_std was 1.59 / 3.62 / 4.01 degrees with the Haswell / Prescott / SkylakeX kernels)
+    m1 = ellipsoid(2)  # 162 vertices, simple spectrum
+    m2, p, _ = relabelled_copy(m1, seed=4)
+    fr1, fr2 = pf.mesh_frames(m1), pf.mesh_frames(m2)
+    b1, b2 = pm.eigenbasis(m1, 9), pm.eigenbasis(m2, 9)  # k = 8
     C = pm.fmap_from_p2p(p, b1, b2)
     z1 = pf.aligned_field(fr1, direction_guide(fr1), scale=0.1)
     z_ref, _ = pf.pushforward_field(fr1, z1, fr2, p)
@@ -317,12 +348,17 @@ def test_extended_design_beats_standard_on_small_copy(ico2):
     z_std, _ = design_consistent_field(consistency_problem(fr1, b1, fr2, b2, C, kind="std", power=0), z1)
     e_ext = pf.angle_stats(z_ext, z_ref, fr2.area)["mean_deg"]
     e_std = pf.angle_stats(z_std, z_ref, fr2.area)["mean_deg"]
-    assert e_ext < 1.0 < 2.0 < e_std
+    # measured on this ellipsoid: e_ext = 1.16, e_std = 7.41 degrees (the same to 1e-5 on the three
+    # kernels; other simple-spectrum ellipsoids give 1.1-1.4 and 5.5-7.4). The old bounds
+    # (e_ext < 1 < 2 < e_std) were measured on the sphere's machine-dependent bases (e_ext 0.28-0.35)
+    # and do not carry over. The claim kept: the extended design within 2 degrees, the standard
+    # one more than 5 degrees off.
+    assert e_ext < 2.0 < 5.0 < e_std
     assert P.energy(z1, z_ref) < 1e-3 < P.energy(z1, pf.rotate_field(z_ref, np.radians(30)))
 
 
-def test_joint_design_is_more_consistent_than_separate_fields(pair3):
-    d = pair3
+def test_joint_design_is_more_consistent_than_separate_fields(ell_pair3):
+    d = ell_pair3
     C = pm.fmap_from_p2p(d["p"], d["b1"].truncate(11), d["b2"].truncate(11))
     q1 = direction_guide(d["fr1"], (0.3, 0.5, 0.8))
     q2 = direction_guide(d["fr2"], (0.9, 0.1, 0.3))  # an inconsistent guide on the target

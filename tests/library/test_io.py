@@ -232,3 +232,17 @@ def test_import_prodmaps_does_not_import_mesh_readers():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "[]"
+
+
+def test_save_mesh_swapped_arguments_folder_and_binary_obj_say_what_is_wrong(tmp_path):
+    from prodmaps.mesh import icosphere
+
+    m = icosphere(1)
+    with pytest.raises(TypeError, match="the path comes first"):
+        pm.save_mesh(m, tmp_path / "a.ply")
+    with pytest.raises(pm.MeshError, match="is a folder"):
+        pm.save_mesh(tmp_path, m)
+    junk = tmp_path / "junk.obj"
+    junk.write_bytes(np.random.default_rng(0).integers(0, 256, 2000, dtype=np.uint8).tobytes())
+    with pytest.raises(pm.MeshError, match="not a text OBJ file"):
+        pm.load_mesh(junk)

@@ -95,3 +95,35 @@ def test_mesh_arrays_are_read_only(human_0):
 def test_vertices_shape_error():
     with pytest.raises(pm.MeshError, match=r"shape \(n, 3\)"):
         pm.Mesh(np.zeros((4, 2)), np.array([[0, 1, 2]]))
+
+
+def _relative_gaps(mesh, k):
+    """Relative gaps ``(λ_{i+1} - λ_i) / λ_{i+1}`` of the first ``k`` non-zero eigenvalues (dense LAPACK)."""
+    import scipy.linalg as sla
+
+    W, A = pm.laplacian(mesh)
+    w = sla.eigh(W.toarray(), np.diag(A), eigvals_only=True, subset_by_index=[0, k])
+    return np.diff(w[1:]) / w[2:]
+
+
+@pytest.mark.parametrize("subdivisions, n", [(1, 42), (2, 162), (3, 642)])
+def test_ellipsoid_is_a_scaled_icosphere_with_a_simple_spectrum(subdivisions, n):
+    m = pmesh.ellipsoid(subdivisions)
+    s = pmesh.icosphere(subdivisions)
+    assert m.n_vertices == n and m.is_closed and m.name == "ellipsoid"
+    np.testing.assert_array_equal(m.faces, s.faces)  # same triangulation and vertex order
+    a, b, c = 1.0, 0.6, 0.4  # the documented default axes
+    np.testing.assert_array_equal(m.vertices, s.vertices * [a, b, c])
+    np.testing.assert_allclose(((m.vertices / [a, b, c]) ** 2).sum(1), 1.0, rtol=1e-12)
+    # simple spectrum (what the tests that compare individual eigenvectors rely on): the first 26
+    # eigenvalues are clearly apart; the round icosphere has exact multiplicities (3, 5, ...)
+    assert _relative_gaps(m, 25).min() > 1e-3
+    assert _relative_gaps(s, 25).min() < 1e-9
+    np.testing.assert_array_equal(pmesh.ellipsoid(2, axes=(2.0, 1.0, 0.5)).vertices,
+                                  pmesh.icosphere(2).vertices * [2.0, 1.0, 0.5])
+
+
+@pytest.mark.parametrize("axes", [(1.0, 0.5), (1.0, 0.0, 0.5), (1.0, -1.0, 0.5), (1.0, np.nan, 0.5)])
+def test_ellipsoid_rejects_bad_axes(axes):
+    with pytest.raises(ValueError, match="axes"):
+        pmesh.ellipsoid(2, axes=axes)

@@ -86,7 +86,8 @@ def test_faust_prepare_and_dataset_api(tmp_path, faust_shapes, monkeypatch, caps
     assert "wrote 100 shapes" in capsys.readouterr().out
     assert sorted(p.name for p in root.iterdir()) == ["faust"]  # no temporary leftovers
     man = json.loads((out / "manifest.json").read_text())
-    assert len(man["shapes"]) == 100 and man["n_vertices"] == 6890 and len(man["source"]["sha256"]) == 64
+    assert len(man["shapes"]) == 100 and man["n_vertices"] == 6890 and len(man["source"][0]["sha256"]) == 64
+    assert man["subset"] is False
     monkeypatch.setenv("PRODMAPS_DATA", str(root))
     assert ds.shape_ids("faust") == [f"tr_reg_{i:03d}" for i in range(100)]
     assert len(list(ds.pairs("faust", "intra"))) == 900
@@ -165,10 +166,10 @@ def test_faust_refuses_wrong_counts_and_triangulations(tmp_path, faust_shapes):
     with pytest.raises(PrepareError, match="tr_reg_003.ply: triangulation differs"):
         faust.prepare_faust(write_zip(tmp_path / "b.zip", members), root, n_shapes=12)
     members = small(faust_shapes[1])
-    del members[FAUST_DIR + "tr_reg_004.ply"]
-    with pytest.raises(PrepareError, match=r"missing \['004'\]"):
+    members[FAUST_DIR + "tr_reg_012.ply"] = members[FAUST_DIR + "tr_reg_004.ply"]
+    with pytest.raises(PrepareError, match=r"unexpected \['012'\]"):
         faust.prepare_faust(write_zip(tmp_path / "c.zip", members), root, n_shapes=12)
-    with pytest.raises(PrepareError, match="no training/registrations"):
+    with pytest.raises(PrepareError, match="no tr_reg_XXX.ply or .off found"):
         faust.prepare_faust(write_zip(tmp_path / "d.zip", {"x.txt": b"x"}), root)
     assert nothing_written(root)
 
@@ -316,3 +317,50 @@ def test_make_variants_ground_truth(tmp_path, monkeypatch):
     np.testing.assert_array_equal(ds.ground_truth("anny_humans", "anny_001", "anny_000_thin")[:5002], np.arange(5002))
     with pytest.raises(PrepareError, match="exists; pass --force"):
         variants.make_variants("anny_humans", ["anny_000"], ["thin"], data_root=root, verbose=False)
+
+
+def test_faust_subset_from_several_sources_in_ply_and_off(tmp_path, faust_shapes, capsys, monkeypatch):
+    """Any subset, in several folders/archives, as PLY or OFF, anywhere below the sources (the
+    layout of the eight public registrations); a shape found twice must be the same mesh."""
+    shapes = faust_shapes[0]
+    a, b = tmp_path / "repo_a" / "lesson" / "code", tmp_path / "repo_b"
+    a.mkdir(parents=True)
+    b.mkdir()
+    for i in (0, 3, 10):
+        v, f = shapes[i]
+        (a / f"tr_reg_{i:03d}.off").write_text(
+            f"OFF\n{len(v)} {len(f)} 0\n" + "".join(f"{x:.9f} {y:.9f} {z:.9f}\n" for x, y, z in v)
+            + "".join(f"3 {p} {q} {r}\n" for p, q, r in f))
+    for i in (3, 25):
+        (b / f"tr_reg_{i:03d}.ply").write_bytes(ply_bytes(*shapes[i]))
+    root = tmp_path / "data"
+    faust.prepare_faust([tmp_path / "repo_a", b], root)
+    out = capsys.readouterr().out
+    assert "found 4 of the 100 registrations" in out and "a subset (000, 003, 010, 025)" in out
+    man = json.loads((root / "faust" / "manifest.json").read_text())
+    assert man["subset"] is True and man["n_shapes_full"] == 100
+    assert [s["id"] for s in man["shapes"]] == ["tr_reg_000", "tr_reg_003", "tr_reg_010", "tr_reg_025"]
+    assert [s["archive"] for s in man["source"]] == ["repo_a", "repo_b"]
+    monkeypatch.setenv("PRODMAPS_DATA", str(root))
+    assert ds.shape_ids("faust") == ["tr_reg_000", "tr_reg_003", "tr_reg_010", "tr_reg_025"]
+    np.testing.assert_allclose(ds.load_shape("faust", "tr_reg_010").vertices, shapes[10][0], atol=1e-6)
+    # the same id twice with different vertices is refused, nothing written
+    v, f = shapes[25]
+    (a / "tr_reg_025.off").write_text(f"OFF\n{len(v)} {len(f)} 0\n" + "".join(f"{x + 0.01} {y} {z}\n" for x, y, z in v)
+                                      + "".join(f"3 {p} {q} {r}\n" for p, q, r in f))
+    with pytest.raises(PrepareError, match="two different meshes named tr_reg_025"):
+        faust.prepare_faust([tmp_path / "repo_a", b], tmp_path / "data2", verbose=False)
+    assert nothing_written(tmp_path / "data2")
+
+
+def test_faust_cli_takes_several_archives(tmp_path, faust_shapes):
+    from prodmaps.prepare.__main__ import main
+
+    for i, d in ((1, "x"), (2, "y")):
+        (tmp_path / d).mkdir()
+        (tmp_path / d / f"tr_reg_{i:03d}.ply").write_bytes(ply_bytes(*faust_shapes[0][i]))
+    rc = main(["faust", "--archive", str(tmp_path / "x"), "--archive", str(tmp_path / "y"),
+               "--data-root", str(tmp_path / "data")])
+    assert rc == 0 and sorted(p.name for p in (tmp_path / "data" / "faust" / "shapes").iterdir()) == [
+        "tr_reg_001.ply", "tr_reg_002.ply"]
+    assert main(["faust", "--archive", str(tmp_path / "nowhere"), "--data-root", str(tmp_path / "d2")]) == 2

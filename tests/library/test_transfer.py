@@ -89,3 +89,17 @@ def test_mismatched_shapes_are_rejected(basis_0, basis_13):
         pm.transfer(np.zeros(b1.n), np.zeros((12, 10)), b1, b2, "nearest")
 
 
+
+
+def test_transfer_refuses_bad_pairs_complex_functions_and_string_thresholds(basis_0, basis_13):
+    C = pm.fmap_from_p2p(np.arange(basis_13.n) % basis_0.n, basis_0.truncate(10), basis_13.truncate(10))
+    b1, b2 = basis_0.truncate(10), basis_13.truncate(10)
+    f = np.linspace(0.0, 1.0, b1.n)
+    with pytest.raises(ValueError, match="pairs must be 'ordered'"):
+        pm.transfer(f, C, b1, b2, method="prod", pairs="foo")  # the default (no rtol) checks pairs too
+    np.testing.assert_allclose(pm.transfer(f, C, b1, b2, method="prod", pairs="unique"),
+                               pm.transfer(f, C, b1, b2, method="prod", pairs="ordered"))
+    with pytest.raises(ValueError, match="complex"):
+        pm.transfer(f + 1j * f, C, b1, b2, method="std")
+    with pytest.raises(TypeError, match="rtol and eps are numbers"):
+        pm.transfer(f, C, b1, b2, method="prod", rtol="1e-3")

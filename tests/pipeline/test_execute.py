@@ -352,3 +352,16 @@ def test_executed_notebook_is_kept_as_html(project, capsys):
     rc, _ = _main(["reproduce", "--profile", "smoke", "--out", str(out), "--only", "tiny_a"], capsys)
     html = (out / "smoke" / "tiny_a" / "executed.html").read_text()
     assert rc == 0 and "tiny done" in html and "<html" in html.lower()
+
+
+def test_a_value_that_does_not_parse_or_has_the_wrong_type_is_refused_up_front():
+    with pytest.raises(ValueError, match="does not parse as JSON or TOML"):
+        rp.parse_param("k_values=[4,")
+    with pytest.raises(ValueError, match="does not parse"):
+        rp.parse_param("opts={a = ")
+    runs = rp.load_registry()
+    with pytest.raises(execute.ParameterError, match=r"seed='x' \(str\) does not match the type of its default 0"):
+        execute.plan_runs(runs, profile="smoke", only=["fig04"], overrides={"seed": "x"})
+    with pytest.raises(execute.ParameterError, match="disk_cache"):
+        execute.plan_runs(runs, profile="smoke", only=["tab01"], overrides={"disk_cache": 1})
+    assert execute.plan_runs(runs, profile="smoke", only=["fig04"], overrides={"seed": 3})[0]["params"]["seed"] == 3

@@ -529,3 +529,36 @@ def test_default_output_is_the_projects_paper_report(tmp_path, monkeypatch):
 def _runs_names(text):
     (table,) = _tables(_section(text, "Runs"))
     return [r[0].strip("`") for r in table[1:]]
+
+
+def test_cli_report_writes_the_committed_report_only_for_the_paper_profile(tmp_path, monkeypatch, capsys):
+    from prodmaps.pipeline import cli
+
+    reg, res = make_project(tmp_path)
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    smoke = tmp_path / "out" / "smoke"
+    smoke.parent.mkdir()
+    res.rename(smoke)
+    assert cli.main(["report", str(smoke)]) == 0
+    assert (smoke / "REPORT.md").is_file() and not (tmp_path / "paper" / "REPORT.md").exists()
+    paper = tmp_path / "out" / "paper"
+    smoke.rename(paper)
+    assert cli.main(["report", str(paper)]) == 0
+    assert (tmp_path / "paper" / "REPORT.md").is_file()
+
+
+def test_cli_claims_and_report_refuse_a_folder_without_runs(tmp_path, monkeypatch, capsys):
+    from prodmaps.pipeline import cli
+
+    reg, res = make_project(tmp_path)
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    assert cli.main(["claims", str(tmp_path / "missing")]) == 2
+    assert "no such results folder" in capsys.readouterr().err
+    out = tmp_path / "out"
+    out.mkdir()
+    res.rename(out / "paper")
+    for cmd in ("claims", "report"):
+        assert cli.main([cmd, str(out)]) == 2  # the --out root, not OUT/<profile>
+        err = capsys.readouterr().err
+        assert "no run results here" in err and str(out / "paper") in err, err
+    assert cli.main(["claims", str(out / "paper")]) == 0

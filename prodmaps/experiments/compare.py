@@ -1,0 +1,106 @@
+"""One rule for every stored "better / worse / tie" between two errors.
+
+Two numbers are compared by their **relative** difference ``d = (a - b) / max(|a|, |b|)``:
+
+* ``|d| <= TIE_REL`` — a **tie**: the two are equal up to floating-point rounding. This covers
+  methods that are equal by construction (the default transfer on a function in the source's
+  span *is* the standard transfer, so their errors differ in the 13th digit) and the noise that
+  different BLAS kernels, thread counts or LAPACK builds put into a result.
+* otherwise ``a`` is **better** (lower error) when ``a < b`` and **worse** when ``a > b``.
+
+``TIE_REL = 1e-5`` is measured, not guessed: between the OpenBLAS kernels ``Prescott`` (the
+plainest) and ``Haswell``, every value of the smoke profile above 1e-10 moved by at most 7.4e-7
+relative (an order-4 product basis at ``rtol = 1e-6``; direct solves move by 1e-16 to 1e-10,
+NO17 and FISTA fits and large transfer gains by 1e-8 to 5e-7), so two errors that are equal by
+construction stay a tie on every machine, with a factor of ten to spare. A difference of 1e-5
+relative between two errors is far below anything the paper's two-decimal tables resolve.
+
+:data:`ROUNDING_REL` is the wider band the claims ledger uses to say that a verdict is decided by
+a margin so thin that rounding could flip it (``"holds within rounding"``, see
+:mod:`prodmaps.experiments.claims`): comparisons whose relative difference lies between
+``TIE_REL`` and ``ROUNDING_REL`` are taken both ways and the verdict says so if it depends on them.
+``ROUNDING_REL = 1e-3`` covers the widest drift measured on one machine: Approach A with p = 1 (a
+FISTA fit stopped on its optimality conditions) moves by up to 7e-4 relative per pair between one
+and two BLAS threads.
+
+Counts of comparisons (``n_products_better`` in the tables, wins over pairs in the point-map
+study, cells in the default-transfer study) are reported as ``{"better": n, "tie": n, "worse": n}``
+so that a tie is never counted as a win or a loss.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+
+__all__ = ["TIE_REL", "ROUNDING_REL", "OUTCOMES", "relative_difference", "compare", "is_tie", "lower",
+           "not_higher", "count_outcomes"]
+
+TIE_REL = 1e-5
+ROUNDING_REL = 1e-3
+OUTCOMES = ("better", "tie", "worse")
+
+
+def relative_difference(a: float, b: float) -> float:
+    """``(a - b) / max(|a|, |b|)`` (0 when both are 0); raises ``ValueError`` on NaN or infinity.
+
+    Examples
+    --------
+    >>> relative_difference(1.0, 2.0)
+    -0.5
+    >>> relative_difference(0.0, 0.0)
+    0.0
+    """
+    a, b = float(a), float(b)
+    if not (math.isfinite(a) and math.isfinite(b)):
+        raise ValueError(f"cannot compare non-finite values {a!r} and {b!r}")
+    scale = max(abs(a), abs(b))
+    return 0.0 if scale == 0.0 else (a - b) / scale
+
+
+def compare(a: float, b: float, rel: float = TIE_REL) -> str:
+    """``"better"`` if error ``a`` is lower than ``b`` by more than ``rel`` relative, ``"worse"`` if
+    higher by more than that, else ``"tie"``.
+
+    Examples
+    --------
+    >>> compare(0.10, 0.20)
+    'better'
+    >>> compare(0.2, 0.2 * (1 + 1e-12))   # equal up to rounding
+    'tie'
+    >>> compare(0.3, 0.2)
+    'worse'
+    """
+    d = relative_difference(a, b)
+    if abs(d) <= rel:
+        return "tie"
+    return "better" if d < 0 else "worse"
+
+
+def is_tie(a: float, b: float, rel: float = TIE_REL) -> bool:
+    """``compare(a, b, rel) == "tie"``."""
+    return compare(a, b, rel) == "tie"
+
+
+def lower(a: float, b: float, rel: float = TIE_REL) -> bool:
+    """``a < b`` by more than a tie: ``compare(a, b, rel) == "better"``."""
+    return compare(a, b, rel) == "better"
+
+
+def not_higher(a: float, b: float, rel: float = TIE_REL) -> bool:
+    """``a <= b`` up to a tie: ``compare(a, b, rel) != "worse"``."""
+    return compare(a, b, rel) != "worse"
+
+
+def count_outcomes(pairs: Iterable[tuple[float, float]], rel: float = TIE_REL) -> dict:
+    """``{"better": n, "tie": n, "worse": n}`` over ``(a, b)`` pairs (``a`` the method judged).
+
+    Examples
+    --------
+    >>> count_outcomes([(1.0, 2.0), (2.0, 2.0), (3.0, 2.0), (0.5, 1.0)])
+    {'better': 2, 'tie': 1, 'worse': 1}
+    """
+    out = dict.fromkeys(OUTCOMES, 0)
+    for a, b in pairs:
+        out[compare(a, b, rel)] += 1
+    return out

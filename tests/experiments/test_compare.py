@@ -1,0 +1,72 @@
+"""The one comparison rule (prodmaps.experiments.compare) and the ledger's rounding band."""
+
+import math
+
+import pytest
+
+from prodmaps.experiments import claims, compare
+
+
+def test_two_equal_errors_are_a_tie_not_a_win():
+    a = 0.0671234
+    for b in (a, a * (1 + 1e-13), a * (1 - 1e-9), a * (1 + 0.9 * compare.TIE_REL)):
+        assert compare.compare(a, b) == "tie"
+        assert compare.compare(b, a) == "tie"
+        assert not compare.lower(a, b) and not compare.lower(b, a)
+        assert compare.not_higher(a, b) and compare.not_higher(b, a)
+    assert compare.count_outcomes([(a, a)] * 3) == {"better": 0, "tie": 3, "worse": 0}
+
+
+def test_outside_the_tie_band_the_lower_error_wins():
+    a = 0.2
+    b = a * (1 + 3 * compare.TIE_REL)
+    assert compare.compare(a, b) == "better" and compare.compare(b, a) == "worse"
+    assert compare.lower(a, b) and not compare.not_higher(b, a)
+    assert compare.compare(0.0, 0.0) == "tie"
+    assert compare.compare(0.0, 1e-300) == "better"  # relative: any non-zero against zero
+    assert compare.count_outcomes([(1, 2), (2, 1), (1, 1)]) == {"better": 1, "tie": 1, "worse": 1}
+
+
+def test_relative_difference_is_scale_free_and_refuses_nan():
+    for s in (1e-8, 1.0, 1e8):
+        assert math.isclose(compare.relative_difference(1.0 * s, 2.0 * s), -0.5)
+    with pytest.raises(ValueError, match="non-finite"):
+        compare.compare(float("nan"), 1.0)
+    with pytest.raises(ValueError, match="non-finite"):
+        compare.compare(1.0, float("inf"))
+
+
+def _claim(holds: str) -> claims.Claim:
+    return claims.Claim(id="t.x", where="Table 0", quote="q", runs=("r",), values={"ours": "r:ours", "std": "r:std"},
+                        holds=holds, evidence="{ours} vs {std}")
+
+
+@pytest.mark.parametrize("ours, std, verdict", [
+    (0.10, 0.20, "holds"),                                  # a clear win
+    (0.20, 0.10, "does not hold"),                          # a clear loss
+    (0.10, 0.10, "does not hold"),                          # a tie is no win
+    (0.10, 0.10 * (1 + 1e-4), "holds within rounding"),     # a win by a margin rounding could flip
+    (0.10 * (1 + 1e-4), 0.10, "holds within rounding"),     # a thin loss: the same, on every machine
+    (0.10 * (1 + 2e-3), 0.10, "does not hold"),             # a loss beyond the rounding band
+])
+def test_ledger_verdicts_with_ties_and_thin_margins(ours, std, verdict):
+    v = claims.evaluate(_claim("lower(ours, std)"), {"r": {"results": {"ours": ours, "std": std}}})[0]
+    assert v.verdict == verdict, (ours, std, v.evidence)
+    assert v.verdict in claims.VERDICTS
+    assert v.settings["paper"]["within_rounding"] == verdict.endswith("within rounding")
+
+
+def test_not_higher_accepts_a_tie_on_every_reading():
+    v = claims.evaluate(_claim("not_higher(ours, std)"), {"r": {"results": {"ours": 0.3, "std": 0.3 * (1 + 1e-12)}}})
+    assert v[0].verdict == "holds" and not v[0].settings["paper"]["within_rounding"]
+
+
+def test_the_ledger_compares_measured_numbers_only_through_the_tie_rule():
+    """No bare ``<``/``>`` between two looked-up values: every rule goes through lower/not_higher."""
+    import re
+
+    for c in claims.load_ledger().values():
+        names = set(c.values)
+        for a, b in re.findall(r"(\w+)\[[^\]]*\]\s*[<>]=?\s*(\w+)\[", c.holds):
+            assert not ({a, b} <= names), f"{c.id}: bare comparison in {c.holds!r}"
+        assert not re.search(r"\bnot\s+(?!in\b)", c.holds), f"{c.id}: rules must be monotone (no 'not')"
