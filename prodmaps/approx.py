@@ -75,7 +75,7 @@ __all__ = ["ApproximationOperator", "approximation_operator", "approximate", "ch
 
 METHODS = ("std", "svd", "ridge", "lasso")
 NORMALIZATIONS = ("euclidean", "unit_area", "columns", "area")
-DEFAULT_NORMALIZATION = "area"
+DEFAULT_NORMALIZATION = "euclidean"  # the reading that reproduces the paper (study_normalization)
 
 
 def check_functions(F, n: int, what: str = "f") -> np.ndarray:

@@ -108,6 +108,15 @@ class Basis:
         """``Φ @ coefs``."""
         return self.vecs @ coefs
 
+    def scaled(self, s: float) -> "Basis":
+        """The same basis on the mesh scaled by ``s``: eigenfunctions ``/ s``, eigenvalues ``/ s²``,
+        mass ``· s²`` (still A-orthonormal). ``b.scaled(1 / sqrt(b.area))`` is the unit-area basis that
+        NO17 fits on. Shares nothing with this basis' cache (the products of a rescaled basis differ)."""
+        s = float(s)
+        if not (np.isfinite(s) and s > 0):
+            raise ValueError(f"scale must be a positive number, got {s}")
+        return Basis(self.vecs / s, self.evals / s**2, self.mass * s**2, name=self.name)
+
     def truncate(self, k: int) -> "Basis":
         """The first ``k`` columns (constant included), sharing this basis' cache.
 

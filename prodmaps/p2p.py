@@ -153,11 +153,15 @@ def extended_embeddings(
         t = float(t_scale) / float(b1.evals[n_eig - 1])
     if not (np.isfinite(t) and t >= 0):
         raise ValueError(f"t must be a finite number >= 0, got {t}")
+    # Units: t is in shape 1's units (area a1); shape 2 uses the same time relative to its own area,
+    # t·a2/a1, and h_t² scales as 1/area², so the transferred kernels are brought to shape 2's scale by
+    # (a1/a2)². Equal areas change nothing; scaling either mesh changes no point of the result.
+    ratio = b2.area / b1.area
     a1 = heat_square_coefficients(b1, t, n_eig, pairs)  # (n1, K1)
-    a2 = heat_square_coefficients(b2, t, n_eig, pairs)  # (n2, K2)
+    a2 = heat_square_coefficients(b2, t * ratio, n_eig, pairs)  # (n2, K2)
     Ct = pm.extend_fmap(C, b1, b2, order=2, pairs=pairs)  # (K2, K1)
     op = pm.product_basis(b2, order=2, pairs=pairs).operator("svd", rtol=rtol)
-    emb_1 = np.asarray(op.canonical(Ct @ a1.T)).T  # (n1, r)
+    emb_1 = np.asarray(op.canonical(Ct @ a1.T)).T / ratio**2  # (n1, r)
     emb_2 = np.asarray(op.canonical(a2.T)).T  # (n2, r)
     return emb_1, emb_2, {"t": t, "n_eig": n_eig, "rtol": rtol, "pairs": pairs, "dim": emb_1.shape[1]}
 
@@ -186,7 +190,9 @@ def from_fmap(
     if method == "std":
         if params:
             raise TypeError(f"method='std' takes no extra parameters, got {sorted(params)}")
-        emb_1 = basis_1.vecs[:, :k1] @ C.T  # (n1, k2) images of the source deltas
+        # compared as on unit-area shapes (so the answer does not depend on units or the area ratio):
+        # sqrt(a2) Φ2 against the unit-area map's images a1 / sqrt(a2) Φ1 Cᵀ, i.e. Φ2 against (a1/a2) Φ1 Cᵀ
+        emb_1 = (basis_1.area / basis_2.area) * (basis_1.vecs[:, :k1] @ C.T)  # (n1, k2) images of the source deltas
         emb_2 = basis_2.vecs[:, :k2]  # (n2, k2)
     else:
         allowed = {"t", "t_scale", "n_eig", "rtol", "pairs"}

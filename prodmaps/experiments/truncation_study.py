@@ -23,6 +23,7 @@ import time
 import numpy as np
 
 from .. import datasets, truncation
+from ..approx import column_weights
 from ..metrics import relative_error
 from ..products import product_basis
 from ..transfer import extend_fmap, fmap_from_p2p
@@ -70,7 +71,10 @@ def truncation_study(store: ShapeStore, pairs, *, sizes, map_kinds, families, rt
             kM, kN = s
             b1, b2 = store.basis(sid1, kM + 1), store.basis(sid2, kN + 1)
             ext1, ext2 = product_basis(b1), product_basis(b2)
-            sig, V = truncation.singular_directions(b1)  # (K_u,), (K_u, K_u)
+            sig, V = truncation.singular_directions(b1)  # (K_u,), (K_u, K_u) of sqrt(A1) B_s D
+            d = column_weights(ext1)  # the normalisation D (None: D = I)
+            if d is not None:
+                V = d[:, None] * V  # directions as solver coefficients: the function B_s D v_i
             rel, w = sig / sig[0], sig**2
             E = ext1.expand()  # (K, K_u) scaled-unique -> ordered
             BsV = ext1.solver_basis()[0] @ V  # (n1, K_u) the directions on the source

@@ -379,10 +379,22 @@ def fit_no17(
     Returns
     -------
     C_12 : ``(k2, k1)``, first column fixed to :func:`first_column`.
+
+    Units: the energy is built and minimised on both shapes scaled to unit area
+    (:meth:`prodmaps.Basis.scaled`), and the map of the given bases is returned
+    (``sqrt(area_2/area_1)`` times the unit-area map), so scaling either mesh changes nothing but
+    that factor. ``info["energy"]`` and ``info["taus"]`` are those of the unit-area problem.
     """
     from scipy.optimize import minimize
 
     t0 = time.perf_counter()
+    check_basis(basis_1, "basis_1")
+    check_basis(basis_2, "basis_2")
+    # Fit on both shapes scaled to unit area, so that the map does not depend on the meshes' units
+    # nor on their area ratio (eigenvalues, descriptor norms and the fixed first column all change
+    # with it); the map of the given bases is sqrt(area_2 / area_1) times the unit-area map.
+    area_ratio = np.sqrt(basis_2.area / basis_1.area)
+    basis_1, basis_2 = basis_1.scaled(1.0 / np.sqrt(basis_1.area)), basis_2.scaled(1.0 / np.sqrt(basis_2.area))
     terms = no17_terms(
         basis_1, basis_2, descr_1, descr_2, w_descr=w_descr, w_lap=w_lap, w_dcomm=w_dcomm,
         w_orient=w_orient, lap=lap, resolvent_gamma=resolvent_gamma, normalize=normalize,
@@ -395,6 +407,7 @@ def fit_no17(
         C = _solve_direct(terms)
         info = {"energy": energy_and_gradient(C, terms)[0], "nit": 0, "message": "direct solve",
                 "success": True, "time": time.perf_counter() - t0, "taus": terms.taus}
+        C = area_ratio * C
         return (C, info) if return_info else C
     if init == "zeros":
         free0 = np.zeros((k2, k1 - 1))
@@ -426,7 +439,8 @@ def fit_no17(
         info = {"energy": energy_and_gradient(C, terms)[0], "nit": 0, "message": "nothing to fit", "success": True}
     info["time"] = time.perf_counter() - t0
     info["taus"] = terms.taus
-    return (C.copy(), info) if return_info else C.copy()
+    C = area_ratio * C
+    return (C, info) if return_info else C
 
 
 def _solve_direct(terms: NO17Terms) -> np.ndarray:

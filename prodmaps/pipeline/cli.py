@@ -103,7 +103,7 @@ def _cmd_reproduce(a) -> int:
                            progress=not a.no_progress)
     wall = time.perf_counter() - t0
     print(execute.summary(results))
-    out_root = Path(a.out).resolve() / a.profile
+    out_root = execute.profile_folder(a.out, a.profile, a.dataset)
     print(f"wall time {wall:.1f} s; outputs in {out_root}")
     if a.update_baselines:
         dest = baselines.baselines_dir(a.registry, a.profile)
@@ -114,13 +114,16 @@ def _cmd_reproduce(a) -> int:
 
         root = registry.project_root(a.registry)
         default_registry = registry.registry_path(a.registry) == root / registry.REGISTRY
+        main_root = execute.profile_folder(a.out, a.profile)  # the embedded data's runs; other datasets beside
+        if not main_root.is_dir():
+            main_root = out_root
         if a.report:
             md = Path(a.report)
         elif a.profile == "paper" and default_registry:
             md = root / "paper" / "REPORT.md"
         else:
-            md = out_root / "REPORT.md"
-        md, html = build_report(out_root, md, registry=a.registry, copy_figures=a.copy_figures)
+            md = main_root / "REPORT.md"
+        md, html = build_report(main_root, md, registry=a.registry, copy_figures=a.copy_figures)
         print(f"report: {md} and {html}")
     return 1 if any(r.status == "failed" for r in results) else 0
 
@@ -129,12 +132,33 @@ def _cmd_diff(a) -> int:
     from .diffing import DEFAULT_PNG_THRESHOLD, diff_runs
     from .registry import load_registry
 
-    name = a.run or Path(a.baseline_dir).resolve().name
-    tolerances = {}
     try:
         runs = load_registry(a.registry)
     except Exception:
         runs = {}
+    new, base = Path(a.run_dir), Path(a.baseline_dir)
+    if not (new / "results.json").is_file() and new.is_dir() and not a.run:  # two profile folders
+        names = sorted(p.parent.name for p in new.glob("*/results.json"))
+        if not names:
+            raise FileNotFoundError(f"{new}: neither a run folder (results.json) nor a profile folder "
+                                    "(<run>/results.json)")
+        thr = DEFAULT_PNG_THRESHOLD if a.png_threshold is None else a.png_threshold
+        missing = [n for n in names if not (base / n / "results.json").is_file()]
+        ok = not missing
+        for n in names:
+            if n in missing:
+                continue
+            rep = diff_runs(new / n, base / n, runs[n].tolerances if n in runs else {}, png_threshold=thr,
+                            diff_dir=(Path(a.diff_dir) / n) if a.diff_dir else None)
+            print(rep.to_markdown())
+            ok &= rep.ok
+        print(f"{len(names) - len(missing)} run(s) compared" + (f"; no baseline for {missing}" if missing else ""))
+        return 0 if ok else 1
+    if new.name != base.resolve().name and not a.run and new.name in runs and base.resolve().name in runs:
+        raise ValueError(f"refusing to diff run {new.name!r} against the baseline of another run "
+                         f"{base.resolve().name!r}; pass --run NAME if that is what you mean")
+    name = a.run or Path(a.baseline_dir).resolve().name
+    tolerances = {}
     if name in runs:
         tolerances = runs[name].tolerances
     elif a.run:

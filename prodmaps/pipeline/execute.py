@@ -47,7 +47,7 @@ from .hashing import run_hash
 from .notebooks import declared_parameters, export_html
 from .registry import PROFILES, load_registry, project_root
 
-__all__ = ["RunResult", "run_notebook", "plan_runs", "reproduce", "summary", "ParameterError"]
+__all__ = ["RunResult", "run_notebook", "plan_runs", "reproduce", "summary", "ParameterError", "profile_folder"]
 
 
 class ParameterError(ValueError):
@@ -267,6 +267,16 @@ def _same_kind(value, default) -> bool:
     return any(isinstance(default, k) and isinstance(value, k) for k in kinds)
 
 
+DEFAULT_DATASET = "anny_humans"
+
+
+def profile_folder(out, profile: str, dataset: str | None = None) -> Path:
+    """``OUT/<profile>`` for the default data, ``OUT/<profile>-<dataset>`` for another dataset
+    (``--dataset faust`` writes beside the embedded-data runs, never over them)."""
+    out = Path(out).resolve()
+    return out / (profile if dataset in (None, DEFAULT_DATASET) else f"{profile}-{dataset}")
+
+
 def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, overrides=None,
               out="results", kernel_name: str = "python3", timeout=None, cwd=None) -> list[dict]:
     """Resolve the selected runs into task dicts (parameters, target folder, input hash).
@@ -298,7 +308,7 @@ def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, ov
         h, inputs = run_hash(run.notebook, params, ds, kernel_name)
         tasks.append({
             "name": n, "notebook": str(run.notebook), "params": params, "profile": profile,
-            "run_dir": str(out / profile / n), "hash": h, "inputs": inputs,
+            "run_dir": str(profile_folder(out, profile, dataset) / n), "hash": h, "inputs": inputs,
             "kernel_name": kernel_name, "timeout": timeout, "cwd": str(cwd or Path.cwd()),
         })
     return tasks

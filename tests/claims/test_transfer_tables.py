@@ -111,32 +111,42 @@ def test_fig08_products_improve_indicator_approximation(smoke_results):
 # ------------------------------------------------------------------------------ truncation study
 @pytest.mark.slow
 def test_study_gains_explain_the_threshold(smoke_results):
+    """With unit-norm eigenvectors (the default reading), 1e-3 keeps only directions that the map
+    transfers with gain about 1; smaller thresholds keep amplified ones (measured, smoke: median
+    largest kept gain 1.2-1.6 at 1e-3, 5.6-11.8 at 1e-4; under the metre reading it was 20-100 at 1e-3)."""
     _, res = smoke_results("study_truncation")
     for key, g in res["median_max_gain_of_kept_directions"].items():
-        assert g["0.001"] > 5.0, key    # 1e-3 keeps directions amplified several times by the transfer
-        assert g["0.1"] < 2.0, key      # the leading directions are transferred with gain about 1
+        assert g["0.001"] < 2.0, key
+        assert g["0.0001"] > 2.0 * g["0.001"], key
+        assert g["0.1"] < 1.2, key      # the leading directions are transferred with gain about 1
         assert g["0.0001"] >= g["0.001"] >= g["0.01"] >= g["0.1"], key
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("fam", ["XYZ", "Indicator"])
-def test_study_1e2_beats_paper_threshold_and_gain_rule_helps(smoke_results, fam):
+def test_study_paper_threshold_near_the_oracle_and_gain_rule_never_worse(smoke_results, fam):
+    """Coordinates and indicators: the paper's 1e-3 is within 5 % of the best threshold in hindsight
+    and beats both 1e-2 and the standard transfer; the gain rule is never worse than 1e-3; source-only
+    cross-validation keeps too much (measured, smoke: XYZ 0.283 at 1e-3 = oracle vs std 0.352)."""
     _, res = smoke_results("study_truncation")
     rt = [float(r) for r in res["rtols"]]
     for key, summ in res["summary"].items():
         s = summ[fam]
         err = s["rtol"]["transfer"]
-        assert err[rt.index(1e-2)] < err[rt.index(1e-3)], key
         ch = s["chosen"]
-        assert ch["gain"]["transfer"] <= ch["paper"]["transfer"] + 1e-12, key
-        assert ch["gain"]["transfer"] < ch["cv"]["transfer"], key   # source-only CV keeps too much
-        # the map part dominates the error at the paper's threshold
-        assert s["rtol"]["map_part"][rt.index(1e-3)] > s["rtol"]["approx"][rt.index(1e-3)], key
+        assert ch["paper"]["transfer"] <= 1.05 * ch["oracle"]["transfer"], key
+        assert err[rt.index(1e-3)] < err[rt.index(1e-2)] < s["std_transfer"], key
+        assert ch["gain"]["transfer"] <= ch["paper"]["transfer"] * (1 + 1e-9), key
+        assert ch["gain"]["transfer"] < ch["cv"]["transfer"], key
+        # the approximation on the source, not the map, dominates the error at the paper's threshold
+        assert s["rtol"]["map_part"][rt.index(1e-3)] < s["rtol"]["approx"][rt.index(1e-3)], key
 
 
 @pytest.mark.slow
-def test_study_wks_products_far_below_std_at_every_threshold(smoke_results):
+def test_study_wks_products_far_below_std_at_every_threshold_that_keeps_products(smoke_results):
     _, res = smoke_results("study_truncation")
+    rt = [float(r) for r in res["rtols"]]
     for key, summ in res["summary"].items():
         s = summ["WKS"]
-        assert max(s["rtol"]["transfer"]) < 0.5 * s["std_transfer"], key
+        kept = [e for r, e in zip(rt, s["rtol"]["transfer"]) if r <= 1e-2]  # above, only the basis is kept
+        assert max(kept) < 0.5 * s["std_transfer"], key

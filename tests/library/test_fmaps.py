@@ -104,11 +104,14 @@ def test_fit_fixes_first_column_and_is_rectangular(demo):
     b1, b2, d1, d2, _ = demo
     C, info = fmaps.fit_no17(b1.truncate(10), b2.truncate(14), d1, d2, return_info=True)
     assert C.shape == (14, 10)
-    assert C[0, 0] == np.sqrt(b2.area / b1.area)
+    assert C[0, 0] == pytest.approx(np.sqrt(b2.area / b1.area), rel=1e-15)
     assert np.all(C[1:, 0] == 0.0)
     assert info["success"]
-    # at the optimum the gradient of the free columns is small compared with its value at C = 0
-    terms = fmaps.no17_terms(b1.truncate(10), b2.truncate(14), d1, d2)
+    # at the optimum the gradient of the free columns is small compared with its value at C = 0; the
+    # fit runs on the unit-area shapes, whose map is C / sqrt(area_2 / area_1)
+    u1, u2 = (b.truncate(k).scaled(1 / np.sqrt(b.area)) for b, k in ((b1, 10), (b2, 14)))
+    terms = fmaps.no17_terms(u1, u2, d1, d2)
+    C = C / np.sqrt(b2.area / b1.area)
     C0 = np.zeros((14, 10))
     C0[:, 0] = C[:, 0]
     g_opt = np.abs(fmaps.energy_and_gradient(C, terms)[1][:, 1:]).max()
@@ -214,10 +217,13 @@ def test_quadratic_form_matches_energy_and_gradient(demo):
 def test_direct_solver_is_the_exact_minimiser(demo):
     b1, b2, d1, d2, _ = demo
     B1, B2 = b1.truncate(8), b2.truncate(10)
-    terms = fmaps.no17_terms(B1, B2, d1, d2)
     C_dir = fmaps.fit_no17(B1, B2, d1, d2, solver="direct")
     C_lbfgs = fmaps.fit_no17(B1, B2, d1, d2, factr=10, pgtol=1e-13)
-    np.testing.assert_array_equal(C_dir[:, 0], fmaps.first_column(B1, B2, 10))
+    np.testing.assert_allclose(C_dir[:, 0], fmaps.first_column(B1, B2, 10), rtol=1e-15, atol=0)
+    # both solve the unit-area problem (fit_no17's units); compare there
+    r = np.sqrt(B2.area / B1.area)
+    terms = fmaps.no17_terms(B1.scaled(1 / np.sqrt(B1.area)), B2.scaled(1 / np.sqrt(B2.area)), d1, d2)
+    C_dir, C_lbfgs = C_dir / r, C_lbfgs / r
     E_dir, G_dir = fmaps.energy_and_gradient(C_dir, terms)
     assert np.abs(G_dir[:, 1:]).max() < 1e-10  # stationary in the free columns
     assert E_dir <= fmaps.energy_and_gradient(C_lbfgs, terms)[0] + 1e-14

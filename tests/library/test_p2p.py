@@ -42,7 +42,8 @@ def test_std_matches_its_definition(basis_0, basis_13):
     rng = np.random.default_rng(0)
     C = rng.normal(size=(15, 12))
     p2p = from_fmap(C, basis_0, basis_13, method="std")
-    ref = np.argmin(cdist(basis_13.vecs[:, :15], basis_0.vecs[:, :12] @ C.T), axis=1)
+    # nearest neighbours as on unit-area shapes: Φ2 against (area_1 / area_2) Φ1 Cᵀ
+    ref = np.argmin(cdist(basis_13.vecs[:, :15], (basis_0.area / basis_13.area) * basis_0.vecs[:, :12] @ C.T), axis=1)
     assert p2p.shape == (basis_13.n,)
     assert np.array_equal(p2p, ref)
 

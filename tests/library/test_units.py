@@ -101,3 +101,80 @@ def test_area_at_scale_is_the_area_reading_of_the_scaled_mesh(shapes):
     for bad in ("area@", "area@-1", "area@x", "metres"):
         with pytest.raises(ValueError, match="normalization"):
             ext1.operator("svd", rtol=1e-3, normalization=bad)
+
+
+# ------------------------------------------------------------------ a pair, one mesh rescaled
+@pytest.fixture(scope="module")
+def pair(human_0, human_13):
+    """``{s: (b1, b2)}``: bases of anny_000 and of anny_013 scaled by ``s`` (the target only)."""
+    b1 = pm.eigenbasis(human_0, 20)
+    out = {}
+    for s in (1.0,) + SCALES:
+        m2 = pm.Mesh(human_13.vertices * s, human_13.faces)
+        out[s] = (b1, pm.eigenbasis(m2, 20))
+    return out
+
+
+def _gt(b1, b2, k1=10, k2=12):
+    """The ground-truth map (the embedded humans share one triangulation: the identity)."""
+    return pm.fmap_from_p2p(np.arange(b2.n), b1.truncate(k1), b2.truncate(k2))
+
+
+@pytest.mark.parametrize("how", [{"method": "std"}, {"method": "prod"}, {"method": "prod", "rtol": 1e-3},
+                                 {"method": "prod", "approx": "ridge", "eps": 1e-6}])
+def test_transfer_is_unit_free(pair, human_0, how):
+    b1, b2 = pair[1.0]
+    F = _smooth_rough(human_0)
+    g1 = pm.transfer(F, _gt(b1, b2), b1.truncate(10), b2.truncate(12), **how)
+    for s in SCALES:
+        c1, c2 = pair[s]
+        g = pm.transfer(F, _gt(c1, c2), c1.truncate(10), c2.truncate(12), **how)
+        np.testing.assert_allclose(g, g1, atol=1e-6 * np.abs(F).max(), err_msg=f"{how} x{s}")
+
+
+@pytest.mark.parametrize("method", ["std", "extended"])
+def test_point_map_conversion_is_unit_free(pair, method):
+    from prodmaps.p2p import from_fmap
+
+    b1, b2 = pair[1.0]
+    C = _gt(b1, b2, 10, 12) + 0.02 * np.random.default_rng(0).standard_normal((12, 10))  # a map that is not exact
+    p1 = from_fmap(C, b1.truncate(10), b2.truncate(12), method)
+    for s in SCALES:
+        c1, c2 = pair[s]
+        Cs = C * s  # the same map: C_12 scales as sqrt(area_2 / area_1) = s
+        p = from_fmap(Cs, c1.truncate(10), c2.truncate(12), method)
+        assert np.mean(p == p1) > 0.999, (method, s, np.mean(p == p1))
+
+
+def test_no17_and_zoomout_are_unit_free(pair):
+    from prodmaps.fmaps import no17_demo_descriptors
+    from prodmaps.fmaps.no17 import fit_no17
+    from prodmaps.fmaps.zoomout import zoomout
+    from prodmaps.p2p import from_fmap
+
+    def run(b1, b2):
+        d1, d2 = no17_demo_descriptors(b1, b2, k_descr=20, n_descr=30)
+        C = fit_no17(b1.truncate(8), b2.truncate(8), d1, d2, solver="direct")
+        Cz = zoomout(C, b1, b2, 16)
+        return C, from_fmap(Cz, b1.truncate(16), b2.truncate(16))
+
+    C1, p1 = run(*pair[1.0])
+    for s in SCALES:
+        C, p = run(*pair[s])
+        np.testing.assert_allclose(C / s, C1, atol=1e-6)
+        assert np.mean(p == p1) > 0.999, (s, np.mean(p == p1))
+
+
+def test_descriptors_are_unit_free(human_0):
+    from prodmaps.descriptors import spectral
+
+    b = pm.eigenbasis(human_0, 30)
+    for s in SCALES:
+        bs = b.scaled(s)
+        np.testing.assert_allclose(spectral.hks_times(bs) / s**2, spectral.hks_times(b), rtol=1e-12)
+        e, sig = spectral.wks_energies_from_evals(b.evals, 30)
+        es, sigs = spectral.wks_energies_from_evals(bs.evals, 30)
+        np.testing.assert_allclose(np.exp(es) * s**2, np.exp(e), rtol=1e-9)
+        # the descriptors themselves scale with 1/area (they are sums of squared A-normalised functions)
+        np.testing.assert_allclose(spectral.hks(bs, spectral.hks_times(bs)) * s**2,
+                                   spectral.hks(b, spectral.hks_times(b)), rtol=1e-9)

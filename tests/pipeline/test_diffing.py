@@ -185,3 +185,22 @@ def test_cli_diff_uses_registry_tolerances(tmp_path, monkeypatch, capsys):
     assert "diff FAIL" in out and "results.errors.std.k8" in out
     assert cli.main(["diff", str(new), str(other), "--run", "fig99"]) == 0
     assert cli.main(["diff", str(new), str(tmp_path / "none")]) == 2
+
+
+def test_cli_diff_two_profile_folders_and_refuses_two_different_runs(tmp_path, monkeypatch, capsys):
+    reg = tmp_path / "runs.toml"
+    reg.write_text('root = "."\n[runs.fig98]\nnotebook = "x.ipynb"\n[runs.fig99]\nnotebook = "y.ipynb"\n')
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    for prof in ("new", "base"):
+        for run in ("fig98", "fig99"):
+            make_run(tmp_path / prof / run)
+    assert cli.main(["diff", str(tmp_path / "new"), str(tmp_path / "base")]) == 0
+    out = capsys.readouterr().out
+    assert out.count("diff PASS") == 2 and "2 run(s) compared" in out
+    drift = _copy(DOC)
+    drift["results"]["errors"]["std"]["k8"] = 0.5
+    make_run(tmp_path / "new" / "fig99", drift)
+    assert cli.main(["diff", str(tmp_path / "new"), str(tmp_path / "base")]) == 1
+    capsys.readouterr()
+    assert cli.main(["diff", str(tmp_path / "new" / "fig98"), str(tmp_path / "base" / "fig99")]) == 2
+    assert "another run" in capsys.readouterr().err

@@ -18,6 +18,7 @@ from PIL import Image
 
 from prodmaps.experiments.claims import VERDICTS, load_ledger
 from prodmaps.experiments.published import load_published, published_values
+from prodmaps.pipeline import execute
 from prodmaps.pipeline.registry import load_registry
 from prodmaps.pipeline.report import build_report, collect_runs
 
@@ -562,3 +563,27 @@ def test_cli_claims_and_report_refuse_a_folder_without_runs(tmp_path, monkeypatc
         err = capsys.readouterr().err
         assert "no run results here" in err and str(out / "paper") in err, err
     assert cli.main(["claims", str(out / "paper")]) == 0
+
+
+def test_a_prepared_dataset_gets_a_verdict_column_and_a_section(tmp_path):
+    reg, res = make_project(tmp_path)
+    faust = res.with_name(res.name + "-faust")  # what `prodmaps reproduce --dataset faust` writes
+    tab01 = {f"errors{sub}": {"k9_9": {"approx": APPROX, "transfer": tr}} for sub, tr in TRANSFER.items()}
+    tab01["table"] = TABLE1
+    tab01["pairs"] = [["tr_reg_000", "tr_reg_001"], ["tr_reg_010", "tr_reg_025"]]
+    _run(faust, "tab01", _doc(tab01, table="T1"), _manifest("tab01", "ok", 3.0), pngs=["table.png"])
+    md, _ = build_report(res, tmp_path / "paper" / "REPORT.md", registry=reg)
+    text = md.read_text(encoding="utf-8")
+    claims = _section(text, "Claims of the paper, judged on these results")
+    (table,) = _tables(claims)
+    head = [h.strip() for h in table[0]]
+    assert head.index("FAUST") == head.index("default") + 1
+    row = {r[0].strip("`"): r for r in table[1:]}["tab01.products_improve_transfer"]
+    assert row[head.index("FAUST")].strip().startswith(("holds", "**does not hold**"))
+    assert row[head.index("FAUST")] != "not measured here"
+    assert "On FAUST:" in claims
+    faust_sec = _section(text, "On FAUST")
+    assert "`tr_reg_000`" in faust_sec and "tr_reg_010→tr_reg_025" in faust_sec and "2 ordered" in faust_sec
+    assert "Tables on FAUST" in faust_sec
+    assert execute.profile_folder(tmp_path, "paper", "faust") == (tmp_path / "paper-faust").resolve()
+    assert execute.profile_folder(tmp_path, "paper", "anny_humans") == (tmp_path / "paper").resolve()
