@@ -99,7 +99,8 @@ def normalization_study(store, pairs, *, readings: dict | None = None, tables: d
                 rtol = _rtol(reading, kM)
                 s = ProtocolSettings(sizes=[(kM, kN)], map_kind="gt", families=list(families),
                                      methods=["std", "l2", "B"], rtol=rtol, eps_ridge=eps_ridge,
-                                     normalization=reading["normalization"])
+                                     normalization=reading["normalization"],
+                                     k_M_family=max(a for a, _ in sizes))  # as the tables: the table's largest k_M
                 res = run_protocol(store, pairs, s, progress=False)
                 means = family_means(res, t)
                 key = f"k{kM}_{kN}"
