@@ -67,7 +67,8 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .compare import ROUNDING_REL, TIE_REL, relative_difference
+from . import compare
+from .compare import ROUNDING_REL
 
 __all__ = ["Claim", "Verdict", "load_ledger", "evaluate", "evaluate_folder", "verdicts_for_run",
            "format_table", "setting_mark", "LEDGER", "VERDICTS"]
@@ -84,13 +85,15 @@ def _mean(values) -> float:
 def _comparators(mode: str) -> dict:
     """``lower`` / ``not_higher`` for one way of judging (``exact``, ``pessimistic``, ``optimistic``)."""
 
+    if mode == "exact":  # the one tie rule of prodmaps.experiments.compare
+        return {"lower": compare.lower, "not_higher": compare.not_higher}
+
     def decide(a, b, strict: bool) -> bool:
-        d = relative_difference(a, b)
-        if abs(d) <= TIE_REL:
+        if compare.is_tie(a, b):
             return not strict  # a tie: never lower, always not higher
-        if mode != "exact" and abs(d) <= ROUNDING_REL:
+        if compare.is_tie(a, b, ROUNDING_REL):  # a margin rounding could flip: for or against the claim
             return mode == "optimistic"
-        return d < 0
+        return compare.lower(a, b)
 
     return {"lower": lambda a, b: decide(a, b, True), "not_higher": lambda a, b: decide(a, b, False)}
 
