@@ -27,7 +27,7 @@ for any ``C``.
    ``H = Φ1ᵀ A1 P1``; their Gram ``S = QᵀA1Q = G_PP - HᵀH`` comes from the source's cached product
    Gram (the one Approach B builds). ``S = V diag(σ²) Vᵀ``: direction ``i`` has source function
    ``Q v_i`` (area norm ``σ_i``) and target image ``y_i = (Z - Ψ H) v_i``.
-3. **Two tests per direction, no ground truth** (``Π`` the A2-projection on
+3. **Three tests per direction, no ground truth** (``Π`` the A2-projection on
    ``range(Ψ) = Φ2 range(C)``, the span of the standard transfer):
 
    * leak ``λ_i = ||Π y_i||_A2 / ||y_i||_A2``: a point map sends functions A1-orthogonal to
@@ -36,9 +36,18 @@ for any ``C``.
      the wrong place"). That part ``Π y_i`` is error by this argument and is removed: the
      direction's image is ``y'_i = (I - Π) y_i``;
    * transfer gain ``γ_i = ||y'_i||_A2 / (ρ σ_i)``, ``ρ = sqrt(area_2 / area_1)`` (a near-isometric
-     point map scales L2 norms by ``ρ``, so ``γ_i ≈ 1`` for a map that preserves products).
+     point map scales L2 norms by ``ρ``, so ``γ_i ≈ 1`` for a map that preserves products);
+   * truncation error ``ê_i``: even the exact projection of a point map carries only the part of
+     each ``φ_l∘T`` inside ``span Φ2``; the products of these truncated images miss
+     ``ψ_l e_m + e_l ψ_m`` (``e_l`` the lost part). ``C`` itself tells how much is lost:
+     for a near-isometric point map ``CᵀC ≈ ρ² I``, and the row defect
+     ``δ_l = ||(I - CᵀC/ρ²) e_l||`` (:func:`isometry_defect`; ``||e_l||²/ρ²`` for an exact
+     projection, plus whatever noise or a non-point map adds) gives the model
+     ``ê_i² = Σ_(l,m) V_(lm),i² (δ_l + δ_m) ||φ_l φ_m||²_A1 / σ_i²``: directions that are
+     near-cancellations of products (small ``σ_i``) amplify the truncation error.
 
-   Filter factors ``h_i = 1/(1 + (γ_i/g0)^p) · 1/(1 + (λ_i/l0)^p)``, directions with
+   Filter factors ``h_i = 1/(1 + (γ_i/g0)^p) · 1/(1 + (λ_i/l0)^p) · 1/(1 + (ê_i/e0)²)`` (the
+   last is the Wiener factor of an image with relative error ``ê_i/e0``), directions with
    ``σ_i <= floor · σ_max`` (numerically dependent products) dropped.
 4. ``g = Ψ a0 + Σ_i h_i y'_i (v_iᵀ q) / σ_i²`` with ``q = Qᵀ A1 r = P1ᵀ A1 f - Hᵀ a0``.
 
@@ -70,13 +79,14 @@ from .basis import Basis
 from .files import sha256_bytes
 from .products import evaluate_products, product_basis
 
-__all__ = ["SafeTransfer", "safe_transfer", "DEFAULTS"]
+__all__ = ["SafeTransfer", "safe_transfer", "isometry_defect", "DEFAULTS"]
 
-DEFAULTS = {"g0": 1.5, "p": 8, "l0": 0.5, "floor": 1e-3, "h_min": 1e-4}
+DEFAULTS = {"g0": 1.5, "p": 8, "l0": 0.5, "e0": 0.4, "floor": 1e-3, "h_min": 1e-4}
 
 
 def _source_parts(basis_1: Basis):
-    """``(H (k1, Kp), σ² (r,), V (Kp, r), ext_u)`` of the residual stage, cached on the source.
+    """``(H (k1, Kp), σ² (r,), V (Kp, r), g_PP (Kp,), ext_u)`` of the residual stage, cached on the
+    source; ``g_PP`` holds the squared area norms ``||φ_l φ_m||²_A1`` of the products.
 
     The unique product Gram is the one Approach B uses; if only the ordered (paper's) one is
     cached it is recovered exactly (the ordered solver basis is the unique basis scaled by
@@ -97,10 +107,24 @@ def _source_parts(basis_1: Basis):
         H = np.ascontiguousarray(G[:k1, k1:])  # (k1, Kp)
         S = G[k1:, k1:] - H.T @ H  # (Kp, Kp) Schur complement = QᵀA1Q
         lam, V = sla.eigh(0.5 * (S + S.T), check_finite=False)  # ascending
-        return H, lam[::-1].copy(), np.ascontiguousarray(V[:, ::-1])
+        return H, lam[::-1].copy(), np.ascontiguousarray(V[:, ::-1]), np.diag(G)[k1:].copy()
 
-    H, lam, V = ext_u.cache.get("safe_transfer_parts", parts)
-    return H, lam, V, ext_u
+    H, lam, V, gpp = ext_u.cache.get("safe_transfer_parts", parts)
+    return H, lam, V, gpp, ext_u
+
+
+def isometry_defect(C_12: np.ndarray, area_ratio: float = 1.0) -> np.ndarray:
+    """``δ_l = ||(I - C_12ᵀ C_12 / ρ²) e_l||_2`` ``(k1,)``, ``ρ² = area_2 / area_1``.
+
+    For the functional map of a point map between near-isometric shapes, ``C_12ᵀ C_12 ≈ ρ² I``
+    (norms and orthogonality of the pulled-back eigenfunctions are kept): ``δ_l`` is how far
+    column ``l`` is from that. With ``C_12`` the exact projection of a point map, the diagonal part
+    is the fraction ``||e_l||² / ρ²`` of the image of ``φ_l`` lost outside ``span Φ2`` (truncation);
+    noise or a map that is not a point map adds off-diagonal terms. No ground truth is used.
+    """
+    C = np.asarray(C_12, dtype=float)
+    D = np.eye(C.shape[1]) - (C.T @ C) / float(area_ratio)  # (k1, k1)
+    return np.linalg.norm(D, axis=1)
 
 
 class SafeTransfer:
@@ -116,6 +140,11 @@ class SafeTransfer:
     g0, p : gain scale and order of the filter ``1/(1 + (γ/g0)^p)`` (defaults 1.5 and 8: a soft
         cut at 1.5 times the area-ratio-corrected norm a point map would give).
     l0 : leak scale (default 0.5; ``None`` switches the leak test off).
+    e0 : scale of the truncation test (default 0.4; ``None`` switches it off): the expected relative
+        error of direction ``i``'s image, ``ê_i² = Σ_(l,m) V_(lm),i² (δ_l + δ_m) ||φ_l φ_m||²_A1 / σ_i²``
+        from :func:`isometry_defect` (a first-order model: ``ψ_l ψ_m`` misses
+        ``ψ_l e_m + e_l ψ_m`` when ``ψ_l = φ_l∘T - e_l``), enters as ``1/(1 + (ê_i/e0)²)`` (the
+        Wiener factor of an estimate with relative error ``ê_i/e0``).
     floor : directions with ``σ_i <= floor · σ_max`` of the residual Gram are ignored (1e-3: never a
         direction the paper's threshold would drop).
     h_min : directions with ``h_i < h_min`` are not stored (cost only).
@@ -124,7 +153,8 @@ class SafeTransfer:
     """
 
     def __init__(self, C_12, basis_1: Basis, basis_2: Basis, *, g0: float = DEFAULTS["g0"], p: float = DEFAULTS["p"],
-                 l0: float | None = DEFAULTS["l0"], floor: float = DEFAULTS["floor"],
+                 l0: float | None = DEFAULTS["l0"], e0: float | None = DEFAULTS["e0"],
+                 floor: float = DEFAULTS["floor"],
                  h_min: float = DEFAULTS["h_min"], pairs: str = "unique"):
         from .transfer import check_fmap
 
@@ -135,12 +165,13 @@ class SafeTransfer:
         for name, v in (("g0", g0), ("p", p), ("floor", floor), ("h_min", h_min)):
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")
-        if l0 is not None and not (np.isfinite(l0) and l0 > 0):
-            raise ValueError(f"l0 must be finite and > 0 (or None), got {l0!r}")
+        for name, v in (("l0", l0), ("e0", e0)):
+            if v is not None and not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name} must be finite and > 0 (or None), got {v!r}")
         self.C, self.basis_1, self.basis_2 = C, basis_1, basis_2
-        self.params = {"g0": g0, "p": p, "l0": l0, "floor": floor, "h_min": h_min}
+        self.params = {"g0": g0, "p": p, "l0": l0, "e0": e0, "floor": floor, "h_min": h_min}
         k1 = basis_1.k
-        H, lam, V, ext_u = _source_parts(basis_1)
+        H, lam, V, gpp, ext_u = _source_parts(basis_1)
         ok = lam > (floor**2) * lam[0]  # σ_i > floor σ_max
         lam, V = lam[ok], V[:, ok]
         self.H, self.extended_basis = H, ext_u
@@ -159,11 +190,16 @@ class SafeTransfer:
         Y = Y - Q2 @ T  # (n2, r) y'_i = (I - Π) y_i
         sigma = np.sqrt(lam)
         gain = np.sqrt(np.einsum("ij,ij->j", Y, m2[:, None] * Y)) / (rho * sigma)
+        delta = isometry_defect(C, rho**2)  # (k1,)
+        pl = ext_u.index[k1:]  # (Kp, 2) the pair (l, m) of each product column
+        err = np.sqrt(((V**2) * ((delta[pl[:, 0]] + delta[pl[:, 1]]) * gpp)[:, None]).sum(axis=0) / lam)  # (r,) ê_i
         h = 1.0 / (1.0 + (gain / g0) ** p)
         if l0 is not None:
             h = h / (1.0 + (leak / l0) ** p)
+        if e0 is not None:
+            h = h / (1.0 + (err / e0) ** 2)
         keep = h >= h_min
-        self.sigma, self.gain, self.leak, self.filter = sigma, gain, leak, h
+        self.sigma, self.gain, self.leak, self.error, self.filter = sigma, gain, leak, err, h
         self._Psi = Psi
         self._Y = np.ascontiguousarray(Y[:, keep])  # (n2, r_kept)
         self._W = np.ascontiguousarray(V[:, keep] * (h[keep] / lam[keep]))  # (Kp, r_kept): filtered pseudo-inverse

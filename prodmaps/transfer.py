@@ -183,11 +183,11 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, or
     ``method="prod"`` with no threshold given: **the library's default extended transfer**
     (:mod:`prodmaps.safe_transfer`): the standard projection first, then the residual fitted with
     the products that are A1-orthogonal to the basis; each product direction's image under ``C~``
-    loses its part inside ``range(Φ2 C)`` and is kept only if it passes a gain and a leak test (no
-    ground truth needed). The paper's fixed threshold can make products worse on real maps; the
+    loses its part inside ``range(Φ2 C)`` and is kept only if it passes a gain, a leak and a
+    truncation test (no ground truth needed; :mod:`prodmaps.safe_transfer`). The paper's fixed threshold can make products worse on real maps; the
     default never did in our measurements: it never changes what the standard transfer carries
     (its projection on ``range(Φ2 C)`` is the standard transfer) and reduces to it exactly when no
-    direction passes. ``params`` may set its ``g0``, ``p``, ``l0``, ``floor``, ``h_min``.
+    direction passes. ``params`` may set its ``g0``, ``p``, ``l0``, ``e0``, ``floor``, ``h_min``.
 
     ``method="prod"`` with ``rtol=...`` (e.g. ``rtol=1e-3``): **the paper's Approach B** exactly,
     ``B2 C~ a`` with ``a`` the truncated-SVD coefficients of ``F`` in the extended basis of

@@ -22,7 +22,8 @@ from . import families as pfam
 from .protocol import ProtocolSettings, family_means, method_label, run_protocol
 from .store import ShapeStore
 
-__all__ = ["METHODS", "condition_key", "variant_pairs", "default_transfer_study", "summary", "figure"]
+__all__ = ["METHODS", "condition_key", "variant_pairs", "default_transfer_study", "single_function_excess", "summary",
+           "figure"]
 
 METHODS = ("std", "B", "B_gain", "default")
 
@@ -54,8 +55,10 @@ def default_transfer_study(store: ShapeStore, pairs_by_kind: dict, *, map_kinds,
     error; ``results["approx"]`` the same for the approximation on the source.
     """
     t0 = time.perf_counter()
-    errors, approx, n_pairs = {}, {}, {}
+    errors, approx, n_pairs, single = {}, {}, {}, {}
     for kind, pairs in pairs_by_kind.items():
+        if not pairs:
+            continue
         kind_sizes = variant_sizes if (kind == "variant" and variant_sizes) else sizes
         maps = variant_maps if kind == "variant" else map_kinds
         for mk in maps:
@@ -69,18 +72,43 @@ def default_transfer_study(store: ShapeStore, pairs_by_kind: dict, *, map_kinds,
                 z = st.sizes[0]
                 key = condition_key(mk, z, kind)
                 n_pairs[key] = len(pairs)
+                single[key] = single_function_excess(res, pairs)
                 for stage, out in (("transfer", errors), ("approx", approx)):
                     out[key] = {pfam.PAPER_LABELS[f]: {method_label(m): means[(z[0], z[1], stage, method_label(m),
                                                                                 pfam.PAPER_LABELS[f])][0]
                                                       for m in METHODS} for f in st.families}
-    return {"results": {"errors": errors, "approx": approx, "n_pairs": n_pairs,
+    return {"results": {"errors": errors, "approx": approx, "n_pairs": n_pairs, "single": single,
                         "pairs": {k: [list(p) for p in v] for k, v in pairs_by_kind.items()},
-                        "summary": summary(errors)},
+                        "summary": summary(errors, single)},
             "seconds": time.perf_counter() - t0}
 
 
-def summary(errors: dict) -> dict:
-    """Worst (method - std) over every condition x family, cells above std + 0.01, mean ratios."""
+def single_function_excess(result, pairs) -> dict:
+    """Per method: the worst single-function excess over the standard transfer in one condition.
+
+    Every (pair, function column) is a cell: ``excess = error(method) - error(std)``.
+    Returns ``{method label: {"worst_excess", "worst_family", "worst_pair", "above_0.01",
+    "functions"}}`` (``functions`` = pairs x columns).
+    """
+    (z,) = result.settings.sizes
+    by_m = result.errors[z]["transfer"]
+    S = np.array(by_m["std"])  # (pairs, m)
+    fam_of = np.empty(S.shape[1], dtype=object)
+    for f, sl in result.cols.items():
+        fam_of[sl] = pfam.PAPER_LABELS[f]
+    out = {}
+    for m in METHODS[1:]:
+        E = np.array(by_m[m]) - S  # (pairs, m)
+        i, j = np.unravel_index(int(np.argmax(E)), E.shape)
+        out[method_label(m)] = {"worst_excess": float(E[i, j]), "worst_family": str(fam_of[j]),
+                                "worst_pair": list(pairs[i]), "above_0.01": int((E > 0.01).sum()),
+                                "functions": int(E.size)}
+    return out
+
+
+def summary(errors: dict, single: dict | None = None) -> dict:
+    """Worst (method - std) over every condition x family, cells above std + 0.01, mean ratios;
+    with ``single`` (:func:`single_function_excess` per condition) the same per single function."""
     out = {}
     for m in ("our_B", "our_B_gainrule", "our_default"):
         d = [(c, f, v[m] - v["std"], v[m] / v["std"]) for c, fams in errors.items() for f, v in fams.items()]
@@ -90,6 +118,13 @@ def summary(errors: dict) -> dict:
                   "mean_ratio_to_std": float(np.mean([x[3] for x in d])),
                   "ratio_of_means": float(np.mean([errors[c][f][m] for c, f, _, _ in d])
                                           / np.mean([errors[c][f]["std"] for c, f, _, _ in d]))}
+        if single:
+            w = max(single, key=lambda c: single[c][m]["worst_excess"])
+            out[m].update({"single_worst_excess": single[w][m]["worst_excess"],
+                           "single_worst_cell": f"{w}/{single[w][m]['worst_family']}/"
+                                                f"{'->'.join(single[w][m]['worst_pair'])}",
+                           "single_above_std_plus_0.01": int(sum(v[m]["above_0.01"] for v in single.values())),
+                           "single_functions": int(sum(v[m]["functions"] for v in single.values()))})
     return out
 
 

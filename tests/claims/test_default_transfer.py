@@ -36,6 +36,14 @@ def test_default_never_worse_than_std_plus_001(study):
     assert study["summary"]["our_B"]["cells_above_std_plus_0.01"] > 0
 
 
+def test_default_never_worse_than_std_plus_001_per_single_function(study):
+    # every (condition, pair, function column), not only family means
+    s = study["summary"]["our_default"]
+    assert s["single_functions"] == sum(v["our_default"]["functions"] for v in study["single"].values()) > 0
+    assert s["single_above_std_plus_0.01"] == 0, s
+    assert s["single_worst_excess"] <= 0.01
+
+
 def test_default_far_below_std_for_hks_wks_with_ground_truth(study):
     for fam in ("HKS", "WKS"):
         r = np.array([v[fam]["our_default"] / v[fam]["std"] for c, v in study["errors"].items() if c.startswith("gt/")])

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import prodmaps as pm
-from prodmaps.safe_transfer import SafeTransfer, safe_operator
+from prodmaps.safe_transfer import SafeTransfer, isometry_defect, safe_operator
 
 
 @pytest.fixture(scope="module")
@@ -79,3 +79,34 @@ def test_paper_approach_b_is_unchanged_with_an_explicit_threshold(setting):
     a = ext1.operator("svd", rtol=1e-3).coefficients(F)
     expected = ext2.evaluate(pm.extend_fmap(C, b1, b2) @ a)
     np.testing.assert_allclose(pm.transfer(F, C, b1, b2, "prod", rtol=1e-3), expected, rtol=1e-12)
+
+
+def test_isometry_defect_reads_truncation_loss_and_is_unit_free():
+    C = np.eye(6)
+    C[:, 4] *= 0.8  # 36 % of the squared norm of φ_4's image lost
+    d = isometry_defect(C)
+    np.testing.assert_allclose(d, [0, 0, 0, 0, 0.36, 0], atol=1e-15)
+    # a shape 10x larger in area scales a point map's C by sqrt(10): same defect with the area ratio
+    np.testing.assert_allclose(isometry_defect(np.sqrt(10.0) * C, 10.0), d, atol=1e-14)
+    # off-diagonal (non-orthogonal) columns count too
+    R = np.eye(3)
+    R[0, 1] = 0.1
+    assert isometry_defect(R)[0] > 0 and isometry_defect(R)[1] > 0
+
+
+def test_truncation_test_is_the_stated_wiener_factor_and_filters_lost_functions(basis_0, basis_13):
+    # the target basis is smaller: the images of three source functions are lost (δ ≈ 1; which
+    # three is decided by near-degenerate pairs around φ_9), so directions built
+    # from their products carry a large expected error and the truncation test removes them
+    b1, b2 = basis_0.truncate(12), basis_13.truncate(9)
+    C = pm.fmap_from_p2p(np.arange(b2.n), b1, b2)  # (9, 12)
+    with_e = SafeTransfer(C, b1, b2)
+    without = SafeTransfer(C, b1, b2, e0=None)
+    e0 = with_e.params["e0"]
+    np.testing.assert_allclose(with_e.filter, without.filter / (1 + (with_e.error / e0) ** 2), rtol=1e-12)
+    np.testing.assert_allclose(with_e.gain, without.gain, rtol=1e-12)
+    d = isometry_defect(C, b2.area / b1.area)
+    assert (d > 0.9).sum() == b1.k - b2.k and (d[d <= 0.9] < 0.2).all()
+    assert with_e.error.max() > 5 * e0 and with_e.rank < without.rank
+    with pytest.raises(ValueError, match="e0"):
+        SafeTransfer(C, b1, b2, e0=-1.0)

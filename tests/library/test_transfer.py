@@ -72,7 +72,12 @@ def test_products_beat_std_for_hks_transfer(human_0, human_13):
     G_true = F[p2p]
     e_std = pm.relative_error(pm.transfer(F, C, b1, b2, "std"), G_true, b2.mass)
     e_prod = pm.relative_error(pm.transfer(F, C, b1, b2, "prod"), G_true, b2.mass)
-    assert np.all(e_prod < 0.5 * e_std), (e_std, e_prod)
+    assert np.all(e_prod < 0.6 * e_std), (e_std, e_prod)
+    # the price of the truncation test (prodmaps.safe_transfer): the two bodies differ, C's columns
+    # are 2-8 % from an isometry's, and the default keeps only part of the product directions;
+    # without that test the same map carries these in-span kernels almost exactly
+    e_no_trunc = pm.relative_error(pm.transfer(F, C, b1, b2, "prod", e0=None), G_true, b2.mass)
+    assert np.all(e_no_trunc < 0.2 * e_std), (e_std, e_no_trunc)
 
 
 def test_mismatched_shapes_are_rejected(basis_0, basis_13):
