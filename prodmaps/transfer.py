@@ -184,8 +184,9 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, or
     (:mod:`prodmaps.safe_transfer`): the standard projection first, then the residual fitted with
     the products that are A1-orthogonal to the basis; each product direction's image under ``C~``
     loses its part inside ``range(Φ2 C)`` and is kept only if it passes a gain, a leak and a
-    truncation test (no ground truth needed; :mod:`prodmaps.safe_transfer`). The paper's fixed threshold can make products worse on real maps; the
-    default never did in our measurements: it never changes what the standard transfer carries
+    truncation test (no ground truth needed). The paper's fixed threshold can make products worse
+    on real maps; the default was never above the standard transfer by more than 0.01, per single
+    function, in our measurements (embedded humans and FAUST): it never changes what the standard transfer carries
     (its projection on ``range(Φ2 C)`` is the standard transfer) and reduces to it exactly when no
     direction passes. ``params`` may set its ``g0``, ``p``, ``l0``, ``e0``, ``floor``, ``h_min``.
 
