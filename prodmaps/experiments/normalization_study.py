@@ -27,7 +27,7 @@ import numpy as np
 from .protocol import ProtocolSettings, family_means, method_label, run_protocol
 from .published import published_values
 
-__all__ = ["READINGS", "GT_TABLES", "ofp_rtol", "normalization_study", "score_cells", "best_reading"]
+__all__ = ["READINGS", "GT_TABLES", "ofp_rtol", "normalization_study", "score_cells", "best_reading", "explain_cell"]
 
 READINGS = {
     "metres": {"normalization": "area", "rtol": 1e-3},
@@ -121,6 +121,25 @@ def normalization_study(store, pairs, *, readings: dict | None = None, tables: d
     return {"readings": readings, "tables": {t: [list(z) for z in v] for t, v in tables.items()},
             "pairs": [list(p) for p in pairs], "families": list(families), "errors": errors, "scores": scores,
             "rtol": rtols, "ranks": ranks, "best": best_reading(scores), "seconds": time.perf_counter() - t0}
+
+
+def explain_cell(published_b: float, closest_b: float, published_std: float | None, ours_std: float,
+                 tol: float = 0.03) -> str:
+    """Why one published Approach B cell is or is not reproduced, from the numbers alone.
+
+    ``closest_b`` is the value of the reading closest to ``published_b``; the standard column
+    (which no reading of Approach B changes) is the control: when our standard transfer is itself
+    off the published one by more than ``tol``, the function family or the data differ from the
+    paper's, not the reading.
+    """
+    d = closest_b - published_b
+    if abs(d) <= tol:
+        return f"reproduced (within ±{tol:g})"
+    if published_std is not None and abs(ours_std - published_std) > tol:
+        return (f"no reading within ±{tol:g}; the control differs too (our std {ours_std - published_std:+.3f} "
+                "from the published one): the family or the data, not the reading")
+    ctrl = "" if published_std is None else f", while the control matches ({ours_std - published_std:+.3f})"
+    return f"no reading within ±{tol:g} ({d:+.3f}{ctrl}): not explained by the data"
 
 
 def best_reading(scores: dict, method: str = "our_B") -> str | None:

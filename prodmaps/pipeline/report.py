@@ -381,30 +381,41 @@ def _study_section(d: "_Doc", infos, base: Path, copy_figures: bool) -> None:
 METHOD_NAMES = {"our_B": "paper B (rtol 1e-3)", "our_B_gainrule": "B with the gain rule", "our_default": "default"}
 
 
-def _default_study_section(d: "_Doc", infos, base: Path, copy_figures: bool) -> None:
+def _default_study_section(d: "_Doc", infos, base: Path, copy_figures: bool, dataset: str | None = None) -> None:
     study = next((i for i in infos if i.name == "study_default" and i.doc), None)
     if study is None:
         return
     res = study.doc.get("results", {})
     summ = res.get("summary", {})
-    d.h(2, "Study: the library's default extended transfer against the standard one")
-    n_cells = next(iter(summ.values()), {}).get("cells", 0)
+    on = "" if dataset is None else f" on {DATASET_NAMES.get(dataset, dataset)}"
+    d.h(2 if dataset is None else 3, f"Study: the library's default extended transfer against the standard one{on}")
+    first = next(iter(summ.values()), {})
+    n_cells = first.get("cells", 0)
+    single = "single_functions" in first
     d.p(f"Every condition (map kind, sizes, intra-/inter-subject or remeshed pairs) and family: {n_cells} cells, "
-        "each the mean error over its pairs (`study_default`). *Ratio of means*: mean error over all cells "
-        "divided by the standard transfer's.")
+        "each the mean error over its pairs (`study_default`)"
+        + (f"; and every single function of every pair: {first['single_functions']} functions" if single else "")
+        + ". *Ratio of means*: mean error over all cells divided by the standard transfer's.")
     rows = [[METHOD_NAMES.get(m, m), f"{v['cells_above_std_plus_0.01']} of {v['cells']}",
-             f"{v['worst_excess']:+.4f} (`{v['worst_cell']}`)", f"{v['ratio_of_means']:.3f}",
-             f"{v['mean_ratio_to_std']:.3f}"] for m, v in summ.items()]
-    d.table(["method", "cells worse than std + 0.01", "worst excess over std", "ratio of means",
-             "mean ratio"], rows)
+             f"{v['worst_excess']:+.4f} (`{v['worst_cell']}`)"]
+            + ([f"{v['single_above_std_plus_0.01']} of {v['single_functions']}",
+                f"{v['single_worst_excess']:+.4f} (`{v['single_worst_cell']}`)"] if single else [])
+            + [f"{v['ratio_of_means']:.3f}", f"{v['mean_ratio_to_std']:.3f}"] for m, v in summ.items()]
+    d.table(["method", "families worse than std + 0.01", "worst family excess over std"]
+            + (["single functions worse than std + 0.01", "worst single function"] if single else [])
+            + ["ratio of means", "mean ratio"], rows)
     dflt = summ.get("our_default")
     if dflt:
         n_bad = dflt["cells_above_std_plus_0.01"]
         where = "in no cell" if n_bad == 0 else f"in {n_bad} of {dflt['cells']} cells"
-        d.p(f"Conclusion, computed from the numbers: the default is worse than the standard transfer by more than "
-            f"0.01 {where} (worst {dflt['worst_excess']:+.4f}), and its mean error is "
-            f"{dflt['ratio_of_means']:.2f} times the standard transfer's.")
-    _figures(d, study, base, copy_figures)
+        text = (f"Conclusion, computed from the numbers: the default is worse than the standard transfer by more "
+                f"than 0.01 {where} (worst {dflt['worst_excess']:+.4f})")
+        if single:
+            n1 = dflt["single_above_std_plus_0.01"]
+            text += (", and for " + ("no single function" if n1 == 0 else f"{n1} of {dflt['single_functions']} "
+                                     "single functions") + f" (worst {dflt['single_worst_excess']:+.4f})")
+        d.p(text + f"; its mean error is {dflt['ratio_of_means']:.2f} times the standard transfer's.")
+    _figures(d, study, base, copy_figures, prefix="" if dataset is None else f"{dataset}/")
 
 
 def _figures(d: "_Doc", info, base: Path, copy_figures: bool, prefix: str = "") -> None:
@@ -454,6 +465,7 @@ def _dataset_section(d: "_Doc", ds: str, folder: Path, infos, published_rows, ba
         if i.name in DATASET_FIGURE_RUNS and i.figures:
             d.h(3, f"{i.name} on {name}" + (f" — {i.reproduces}" if i.reproduces else ""))
             _figures(d, i, base, copy_figures, prefix=f"{ds}/")
+    _default_study_section(d, present, base, copy_figures, dataset=ds)
 
 
 def _normalization_section(d: "_Doc", info, base: Path, copy_figures: bool, dataset: str) -> None:
@@ -489,6 +501,7 @@ def _normalization_section(d: "_Doc", info, base: Path, copy_figures: bool, data
             text += (f"; A-orthonormal eigenfunctions in metres: {metres['within']} "
                      f"(mean |diff| {metres['mean_abs']:.3f})")
         d.p(text + ".")
+    from ..experiments.normalization_study import explain_cell
     from ..experiments.published import published_values
 
     readings = list(errors)
@@ -507,12 +520,13 @@ def _normalization_section(d: "_Doc", info, base: Path, copy_figures: bool, data
                 pstd = pub.get((kM, kN, "transfer", "std", fam))
                 cells.append([f"T{t[1:]} {kM}/{kN}", fam, f"{pstd:.2f}" if pstd is not None else "—", f"{std:.3f}",
                               f"{pub[c]:.2f}"] + [f"{vals[r]:.3f}" for r in readings]
-                             + [f"{closest} ({vals[closest] - pub[c]:+.3f})"])
+                             + [f"{closest} ({vals[closest] - pub[c]:+.3f})",
+                                explain_cell(pub[c], vals[closest], pstd, std)])
     if cells:
         d.p("Approach B cell by cell (transfer errors; the standard columns beside them show where the data "
             "or the function family, not the reading, differ from the paper's):")
-        d.table(["table", "family", "published std", "ours std", "published B"] + readings + ["closest reading"],
-                cells)
+        d.table(["table", "family", "published std", "ours std", "published B"] + readings
+                + ["closest reading", "why"], cells)
     _figures(d, info, base, copy_figures, prefix=f"{dataset}/")
 
 

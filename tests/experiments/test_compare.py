@@ -70,3 +70,14 @@ def test_the_ledger_compares_measured_numbers_only_through_the_tie_rule():
         for a, b in re.findall(r"(\w+)\[[^\]]*\]\s*[<>]=?\s*(\w+)\[", c.holds):
             assert not ({a, b} <= names), f"{c.id}: bare comparison in {c.holds!r}"
         assert not re.search(r"\bnot\s+(?!in\b)", c.holds), f"{c.id}: rules must be monotone (no 'not')"
+
+
+def test_explain_cell_separates_reproduced_data_and_unexplained():
+    from prodmaps.experiments.normalization_study import explain_cell
+
+    assert explain_cell(0.23, 0.257, 0.29, 0.287).startswith("reproduced")
+    why = explain_cell(0.09, 0.133, 0.46, 0.566)  # our std is itself 0.106 off: the family differs
+    assert "control differs" in why and "+0.106" in why
+    why = explain_cell(0.25, 0.217, 0.47, 0.451)  # the control matches: not explained by the data
+    assert "not explained" in why and "-0.033" in why and "-0.019" in why
+    assert "not explained" in explain_cell(0.25, 0.2, None, 0.45)
