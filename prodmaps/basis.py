@@ -22,8 +22,8 @@ import scipy.sparse as sp
 
 from .cache import Cache
 from .eigensolver import smallest_eigenpairs
-from .laplacian import laplacian
 from .mesh import Mesh, MeshError
+from .operators import laplacian
 
 __all__ = ["Basis", "eigenbasis", "fourier_basis", "fix_signs", "from_arrays", "check_basis"]
 

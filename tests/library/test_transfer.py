@@ -54,7 +54,7 @@ def test_identity_transfer_is_approximation(basis_0):
     np.testing.assert_allclose(pm.transfer(F, C, b, b, "prod", rtol=1e-3), approx, atol=1e-10)  # the paper's B
     np.testing.assert_allclose(pm.transfer(F, C, b, b, "std"), b.vecs @ b.project(F), atol=1e-12)
     # the default: the map is exact, every product direction has gain 1 and no leak, h = 1/(1 + 1.5^-8)
-    op = pm.safe_transfer.safe_operator(C, b, b)
+    op = pm.default_transfer.safe_operator(C, b, b)
     np.testing.assert_allclose(op.gain, 1.0, atol=1e-8)
     np.testing.assert_allclose(op.leak, 0.0, atol=1e-8)
     np.testing.assert_allclose(op.filter, 1 / (1 + 1.5**-8), rtol=1e-8)

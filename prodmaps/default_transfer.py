@@ -126,7 +126,7 @@ class SafeTransfer:
     def __init__(self, C_12, basis_1: Basis, basis_2: Basis, *, g0: float = DEFAULTS["g0"], p: float = DEFAULTS["p"],
                  l0: float | None = DEFAULTS["l0"], floor: float = DEFAULTS["floor"],
                  h_min: float = DEFAULTS["h_min"], pairs: str = "unique"):
-        from .transfer import check_fmap
+        from .mapping import check_fmap
 
         C = check_fmap(C_12, basis_1, basis_2)
         if not (basis_1.mass_is_diagonal and basis_2.mass_is_diagonal):
@@ -219,7 +219,7 @@ def _key(C, basis_2: Basis, params: dict) -> tuple:
 def safe_operator(C_12, basis_1: Basis, basis_2: Basis, **params) -> SafeTransfer:
     """The :class:`SafeTransfer` of ``(C_12, basis_1, basis_2)``, cached on basis_1's product basis
     (keyed by the bytes of ``C_12`` and ``basis_2``), so repeated calls reuse it."""
-    from .transfer import check_fmap
+    from .mapping import check_fmap
 
     C = check_fmap(C_12, basis_1, basis_2)
     full = {**DEFAULTS, **params}

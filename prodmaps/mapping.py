@@ -20,7 +20,6 @@ import itertools
 import numpy as np
 import scipy.sparse as sp
 
-from ._callable import make_callable
 from .approx import check_functions
 from .basis import Basis
 from .products import _n_orderings, multi_indices, product_basis
@@ -181,7 +180,7 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, or
     ``method="std"``: ``Φ2 C_12 Φ1ᵀ A1 F`` (A-orthogonal projection, then the map).
 
     ``method="prod"`` with no threshold given: **the library's default extended transfer**
-    (:mod:`prodmaps.safe_transfer`): the standard projection first, then the residual fitted with
+    (:mod:`prodmaps.default_transfer`): the standard projection first, then the residual fitted with
     the products that are A1-orthogonal to the basis; each product direction's image under ``C~``
     loses its part inside ``range(Φ2 C)`` and is kept only if it passes a gain and a leak test (no
     ground truth needed). The paper's fixed threshold can make products worse on real maps; the
@@ -213,7 +212,7 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, or
         if order != 2:
             raise ValueError("the default extended transfer uses pairwise products (order=2); pass rtol=... "
                              "for the paper's Approach B with higher orders")
-        from .safe_transfer import DEFAULTS, safe_operator
+        from .default_transfer import DEFAULTS, safe_operator
 
         unknown = set(params) - set(DEFAULTS)
         if unknown:
@@ -230,5 +229,3 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, or
     a = ext1.operator(approx, **params).coefficients(F)  # (K1,) or (K1, m)
     return ext2.evaluate(extend_fmap(C, basis_1, basis_2, order, pairs) @ a)
 
-
-make_callable(__name__)  # pm.transfer(...) calls transfer() above; prodmaps.transfer stays the module

@@ -26,7 +26,6 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ._callable import make_callable
 from .mesh import Mesh
 
 __all__ = ["laplacian", "cotan_weights", "lumped_mass", "fem_mass", "anisotropic_laplacian"]
@@ -150,5 +149,3 @@ def anisotropic_laplacian(
     W = 0.5 * (W + W.T)
     return W.tocsr(), lumped_mass(V, F)
 
-
-make_callable(__name__)  # pm.laplacian(mesh) calls laplacian() above; prodmaps.laplacian stays the module
