@@ -35,6 +35,20 @@ def test_public_names_are_functions_and_classes_not_modules():
         assert callable(obj), name
 
 
+def test_every_public_name_documents_parameters_returns_raises_and_examples():
+    import inspect
+
+    missing = {}
+    for name in pm.__all__:
+        doc = inspect.getdoc(getattr(pm, name)) or ""
+        need = ["Examples", ">>> "] + ([] if inspect.isclass(getattr(pm, name)) else ["Parameters", "Returns"])
+        need += [] if name == "MeshError" else ["Raises"]
+        lacking = [s for s in need if s not in doc]
+        if lacking:
+            missing[name] = lacking
+    assert missing == {}
+
+
 def test_help_of_transfer_shows_the_function():
     text = pydoc.render_doc(pm.transfer, renderer=pydoc.plaintext)
     assert text.splitlines()[0] == "Python Library Documentation: function transfer in module prodmaps.mapping"
