@@ -99,7 +99,7 @@ def test_gallery_uses_executed_notebooks_of_a_run_folder(tmp_path):
 
 
 def test_front_page_screenshot_in_headless_chromium(site, tmp_path):
-    browser = shutil.which("chromium") or shutil.which("chromium-browser")
+    browser = next((b for b in ("chromium", "chromium-browser", "google-chrome") if shutil.which(b)), None)
     if browser is None:
         pytest.skip("chromium is not installed (Debian: apt-get install chromium)")
     from PIL import Image
