@@ -160,7 +160,8 @@ class _Doc:
         s = html.escape(str(text))
         s = re.sub(r"`([^`]+)`", r"<code>\1</code>", s)
         s = re.sub(r"\[([^\]]+)\]\(([^)\s]+)\)", r'<a href="\2">\1</a>', s)
-        return re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", s)
+        s = re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", s)
+        return re.sub(r"(?<![\w*])\*([^*\s][^*]*)\*(?![\w*])", r"<i>\1</i>", s)
 
     # verdict -> badge class, longest phrases first so "holds with the threshold rule" is not "holds"
     _BADGES = (("holds with the threshold rule within rounding", "v-rule"), ("holds with the threshold rule", "v-rule"),
@@ -168,10 +169,11 @@ class _Doc:
                ("not measured here", "v-none"), ("holds", "v-holds"))
     _NUMBER = re.compile(r"[-+−]?(\d[\d,]*\.?\d*(e[-+]?\d+)?|\.\d+)\s*(%|x|s)?", re.I)
     _STYLE = (
-        "body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;line-height:1.45;max-width:1200px;"
+        "body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;line-height:1.45;max-width:1400px;"
         "margin:2em auto;padding:0 1em;color:#222}h1{font-size:1.6em}h2{margin-top:1.6em;border-bottom:1px solid #ddd}"
         "table{border-collapse:collapse;margin:.6em 0;font-size:.9em}td,th{border:1px solid #ddd;padding:3px 8px;"
-        "text-align:left;vertical-align:top}th{background:#f3f4f6;position:sticky;top:0}td.num{text-align:right;"
+        "text-align:left;vertical-align:top;overflow-wrap:anywhere}th{background:#f3f4f6;position:sticky;top:0;overflow-wrap:normal}"
+        "td:first-child code{white-space:normal}td:nth-child(n+2){min-width:4em}td.num{text-align:right;"
         "font-variant-numeric:tabular-nums;white-space:nowrap}tr:nth-child(even) td{background:#fafafa}"
         "img{max-width:100%;border:1px solid #ddd;margin:.3em 0}pre{background:#f6f6f6;padding:.5em;overflow-x:auto}"
         ".badge{display:inline-block;padding:1px 8px;border-radius:10px;font-size:.85em;font-weight:600;"
