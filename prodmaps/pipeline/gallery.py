@@ -48,6 +48,9 @@ def write_gallery(dest, runs_dir=None, *, registry=None, baselines=None) -> list
               "of the committed smoke baselines; `make docs DOCS_RUNS=results/smoke` shows executed notebooks."),
              "", "```{toctree}", ":maxdepth: 1", ""]
     names = []
+    shared = {}
+    for run in runs.values():
+        shared[run.notebook] = shared.get(run.notebook, 0) + 1
     for name, run in runs.items():
         executed = Path(runs_dir) / name / "executed.ipynb" if runs_dir else None
         if executed is not None and executed.is_file():
@@ -64,6 +67,11 @@ def write_gallery(dest, runs_dir=None, *, registry=None, baselines=None) -> list
                     f"(`paper/baselines/smoke/{name}/`); the notebook below is shown without outputs.", ""]
             note += [f"![{png.stem}]({name}__{png.name})" for png in figs]
             nb.cells.insert(_after_title(nb), nbformat.v4.new_markdown_cell("\n".join(note)))
+        if shared[run.notebook] > 1:  # one notebook, several runs (Tables 1-6): title each page by its run
+            i = _after_title(nb) - 1
+            if i >= 0:
+                first, _, rest = nb.cells[i].source.lstrip().partition("\n")
+                nb.cells[i].source = f"# {run.reproduces}: {run.title or first[2:]}\n{rest}"
         nb.metadata.pop("widgets", None)
         nbformat.write(nb, dest / f"{name}.ipynb")
         lines.append(name)

@@ -96,6 +96,9 @@ def test_gallery_uses_executed_notebooks_of_a_run_folder(tmp_path):
     assert not [o for c in other.cells if c.cell_type == "code" for o in c.outputs]
     assert "fig03__fig03_fourier_indicator.png" in other.cells[1].source
     assert (tmp_path / "g" / "fig03__fig03_fourier_indicator.png").is_file()
+    titles = [nbformat.read(tmp_path / "g" / f"tab0{i}.ipynb", as_version=4).cells[0].source.splitlines()[0]
+              for i in range(1, 7)]  # one notebook, six runs: each page titled by its own run
+    assert titles == [f"# Table {i}: {load_registry()[f'tab0{i}'].title}" for i in range(1, 7)]
 
 
 def test_front_page_screenshot_in_headless_chromium(site, tmp_path):
