@@ -1,21 +1,25 @@
 # prodmaps — two commands do all the set-up on a fresh machine:
 #   make reproduce   create .venv, install, regenerate every notebook into $(OUT)
-#   make test        create/reuse .venv, run ruff and the whole test suite
+#   make test        create/reuse .venv, run ruff, the workflow lint and the whole test suite
+#                    (with the doctests and the docs build, tests/docs/)
+#   make docs        the documentation site into docs/_build/html (DOCS_RUNS=results/smoke for
+#                    the executed smoke notebooks in the gallery; nothing is executed)
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 OUT    ?= results
 PROFILE ?= paper
 JOBS   ?= 1
+DOCS_RUNS ?=
 
-.PHONY: reproduce reproduce-smoke update-baselines report claims test lint bench venv clean-venv strip-notebooks
+.PHONY: reproduce reproduce-smoke update-baselines report claims test lint bench venv clean-venv strip-notebooks docs
 
 venv: $(VENV)/.installed
 
 $(VENV)/.installed: pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[test,bench]"
+	$(PY) -m pip install --quiet -e ".[test,bench,docs]"
 	$(PY) -m ipykernel install --sys-prefix --name python3 >/dev/null
 	@touch $@
 
@@ -36,6 +40,10 @@ claims: venv
 
 lint: venv
 	$(VENV)/bin/ruff check prodmaps tests benchmarks data_scripts notebooks
+	$(VENV)/bin/actionlint -shellcheck= -pyflakes= .github/workflows/ci.yml
+
+docs: venv
+	PRODMAPS_DOCS_RUNS="$(DOCS_RUNS)" $(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
 
 test: venv lint
 	$(PY) -m pytest -q

@@ -15,8 +15,9 @@ Three layers, arrows pointing down only:
 The conventions (bases A-orthonormal with the constant first, ``k`` counts the constant,
 ``C_12`` is ``(k2, k1)``, ``p2p_21`` is ``(n2,)``) are stated once in :mod:`prodmaps.conventions`.
 
-``pm.transfer`` and ``pm.laplacian`` are modules that can be called like their main function
-(``pm.transfer(f, C_12, b1, b2)``). Importing prodmaps loads numpy and scipy only.
+No module shares its name with a function: ``pm.transfer``, ``pm.safe_transfer`` and
+``pm.laplacian`` are functions, defined in :mod:`prodmaps.mapping`, :mod:`prodmaps.default_transfer`
+and :mod:`prodmaps.operators`. Importing prodmaps loads numpy and scipy only.
 """
 
 __version__ = "0.2.0"
@@ -28,34 +29,36 @@ from . import (  # noqa: F401
                conventions,
                curvature,
                datasets,
+               default_transfer,
                descriptors,
                eigensolver,
                fields,
                fmaps,
                geodesics,
                io,
-               laplacian,
                lmh,
+               mapping,
                mesh,
                metrics,
+               operators,
                p2p,
                products,
-               safe_transfer,
                sampling,
-               transfer,
                truncation,
 )
 from .approx import ApproximationOperator, approximate, approximation_operator
 from .basis import Basis, eigenbasis, fourier_basis
+from .default_transfer import safe_transfer
 from .io import load_mesh, save_mesh
+from .mapping import extend_fmap, fmap_from_p2p, transfer
 from .mesh import Mesh, MeshError
 from .metrics import area_fraction_curve, relative_error
+from .operators import laplacian
 from .products import ProductBasis, product_basis
-from .transfer import extend_fmap, fmap_from_p2p
 
 __all__ = [
     "Mesh", "MeshError", "load_mesh", "save_mesh", "laplacian", "Basis", "eigenbasis",
     "fourier_basis", "ProductBasis", "product_basis", "ApproximationOperator", "approximate",
-    "approximation_operator", "extend_fmap", "fmap_from_p2p", "transfer", "area_fraction_curve",
-    "relative_error",
+    "approximation_operator", "extend_fmap", "fmap_from_p2p", "transfer", "safe_transfer",
+    "area_fraction_curve", "relative_error",
 ]

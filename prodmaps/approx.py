@@ -171,6 +171,22 @@ class ApproximationOperator:
     ``coefficients(F)`` returns coefficients in the basis' own column convention; for
     Approach B, ``canonical(a)`` returns the canonical coefficients ``ã = Σ Vᵀ a`` of
     Section 4.4 (``||B a||_A = ||ã||₂`` for any ``a``).
+
+    Raises
+    ------
+    ValueError
+        From ``coefficients`` for functions of the wrong shape, complex or non-finite values.
+
+    Examples
+    --------
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> mesh = ellipsoid(2)
+    >>> pb = pm.product_basis(pm.eigenbasis(mesh, 6))
+    >>> op = pm.approximation_operator(pb, "svd", rtol=1e-3)
+    >>> F = mesh.vertices  # three functions at once, (n, 3)
+    >>> op.coefficients(F).shape, op.reconstruct(F).shape, op.rank <= 31
+    ((31, 3), (162, 3), True)
     """
 
     basis: object
@@ -230,11 +246,34 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
 
     Parameters
     ----------
+    basis : Basis or ProductBasis
+    method : ``"svd"`` (Approach B, default) | ``"ridge"`` | ``"lasso"`` (Approach A) | ``"std"``.
     rtol : Approach B threshold relative to σ_max (paper: 1e-3), on ``sqrt(A) B D``.
     eps : Approach A weight, relative (ridge: to σ_max²; lasso: to ||Bᵀ A f||_∞).
     route : Approach B route, ``"auto"`` | ``"svd"`` | ``"gram"``.
     tol, max_iter : lasso stopping rule.
     normalization : ``D`` of Approaches A and B (module doc; default :data:`DEFAULT_NORMALIZATION`).
+
+    Returns
+    -------
+    ApproximationOperator
+        ``coefficients(F)`` maps ``(n,)``/``(n, m)`` functions to ``(K,)``/``(K, m)`` coefficients.
+
+    Raises
+    ------
+    ValueError
+        For an unknown method, route or normalisation, or a threshold out of range.
+    TypeError
+        For a ``basis`` that is neither a Basis nor a ProductBasis.
+
+    Examples
+    --------
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> pb = pm.product_basis(pm.eigenbasis(ellipsoid(2), 6))
+    >>> op = pm.approximation_operator(pb, "svd", rtol=1e-3)
+    >>> op.method, op.coefficients(pb.base.vecs[:, 1]).shape
+    ('svd', (31,))
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
@@ -418,6 +457,43 @@ def approximate(F, basis, method: str = "svd", **params) -> np.ndarray:
     ``method``: ``"std"`` | ``"ridge"`` | ``"lasso"`` | ``"svd"`` (Approach B, default);
     ``params`` as in :func:`approximation_operator` (``rtol=1e-3`` as in the paper). Operators
     of a ProductBasis are cached on it, so repeated calls reuse the factorisation.
+
+    Parameters
+    ----------
+    F : (n,) or (n, m) array_like of float
+        Function(s) on the ``n`` points of the basis.
+    basis : Basis or ProductBasis
+    method : str
+        The approximation; ``"std"`` is the A-orthogonal projection ``Φᵀ A F``.
+    **params
+        Passed to :func:`approximation_operator`.
+
+    Returns
+    -------
+    (K,) or (K, m) ndarray
+        Coefficients in the basis' column order (``basis.K`` or ``basis.k`` columns).
+
+    Raises
+    ------
+    ValueError
+        For an unknown method, functions of the wrong shape, complex or non-finite values.
+    TypeError
+        For parameters the method does not take.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> mesh = ellipsoid(2)
+    >>> b = pm.eigenbasis(mesh, 6)
+    >>> f = mesh.vertices[:, 0] * mesh.vertices[:, 1]  # a product of two coordinates
+    >>> a = pm.approximate(f, pm.product_basis(b), rtol=1e-3)
+    >>> a.shape
+    (31,)
+    >>> std = pm.approximate(f, b, "std")
+    >>> bool(np.allclose(std, b.vecs.T @ (b.mass * f)))
+    True
     """
     if isinstance(basis, ProductBasis):
         op = basis.operator(method, **params)

@@ -22,8 +22,8 @@ import scipy.sparse as sp
 
 from .cache import Cache
 from .eigensolver import smallest_eigenpairs
-from .laplacian import laplacian
 from .mesh import Mesh, MeshError
+from .operators import laplacian
 
 __all__ = ["Basis", "eigenbasis", "fourier_basis", "fix_signs", "from_arrays", "check_basis"]
 
@@ -31,6 +31,9 @@ __all__ = ["Basis", "eigenbasis", "fourier_basis", "fix_signs", "from_arrays", "
 @dataclass(frozen=True, eq=False)
 class Basis:
     """An A-orthonormal functional basis on ``n`` points.
+
+    Usually built with :func:`prodmaps.eigenbasis`, :func:`prodmaps.fourier_basis` or
+    :func:`prodmaps.basis.from_arrays` (which checks the conventions).
 
     Attributes
     ----------
@@ -40,6 +43,24 @@ class Basis:
     name : label for messages.
     cache : a :class:`prodmaps.cache.Cache` of derived values (product bases), shared with
         every truncation of this basis; keys name the column count they depend on.
+
+    Raises
+    ------
+    ValueError
+        If the shapes of ``vecs``, ``evals`` and ``mass`` disagree, or a value is not finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> b = pm.eigenbasis(ellipsoid(2), 6)
+    >>> b.k, b.n, b.vecs.shape
+    (6, 162, (162, 6))
+    >>> bool(np.allclose(b.vecs.T @ (b.mass[:, None] * b.vecs), np.eye(6)))  # A-orthonormal
+    True
+    >>> b.truncate(4).vecs.shape  # the first 4 columns, constant included
+    (162, 4)
     """
 
     vecs: np.ndarray
@@ -158,8 +179,39 @@ def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped") ->
 
     Parameters
     ----------
-    k : number of columns including the constant; the paper's ``k_M = 9`` is ``k = 10``.
+    mesh : Mesh
+        A connected mesh.
+    k : int
+        Number of columns including the constant; the paper's ``k_M = 9`` is ``k = 10``.
     kind, mass : passed to :func:`prodmaps.laplacian`.
+
+    Returns
+    -------
+    Basis
+        ``vecs`` ``(n, k)`` A-orthonormal, column 0 the constant ``1/sqrt(area)``; ``evals``
+        ``(k,)`` ascending, the first 0.
+
+    Raises
+    ------
+    TypeError
+        If ``mesh`` is not a :class:`prodmaps.Mesh` or ``k`` not an integer.
+    ValueError
+        If ``k`` is not in ``[1, n)``.
+    MeshError
+        If the mesh has more than one connected component (the constant would not be the only
+        zero mode).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> mesh = ellipsoid(2)
+    >>> b = pm.eigenbasis(mesh, 6)
+    >>> b.vecs.shape, b.evals.shape
+    ((162, 6), (6,))
+    >>> bool(np.allclose(b.vecs[:, 0], 1 / np.sqrt(mesh.area))), bool(b.evals[0] == 0)
+    (True, True)
     """
     if not isinstance(mesh, Mesh):
         raise TypeError(f"eigenbasis expects a prodmaps.Mesh, got {type(mesh).__name__}")
@@ -199,6 +251,32 @@ def fourier_basis(n: int, k: int, period: float = 2 * np.pi) -> Basis:
     ``ω = 2π/period``, orthonormal for the quadrature weights ``period/n`` (exact for
     trigonometric polynomials of degree < n/2). Eigenvalues are those of ``-d²/dx²``.
     ``k`` counts all columns, the constant included.
+
+    Parameters
+    ----------
+    n : int
+        Number of samples.
+    k : int
+        Number of columns, in ``[1, n // 2]``.
+    period : float
+        Length of the interval (default ``2π``).
+
+    Returns
+    -------
+    Basis
+        ``vecs`` ``(n, k)``, ``evals`` ``(k,)``, ``mass`` ``(n,)`` all equal to ``period / n``.
+
+    Raises
+    ------
+    ValueError
+        If ``k`` is not in ``[1, n // 2]``.
+
+    Examples
+    --------
+    >>> import prodmaps as pm
+    >>> b = pm.fourier_basis(64, 5)
+    >>> b.vecs.shape, b.evals.tolist()
+    ((64, 5), [0.0, 1.0, 1.0, 4.0, 4.0])
     """
     if not 1 <= k <= n // 2:
         raise ValueError(f"k must be in [1, n//2] = [1, {n // 2}] for n={n} samples, got {k}")

@@ -59,8 +59,36 @@ __all__ = ["load_mesh", "read_mesh_arrays", "save_mesh", "load_mesh_repaired", "
 def load_mesh(path, *, validate: bool = True, name: str | None = None) -> Mesh:
     """Load a triangle mesh from ``.ply``, ``.off`` or ``.obj`` (positions and faces only).
 
-    Raises :class:`MeshError` if the file is missing, unreadable, truncated, or if the
-    mesh fails validation (see :func:`prodmaps.mesh.validate`).
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The mesh file; the format is chosen by its suffix.
+    validate : bool
+        Validate the mesh (see :func:`prodmaps.mesh.validate`); default true.
+    name : str, optional
+        The mesh's label (default: the file's stem).
+
+    Returns
+    -------
+    Mesh
+        ``vertices`` ``(n, 3)`` float64, ``faces`` ``(m, 3)`` int.
+
+    Raises
+    ------
+    MeshError
+        If the file is missing, unreadable, truncated, not a text OBJ, or if the mesh fails
+        validation (the message names the fix, e.g. :func:`prodmaps.io.load_mesh_repaired`).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "ellipsoid.ply"
+    >>> _ = pm.save_mesh(path, ellipsoid(2))
+    >>> mesh = pm.load_mesh(path)
+    >>> mesh.vertices.shape, mesh.faces.shape, mesh.name
+    ((162, 3), (320, 3), 'ellipsoid')
     """
     v, f = read_mesh_arrays(path)
     try:
@@ -533,8 +561,36 @@ def save_mesh(path, mesh_or_vertices, faces=None) -> Path:
     """Write a mesh as binary little-endian PLY (float64 xyz) or ASCII OFF, chosen by suffix.
 
     The file is written to a temporary name and renamed, so a crash leaves no partial file.
-    Raises ``TypeError`` when the arguments are swapped (``save_mesh(path, mesh)`` is the order)
-    and :class:`MeshError` for a folder, an unknown suffix or a non-triangle mesh.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        Target file, ending in ``.ply`` or ``.off``.
+    mesh_or_vertices : Mesh or (n, 3) array_like
+        A mesh, or its vertex positions (then ``faces`` is required).
+    faces : (m, 3) array_like of int, optional
+        The triangles when ``mesh_or_vertices`` is an array.
+
+    Returns
+    -------
+    pathlib.Path
+        The path written.
+
+    Raises
+    ------
+    TypeError
+        When the arguments are swapped (``save_mesh(path, mesh)`` is the order).
+    MeshError
+        For a folder, an unknown suffix or a non-triangle mesh.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> path = pm.save_mesh(pathlib.Path(tempfile.mkdtemp()) / "e.off", ellipsoid(1))
+    >>> path.suffix, pm.load_mesh(path).n_vertices
+    ('.off', 42)
     """
     if isinstance(path, Mesh):
         raise TypeError("save_mesh(path, mesh): the path comes first, the mesh second")

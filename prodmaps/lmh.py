@@ -87,8 +87,8 @@ import scipy.sparse as sp
 
 from .basis import Basis, eigenbasis, fix_signs
 from .eigensolver import shift, smallest_eigenpairs
-from .laplacian import laplacian
 from .mesh import Mesh
+from .operators import laplacian
 
 __all__ = ["LocalizedHarmonics", "localized_harmonics", "lmh_basis", "lmh_operator_parts"]
 

@@ -47,7 +47,22 @@ __all__ = [
 
 
 class MeshError(ValueError):
-    """A mesh that the library cannot work with; the message names the problem and the fix."""
+    """A mesh that the library cannot work with; the message names the problem and the fix.
+
+    A subclass of ``ValueError``, raised by :class:`prodmaps.Mesh`, :func:`prodmaps.load_mesh`,
+    :func:`prodmaps.save_mesh` and :func:`prodmaps.eigenbasis`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> V = np.zeros((4, 3))  # four vertices at one point: every face is degenerate
+    >>> try:
+    ...     pm.Mesh(V, [[0, 1, 2], [0, 2, 3]])
+    ... except pm.MeshError as err:
+    ...     print(type(err).__name__, isinstance(err, ValueError))
+    MeshError True
+    """
 
 
 def face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -195,11 +210,31 @@ class Mesh:
     Parameters
     ----------
     vertices : (n, 3) array_like of float
-    faces : (m, 3) array_like of int, 0-based
-    validate : bool
-        Run :func:`validate` (default). Only skip it for meshes you built yourself and know.
+        Vertex positions.
+    faces : (m, 3) array_like of int
+        Vertex indices of each triangle, 0-based, consistently oriented.
     name : str, optional
         A label used in messages and file names.
+    validate : bool
+        Run :func:`prodmaps.mesh.validate` (default). Only skip it for meshes you built yourself
+        and know: the spectral code assumes a manifold, connected mesh without unreferenced or
+        degenerate elements.
+
+    Raises
+    ------
+    MeshError
+        When ``validate`` is true and the mesh fails a check (the message names the repair, e.g.
+        :func:`prodmaps.io.load_mesh_repaired`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    >>> F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    >>> mesh = pm.Mesh(V, F, name="tetrahedron")
+    >>> mesh.n_vertices, mesh.n_faces, mesh.is_closed
+    (4, 4, True)
     """
 
     vertices: np.ndarray

@@ -88,7 +88,7 @@ def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None
 
 
 def _check_inputs(C_12, basis_1, basis_2) -> np.ndarray:
-    from .transfer import check_fmap
+    from .mapping import check_fmap
 
     return check_fmap(C_12, basis_1, basis_2, allow_truncation=True)
 

@@ -116,6 +116,23 @@ class ProductBasis:
     Sizes: ``base.k`` columns of the base (constant included, as everywhere), ``n_factors =
     base.k - 1`` non-constant functions multiplied (the paper's ``k_M``), ``K`` columns of the
     extended basis.
+
+    Raises
+    ------
+    ValueError
+        If ``order`` or ``pairs`` is not supported, or ``index`` does not match them.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> b = pm.eigenbasis(ellipsoid(2), 6)
+    >>> pb = pm.product_basis(b, order=2)
+    >>> pb.n_factors, pb.K, pb.matrix.shape  # 1 + 5 + 5*5 ordered pairs
+    (5, 31, (162, 31))
+    >>> bool(np.allclose(pb.matrix[:, 6], b.vecs[:, 1] * b.vecs[:, 1]))
+    True
     """
 
     base: Basis
@@ -311,6 +328,29 @@ def product_basis(basis: Basis, order: int = 2, pairs: str = "ordered") -> Produ
     order : highest product degree, ``>= 2`` (``1`` gives the base basis as a ProductBasis).
     pairs : ``"ordered"`` (the paper's convention, the default for reproduction) or
         ``"unique"`` (multisets; same span, fewer columns).
+
+    Returns
+    -------
+    ProductBasis
+        ``K`` columns: the ``basis.k`` base functions, then the products; for ``order=2``,
+        ``K = k + (k-1)²`` ordered or ``k + (k-1)k/2`` unique.
+
+    Raises
+    ------
+    TypeError
+        If ``basis`` is not a :class:`prodmaps.Basis`.
+    ValueError
+        For ``order < 1`` or an unknown ``pairs``.
+
+    Examples
+    --------
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> b = pm.eigenbasis(ellipsoid(2), 6)
+    >>> pm.product_basis(b).K, pm.product_basis(b, pairs="unique").K
+    (31, 21)
+    >>> pm.product_basis(b) is pm.product_basis(b)  # cached on the basis
+    True
     """
     if not isinstance(basis, Basis):
         raise TypeError(f"product_basis expects a prodmaps.Basis, got {type(basis).__name__}")

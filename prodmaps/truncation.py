@@ -42,8 +42,8 @@ from __future__ import annotations
 import numpy as np
 
 from .basis import Basis
+from .mapping import check_fmap, extend_fmap
 from .products import product_basis
-from .transfer import check_fmap, extend_fmap
 
 __all__ = ["singular_directions", "transfer_gains", "select_rtol", "DEFAULT_CANDIDATES"]
 

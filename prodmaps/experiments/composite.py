@@ -30,12 +30,12 @@ import numpy as np
 
 from .. import datasets
 from ..basis import eigenbasis
-from ..laplacian import laplacian
+from ..default_transfer import safe_operator
+from ..mapping import fmap_from_p2p, transfer
 from ..mesh import face_areas
 from ..metrics import relative_error
+from ..operators import laplacian
 from ..products import product_basis
-from ..safe_transfer import safe_operator
-from ..transfer import fmap_from_p2p, transfer
 from ..truncation import select_rtol
 from .compare import compare
 

@@ -17,9 +17,9 @@ import numpy as np
 
 from .. import datasets, descriptors
 from ..basis import eigenbasis
+from ..mapping import fmap_from_p2p, transfer
 from ..metrics import relative_error
 from ..products import product_basis
-from ..transfer import fmap_from_p2p, transfer
 
 __all__ = ["SCALES", "spectral_descriptors", "hks_wks_convergence"]
 

@@ -38,8 +38,8 @@ from ..fields.consistency import consistency_problem, design_consistent_field
 from ..fields.crossfield import angle_stats, cross_field, curvature_guide, pushforward_field, singularities
 from ..fields.frames import Frames, mesh_frames
 from ..fields.stripes import layout_consistency, mean_edge_length, quad_texture, stripe_patterns
+from ..mapping import fmap_from_p2p
 from ..mesh import Mesh, edges
-from ..transfer import fmap_from_p2p
 
 __all__ = ["figure14_experiment", "figure14_study", "dataset_pair", "summary_rows", "match_singularities",
            "graph_distances",
@@ -189,7 +189,7 @@ def figure14_experiment(mesh_1: Mesh, mesh_2: Mesh, p2p_21: np.ndarray, k: int =
 
 
 def _lumped(mesh: Mesh) -> np.ndarray:
-    from ..laplacian import lumped_mass
+    from ..operators import lumped_mass
 
     return lumped_mass(mesh.vertices, mesh.faces)
 

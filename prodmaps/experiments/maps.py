@@ -17,15 +17,15 @@ import numpy as np
 
 from .. import fmaps
 from ..files import sha256_bytes
+from ..mapping import fmap_from_p2p
 from ..sampling import farthest_point_landmarks
-from ..transfer import fmap_from_p2p
 from .store import EIGEN_CODE, ShapeStore, code_fingerprint
 
 __all__ = ["landmark_pairs", "no17_demo_map", "functional_map", "MAP_KINDS", "NO17_CODE"]
 
 MAP_KINDS = ("gt", "computed")
 NO17_CODE = EIGEN_CODE + ("prodmaps.fmaps.no17", "prodmaps.fmaps.demo", "prodmaps.descriptors.spectral",
-                          "prodmaps.sampling", "prodmaps.transfer")
+                          "prodmaps.sampling", "prodmaps.mapping")
 
 
 def landmark_pairs(vertices_1: np.ndarray, p2p_21, n: int = 5) -> np.ndarray:

@@ -17,8 +17,8 @@ import time
 import numpy as np
 
 from .. import datasets, geodesics
+from ..mapping import fmap_from_p2p
 from ..p2p import from_fmap
-from ..transfer import fmap_from_p2p
 from .compare import count_outcomes
 from .maps import no17_demo_map
 from .store import ShapeStore

@@ -12,7 +12,7 @@ the source and transferred to the target with a functional map ``C_12`` (ground 
 ``B_gain``     Approach B with ``rtol`` from the map-based gain rule
                (:func:`prodmaps.truncation.select_rtol`, no ground truth);
 ``default``    the library's default extended transfer (``pm.transfer(..., method="prod")`` with
-               no threshold given; :mod:`prodmaps.transfer`);
+               no threshold given; :mod:`prodmaps.mapping`);
 ``p2p``        the map converted to a point map first (nearest neighbours, :func:`prodmaps.p2p.from_fmap`)
                and ``f`` pulled back through it (Section 5.1's remark; its "approximation" is the
                standard one).
@@ -29,9 +29,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import truncation
+from ..mapping import extend_fmap, fmap_from_p2p
 from ..metrics import relative_error
 from ..products import product_basis
-from ..transfer import extend_fmap, fmap_from_p2p
 from . import families as pfam
 from .maps import no17_demo_map
 from .store import ShapeStore
@@ -156,7 +156,7 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
                     if m == "p2p":
                         continue
                     if m == "default":
-                        from ..safe_transfer import safe_operator
+                        from ..default_transfer import safe_operator
 
                         op = safe_operator(C, b1, b2)
                         outputs[m] = (op.approximate(F), op(F))

@@ -20,9 +20,9 @@ import numpy as np
 
 from .. import datasets, geodesics
 from ..basis import eigenbasis
+from ..mapping import fmap_from_p2p
 from ..mesh import Mesh
 from ..p2p import from_fmap
-from ..transfer import fmap_from_p2p
 
 __all__ = ["coarse_remesh", "corner_angles", "pair_triangles", "quad_measures", "polygon_soup",
            "point_map_quad_transport"]

@@ -7,17 +7,21 @@ front (the embedded humans are z-up and face -y).
 
 pyvista is imported inside the functions. A missing GL backend makes VTK crash instead of
 raising, so call :func:`probe_rendering` (it tries in a subprocess) before rendering in tests.
+Without an X display (``DISPLAY`` unset) VTK is told to open its EGL window first
+(:func:`headless_gl`), so it does not print a "bad X server connection" warning into the
+executed notebooks before falling back to EGL; a ``VTK_DEFAULT_OPENGL_WINDOW`` you set wins.
 """
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
 import numpy as np
 
 __all__ = ["probe_rendering", "render_mesh", "render_grid", "VIEWS", "error_colormap", "function_colormap",
-           "camera_bounds", "rendering_available"]
+           "camera_bounds", "rendering_available", "headless_gl"]
 
 # camera direction (from the object towards the camera) and up vector per named view
 VIEWS = {
@@ -27,7 +31,19 @@ VIEWS = {
     "top": ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
 }
 
+def headless_gl() -> None:
+    """Without an X display, make VTK open its EGL render window first (no X warning).
+
+    Sets ``VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow`` in this process when ``DISPLAY`` is
+    empty and the variable is not already set; VTK still falls back to its other windows.
+    """
+    if not os.environ.get("DISPLAY"):
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+
+
 _PROBE = (
+    "from prodmaps.experiments.render import headless_gl\n"
+    "headless_gl()\n"
     "import pyvista as pv\n"
     "pv.OFF_SCREEN = True\n"
     "p = pv.Plotter(off_screen=True, window_size=(32, 32))\n"
@@ -73,6 +89,7 @@ def render_mesh(vertices, faces, scalars=None, *, clim=None, cmap="viridis", vie
     """
     if scalars is not None and clim is None:
         raise ValueError("pass clim with scalars: panels of one figure must share colour limits")
+    headless_gl()
     import pyvista as pv
 
     pv.OFF_SCREEN = True

@@ -14,6 +14,7 @@ Matplotlib is imported inside the functions that need it.
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -73,11 +74,32 @@ def read_results(out_dir) -> dict:
     return json.loads((Path(out_dir) / "results.json").read_text())
 
 
+def _in_kernel() -> bool:
+    """True inside a Jupyter kernel (a papermill run, an open notebook), False in scripts."""
+    if "ipykernel" not in sys.modules:
+        return False
+    try:
+        from IPython import get_ipython
+    except ImportError:
+        return False
+    shell = get_ipython()
+    return shell is not None and getattr(shell, "kernel", None) is not None
+
+
 def setup_matplotlib():
-    """Headless, repeatable matplotlib (Agg backend, fixed fonts and DPI). Returns pyplot."""
+    """Repeatable matplotlib (fixed fonts and DPI), headless; returns pyplot.
+
+    In a Jupyter kernel the inline backend is selected, so ``plt.show()`` (or the end of a cell)
+    puts each figure into the executed notebook; elsewhere (scripts, tests) the Agg backend. The
+    PNGs written by :func:`save_figure` do not depend on the backend: both render with Agg and
+    the rcParams set here.
+    """
     import matplotlib
 
-    matplotlib.use("Agg", force=False)
+    if _in_kernel():
+        matplotlib.use("module://matplotlib_inline.backend_inline")
+    else:
+        matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
     plt.rcParams.update({

@@ -31,10 +31,11 @@ from . import families as pfam
 __all__ = ["DiskCache", "ShapeStore", "code_fingerprint"]
 
 # library modules whose source decides each stored value (the disk key includes their bytes)
-EIGEN_CODE = ("prodmaps.mesh", "prodmaps.laplacian", "prodmaps.eigensolver", "prodmaps.basis")
+EIGEN_CODE = ("prodmaps.mesh", "prodmaps.operators", "prodmaps.eigensolver", "prodmaps.basis")
 DESCRIPTOR_CODE = {
-    "shot": ("prodmaps.mesh", "prodmaps.descriptors.shot"),
-    "awft": EIGEN_CODE + ("prodmaps.curvature", "prodmaps.descriptors.awft", "prodmaps.descriptors.spectral"),
+    "shot": ("prodmaps.mesh", "prodmaps.descriptors.histograms"),
+    "awft": EIGEN_CODE + ("prodmaps.curvature", "prodmaps.descriptors.windowed_fourier",
+                          "prodmaps.descriptors.spectral"),
 }
 
 

@@ -24,9 +24,9 @@ import numpy as np
 
 from .. import datasets, truncation
 from ..approx import column_weights
+from ..mapping import extend_fmap, fmap_from_p2p
 from ..metrics import relative_error
 from ..products import product_basis
-from ..transfer import extend_fmap, fmap_from_p2p
 from . import families as pfam
 from .maps import no17_demo_map
 from .store import ShapeStore

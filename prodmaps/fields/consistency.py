@@ -67,8 +67,8 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..basis import Basis
+from ..mapping import extend_fmap
 from ..products import product_basis
-from ..transfer import extend_fmap
 from .crossfield import _check_N, connection_laplacian
 from .frames import Frames, as_frames, complex_gradient, face_to_vertex
 from .operators import SpanProjector, powered_gradients, span_projector

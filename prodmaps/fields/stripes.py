@@ -54,8 +54,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..laplacian import cotan_weights, lumped_mass
 from ..mesh import edges
+from ..operators import cotan_weights, lumped_mass
 from .crossfield import vertex_power_field
 from .frames import Frames, as_frames
 

@@ -1,7 +1,7 @@
 """Functional maps: the NO17 energy and its solvers, ZoomOut, the NO17 demo descriptors.
 
 One module per concept: :mod:`.no17` (energy, quadratic form, L-BFGS and direct solvers),
-:mod:`.zoomout`, :mod:`.demo` (pyFM's NO17 demo descriptors). The conventions (``C_12`` is
+:mod:`.refinement`, :mod:`.demo` (pyFM's NO17 demo descriptors). The conventions (``C_12`` is
 ``(k2, k1)``, ``p2p_21`` pulls back, ``k`` counts the constant) are those of
 :mod:`prodmaps.conventions`.
 """
@@ -19,7 +19,7 @@ from .no17 import (
                    no17_terms,
                    quadratic_form,
 )
-from .zoomout import zoomout
+from .refinement import zoomout
 
 __all__ = ["ground_truth", "first_column", "laplacian_mask", "multiplication_operators", "NO17Terms",
            "no17_terms", "energy_and_gradient", "quadratic_form", "fit_no17", "zoomout",

@@ -72,7 +72,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..basis import Basis, check_basis
-from ..transfer import fmap_from_p2p
+from ..mapping import fmap_from_p2p
 
 __all__ = [
     "ground_truth",

@@ -57,7 +57,7 @@ class ParameterError(ValueError):
 # ------------------------------------------------------------------------------ one notebook
 def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *,
                  timeout: float | None = None, cwd=None, executed_name: str = "executed.ipynb",
-                 html: bool = True):
+                 html: bool = True, shown_out_dir: str | None = None):
     """Execute ``notebook`` with papermill, writing into ``out_dir``; return the executed notebook path.
 
     ``out_dir`` is passed to the notebook as the ``out_dir`` parameter (absolute path) and the
@@ -65,6 +65,8 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
     root (``cwd``). Raises papermill's ``PapermillExecutionError`` if a cell fails (the executed
     notebook with the traceback is still written, and rendered as HTML). ``timeout`` is per
     cell, in seconds. With ``html`` the executed notebook is also written as ``executed.html``.
+    ``shown_out_dir`` replaces ``out_dir`` in the executed notebook's injected parameters cell
+    (the batch runner executes into a temporary folder and shows the run's own folder).
     """
     import papermill as pm_
 
@@ -80,12 +82,28 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
             execution_timeout=timeout,
         )
     finally:
+        if shown_out_dir is not None and executed.is_file():
+            _show_out_dir(executed, str(out), shown_out_dir)
         if html and executed.is_file():
             try:
                 export_html(executed)
             except Exception as exc:  # a rendering problem must not hide the notebook's own result
                 (out / "executed.html.error.txt").write_text(f"HTML export failed: {exc}\n")
     return executed
+
+
+def _show_out_dir(executed: Path, actual: str, shown: str) -> None:
+    """Write ``shown`` for ``actual`` in the injected parameters cell of ``executed``."""
+    import nbformat
+
+    nb = nbformat.read(executed, as_version=4)
+    changed = False
+    for cell in nb.cells:
+        if "injected-parameters" in cell.get("metadata", {}).get("tags", []) and actual in cell.source:
+            cell.source = cell.source.replace(actual, shown)
+            changed = True
+    if changed:
+        nbformat.write(nb, executed)
 
 
 # ------------------------------------------------------------------------------ run loop
@@ -111,6 +129,15 @@ def _output_files(folder: Path) -> dict:
         p.name: sha256_file(p) for p in sorted(folder.iterdir())
         if p.is_file() and p.name not in _NOT_OUTPUTS
     }
+
+
+def _shown_path(final: Path, root: Path) -> str:
+    """``final`` relative to ``root`` when inside it (as results.json records it), else absolute."""
+    final, root = Path(final).resolve(), Path(root).resolve()
+    try:
+        return final.relative_to(root).as_posix()
+    except ValueError:
+        return str(final)
 
 
 def _relocate_out_dir(results: Path, tmp: Path, final: Path, root: Path) -> None:
@@ -186,7 +213,8 @@ def _execute_task(task: dict) -> dict:
     try:
         with _stderr_to(tmp / "kernel.log"):
             run_notebook(task["notebook"], tmp, task["params"], task.get("kernel_name", "python3"),
-                         timeout=task.get("timeout"), cwd=task.get("cwd"))
+                         timeout=task.get("timeout"), cwd=task.get("cwd"),
+                         shown_out_dir=_shown_path(target, Path(task.get("cwd") or Path.cwd())))
         _relocate_out_dir(tmp / "results.json", tmp, target, Path(task.get("cwd") or Path.cwd()))
         if not (tmp / "results.json").is_file():
             raise RuntimeError("the notebook finished but wrote no results.json into out_dir")

@@ -129,6 +129,10 @@ class _Doc:
     def ul(self, items):
         self.blocks.append(("ul", items))
 
+    def counts(self, label, counts: dict):
+        """Verdict counts: a sentence in Markdown, a row of coloured badges in HTML."""
+        self.blocks.append(("counts", label, {k: n for k, n in counts.items() if n}))
+
     def markdown(self) -> str:
         out = []
         for b in self.blocks:
@@ -146,6 +150,8 @@ class _Doc:
                 out.append("```\n" + b[1].rstrip() + "\n```")
             elif b[0] == "ul":
                 out += [f"- {i}" for i in b[1]]
+            elif b[0] == "counts":
+                out.append(f"{b[1]}: " + ", ".join(f"{n} {k}" for k, n in b[2].items()) + ".")
             out.append("")
         return "\n".join(out).rstrip() + "\n"
 
@@ -154,15 +160,55 @@ class _Doc:
         s = html.escape(str(text))
         s = re.sub(r"`([^`]+)`", r"<code>\1</code>", s)
         s = re.sub(r"\[([^\]]+)\]\(([^)\s]+)\)", r'<a href="\2">\1</a>', s)
-        return re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", s)
+        s = re.sub(r"\*\*([^*]+)\*\*", r"<b>\1</b>", s)
+        return re.sub(r"(?<![\w*])\*([^*\s][^*]*)\*(?![\w*])", r"<i>\1</i>", s)
+
+    # verdict -> badge class, longest phrases first so "holds with the threshold rule" is not "holds"
+    _BADGES = (("holds with the threshold rule within rounding", "v-rule"), ("holds with the threshold rule", "v-rule"),
+               ("holds within rounding", "v-round"), ("does not hold", "v-not"),
+               ("not measured here", "v-none"), ("holds", "v-holds"))
+    _NUMBER = re.compile(r"[-+−]?(\d[\d,]*\.?\d*(e[-+]?\d+)?|\.\d+)\s*(%|x|s)?", re.I)
+    _STYLE = (
+        "body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;line-height:1.45;max-width:1400px;"
+        "margin:2em auto;padding:0 1em;color:#222}h1{font-size:1.6em}h2{margin-top:1.6em;border-bottom:1px solid #ddd}"
+        "table{border-collapse:collapse;margin:.6em 0;font-size:.9em}td,th{border:1px solid #ddd;padding:3px 8px;"
+        "text-align:left;vertical-align:top;overflow-wrap:anywhere}th{background:#f3f4f6;position:sticky;top:0;overflow-wrap:normal}"
+        "td:first-child code{white-space:normal}td:nth-child(n+2){min-width:4em}td.num{text-align:right;"
+        "font-variant-numeric:tabular-nums;white-space:nowrap}tr:nth-child(even) td{background:#fafafa}"
+        "img{max-width:100%;border:1px solid #ddd;margin:.3em 0}pre{background:#f6f6f6;padding:.5em;overflow-x:auto}"
+        ".badge{display:inline-block;padding:1px 8px;border-radius:10px;font-size:.85em;font-weight:600;"
+        "white-space:nowrap}.v-holds{background:#d1fadf;color:#05603a}.v-round{background:#e0f2fe;color:#075985}"
+        ".v-rule{background:#fef0c7;color:#93370d}.v-not{background:#fee4e2;color:#b42318}"
+        ".v-none{background:#eaecf0;color:#475467}.counts{font-size:1.05em}.counts .badge{font-size:1em;"
+        "margin:0 .3em .3em 0;padding:3px 10px}details summary{cursor:pointer;color:#475467}"
+        "details{max-width:22em}")
+
+    @classmethod
+    def _badge(cls, verdict: str, text: str | None = None) -> str:
+        for phrase, css in cls._BADGES:
+            if verdict.startswith(phrase):
+                return f'<span class="badge {css}">{html.escape(text or verdict)}</span>'
+        return html.escape(text or verdict)
+
+    @classmethod
+    def _cell(cls, text, header: str = "") -> str:
+        """One table cell: verdicts as badges, quotes folded, numbers right-aligned."""
+        t = str(text)
+        plain = t.strip("*")
+        for phrase, _ in cls._BADGES:
+            if plain.startswith(phrase):
+                head, rest = plain[: len(phrase)], plain[len(phrase):].replace("**", "")
+                return "<td>" + cls._badge(head) + cls._inline(rest) + "</td>"
+        if header == "the paper's words" and len(t) > 48:
+            short = t[:40].rsplit(" ", 1)[0] + " …"
+            return f"<td><details><summary>{html.escape(short)}</summary>{cls._inline(t)}</details></td>"
+        if cls._NUMBER.fullmatch(t.strip()):
+            return f'<td class="num">{cls._inline(t)}</td>'
+        return f"<td>{cls._inline(t)}</td>"
 
     def html(self, title: str) -> str:
         out = ["<!DOCTYPE html>", "<html><head><meta charset=\"utf-8\">", f"<title>{html.escape(title)}</title>",
-               "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em}"
-               "table{border-collapse:collapse;margin:.5em 0}td,th{border:1px solid #ccc;padding:2px 8px;"
-               "text-align:right}th{background:#eee}td:first-child,th:first-child{text-align:left}"
-               "img{max-width:100%;border:1px solid #ddd;margin:.3em 0}pre{background:#f6f6f6;padding:.5em;"
-               "overflow-x:auto}.bad{color:#b00}</style></head><body>"]
+               f"<style>{self._STYLE}</style></head><body>"]
         for b in self.blocks:
             if b[0] == "h":
                 out.append(f"<h{b[1]}>{self._inline(b[2])}</h{b[1]}>")
@@ -170,8 +216,11 @@ class _Doc:
                 out.append(f"<p>{self._inline(b[1])}</p>")
             elif b[0] == "table":
                 out.append("<table><tr>" + "".join(f"<th>{self._inline(c)}</th>" for c in b[1]) + "</tr>")
-                out += ["<tr>" + "".join(f"<td>{self._inline(c)}</td>" for c in r) + "</tr>" for r in b[2]]
+                out += ["<tr>" + "".join(self._cell(c, str(h)) for c, h in zip(r, b[1])) + "</tr>" for r in b[2]]
                 out.append("</table>")
+            elif b[0] == "counts":
+                out.append(f'<p class="counts"><b>{self._inline(b[1])}:</b> '
+                           + "".join(self._badge(k, f"{n} {k}") for k, n in b[2].items()) + "</p>")
             elif b[0] == "img":
                 out.append(f"<p><img src=\"{html.escape(b[1])}\" alt=\"{html.escape(b[2])}\"></p>")
             elif b[0] == "code":
@@ -254,6 +303,21 @@ def _link(path: Path, base: Path, text: str) -> str:
 
 def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: dict | None = None) -> None:
     d.h(2, "Claims of the paper, judged on these results")
+    lead = {}
+    for v in verdicts:
+        lead.setdefault(v.claim.id, {})[v.subset] = v
+    d.counts(f"Totals over {len(lead)} claims", {
+        k: sum(1 for subs in lead.values() if subs.get("all", next(iter(subs.values()))).verdict == k)
+        for k in ledger.VERDICTS})
+    others = others or {}
+    other_verdicts = {}
+    for ds, (_, vs) in others.items():
+        for v in vs:
+            if v.subset == "all" or len(v.claim.subsets) == 1:
+                other_verdicts.setdefault(ds, {})[v.claim.id] = v
+    for ds, vs in other_verdicts.items():
+        d.counts(f"On {DATASET_NAMES.get(ds, ds)}", {k: sum(1 for v in vs.values() if v.verdict == k)
+                                                    for k in ledger.VERDICTS})
     d.p("One row per entry of the claims ledger (`prodmaps/experiments/claims.toml`). The verdict is "
         "computed from the runs' numbers by the entry's rule: **holds** at the paper's settings, **holds "
         "with the threshold rule** (Approach B with `select_rtol(method=\"gain\")`, no ground truth) but not "
@@ -266,12 +330,6 @@ def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: 
     by_claim: dict = {}
     for v in verdicts:
         by_claim.setdefault(v.claim.id, {})[v.subset] = v
-    others = others or {}
-    other_verdicts = {}
-    for ds, (_, vs) in others.items():
-        for v in vs:
-            if v.subset == "all" or len(v.claim.subsets) == 1:
-                other_verdicts.setdefault(ds, {})[v.claim.id] = v
     if others:
         d.p("Verdict columns per dataset: *" + DATASET_NAMES.get("anny_humans", "anny_humans") + "* (the default "
             "data, always) and " + ", ".join(f"*{DATASET_NAMES.get(ds, ds)}*" for ds in others)
@@ -296,12 +354,6 @@ def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: 
         rows.append(cells)
     d.table(["claim", "where", "the paper's words", "verdict", "paper", "rule", "default"]
             + [f"{DATASET_NAMES.get(ds, ds)}" for ds in others] + ["intra / inter", "evidence", "notebook"], rows)
-    counts = {k: sum(1 for subs in by_claim.values() if subs.get("all", next(iter(subs.values()))).verdict == k)
-              for k in ledger.VERDICTS}
-    d.p("Totals over " + f"{len(by_claim)} claims: " + ", ".join(f"{n} {k}" for k, n in counts.items() if n) + ".")
-    for ds, vs in other_verdicts.items():
-        c = {k: sum(1 for v in vs.values() if v.verdict == k) for k in ledger.VERDICTS}
-        d.p(f"On {DATASET_NAMES.get(ds, ds)}: " + ", ".join(f"{n} {k}" for k, n in c.items() if n) + ".")
 
 
 def _table_summaries(d: "_Doc", infos, published_rows, matches,

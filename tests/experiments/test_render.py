@@ -251,3 +251,21 @@ def test_render_mesh_region_views_and_framing(gl, ball):
     assert _foreground(near).sum() > 1.5 * n_plain
     with pytest.raises(KeyError):
         render_mesh(ball.vertices, ball.faces, view="diagonal", **kw)
+
+
+def test_headless_render_prints_no_x_server_warning():
+    import os
+    import subprocess
+    import sys
+
+    ok, reason = render.probe_rendering()
+    if not ok:
+        pytest.skip(reason)
+    code = ("import numpy as np\nfrom prodmaps.experiments.render import render_mesh\n"
+            "from prodmaps.mesh import ellipsoid\nm = ellipsoid(1)\n"
+            "img = render_mesh(m.vertices, m.faces, window_size=(40, 60))\nprint(img.shape)\n")
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "VTK_DEFAULT_OPENGL_WINDOW")}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "(60, 40, 3)"
+    assert "X server" not in r.stderr and "WARN" not in r.stderr, r.stderr

@@ -233,17 +233,17 @@ def test_principal_curvatures_on_sphere():
 
 def test_anisotropic_laplacian_properties(anny):
     W0, A0 = pm.laplacian(anny)
-    Wi, Ai = pm.laplacian.anisotropic_laplacian(anny, 0.7, 0.0)
+    Wi, Ai = pm.operators.anisotropic_laplacian(anny, 0.7, 0.0)
     assert abs(Wi - W0).max() < 1e-10 * abs(W0).max()  # alpha = 0 is the cotangent Laplacian
     np.testing.assert_allclose(Ai, A0)
-    Wa, _ = pm.laplacian.anisotropic_laplacian(anny, 0.0, 10.0)
+    Wa, _ = pm.operators.anisotropic_laplacian(anny, 0.0, 10.0)
     assert abs(Wa - W0).max() > 0.1 * abs(W0).max()
     assert abs(Wa - Wa.T).max() == 0
     np.testing.assert_allclose(Wa @ np.ones(anny.n_vertices), 0.0, atol=1e-9 * abs(Wa).max())
     x = np.random.default_rng(0).normal(size=(anny.n_vertices, 5))
     assert np.all(np.einsum("ij,ij->j", x, Wa @ x) > 0)  # PSD (on random vectors)
     # rotating by π gives the same operator (D depends on w wᵀ)
-    Wpi, _ = pm.laplacian.anisotropic_laplacian(anny, np.pi, 10.0)
+    Wpi, _ = pm.operators.anisotropic_laplacian(anny, np.pi, 10.0)
     assert abs(Wpi - Wa).max() < 1e-10 * abs(Wa).max()
 
 
@@ -276,4 +276,4 @@ def test_awft_options_and_errors(anny):
     with pytest.raises(ValueError, match="taus"):
         D.awft(anny, k=20, taus=(-0.1,), freqs0=(0,))
     with pytest.raises(ValueError, match="alpha"):
-        pm.laplacian.anisotropic_laplacian(anny, 0.0, -1.0)
+        pm.operators.anisotropic_laplacian(anny, 0.0, -1.0)

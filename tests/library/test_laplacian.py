@@ -7,17 +7,17 @@ import pytest
 import scipy.sparse as sp
 
 import prodmaps as pm
-from prodmaps.laplacian import anisotropic_laplacian, cotan_weights, fem_mass, lumped_mass
+from prodmaps.operators import anisotropic_laplacian, cotan_weights, fem_mass, lumped_mass
 
 BROKEN = Path(__file__).resolve().parents[1] / "data" / "broken"
 
 
-def test_module_is_importable_and_callable(sphere):
-    import prodmaps.laplacian as lap
+def test_laplacian_is_the_function_of_the_operators_module(sphere):
+    import prodmaps.operators as ops
 
-    assert lap.__file__.endswith("laplacian.py")  # the module, not a function shadowing it
+    assert pm.laplacian is ops.laplacian and callable(pm.laplacian)
     W1, A1 = pm.laplacian(sphere)
-    W2, A2 = lap.laplacian(sphere)
+    W2, A2 = ops.laplacian(sphere)
     assert (W1 != W2).nnz == 0 and np.array_equal(A1, A2)
 
 

@@ -1,10 +1,10 @@
-"""The default extended transfer (prodmaps.safe_transfer): what holds by construction."""
+"""The default extended transfer (prodmaps.default_transfer): what holds by construction."""
 
 import numpy as np
 import pytest
 
 import prodmaps as pm
-from prodmaps.safe_transfer import SafeTransfer, isometry_defect, safe_operator
+from prodmaps.default_transfer import SafeTransfer, isometry_defect, safe_operator
 
 
 @pytest.fixture(scope="module")

@@ -54,7 +54,7 @@ def test_identity_transfer_is_approximation(basis_0):
     np.testing.assert_allclose(pm.transfer(F, C, b, b, "prod", rtol=1e-3), approx, atol=1e-10)  # the paper's B
     np.testing.assert_allclose(pm.transfer(F, C, b, b, "std"), b.vecs @ b.project(F), atol=1e-12)
     # the default: the map is exact, every product direction has gain 1 and no leak, h = 1/(1 + 1.5^-8)
-    op = pm.safe_transfer.safe_operator(C, b, b)
+    op = pm.default_transfer.safe_operator(C, b, b)
     np.testing.assert_allclose(op.gain, 1.0, atol=1e-8)
     np.testing.assert_allclose(op.leak, 0.0, atol=1e-8)
     np.testing.assert_allclose(op.filter, 1 / (1 + 1.5**-8), rtol=1e-8)
@@ -73,7 +73,7 @@ def test_products_beat_std_for_hks_transfer(human_0, human_13):
     e_std = pm.relative_error(pm.transfer(F, C, b1, b2, "std"), G_true, b2.mass)
     e_prod = pm.relative_error(pm.transfer(F, C, b1, b2, "prod"), G_true, b2.mass)
     assert np.all(e_prod < 0.6 * e_std), (e_std, e_prod)
-    # the price of the truncation test (prodmaps.safe_transfer): the two bodies differ, C's columns
+    # the price of the truncation test (prodmaps.default_transfer): the two bodies differ, C's columns
     # are 2-8 % from an isometry's, and the default keeps only part of the product directions;
     # without that test the same map carries these in-span kernels almost exactly
     e_no_trunc = pm.relative_error(pm.transfer(F, C, b1, b2, "prod", e0=None), G_true, b2.mass)

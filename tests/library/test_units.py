@@ -149,7 +149,7 @@ def test_point_map_conversion_is_unit_free(pair, method):
 def test_no17_and_zoomout_are_unit_free(pair):
     from prodmaps.fmaps import no17_demo_descriptors
     from prodmaps.fmaps.no17 import fit_no17
-    from prodmaps.fmaps.zoomout import zoomout
+    from prodmaps.fmaps.refinement import zoomout
     from prodmaps.p2p import from_fmap
 
     def run(b1, b2):

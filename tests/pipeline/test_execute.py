@@ -342,7 +342,7 @@ def test_repeated_only_adds_runs(project, capsys):
 
 def test_library_hash_covers_importable_code_not_the_pipeline():
     files = {p.relative_to(hashing._PACKAGE).as_posix() for p in hashing.library_files()}
-    assert {"transfer.py", "experiments/protocol.py", "experiments/claims.toml",
+    assert {"mapping.py", "experiments/protocol.py", "experiments/claims.toml",
             "experiments/published_tables.csv"} <= files
     assert not [f for f in files if f.startswith(("pipeline/", "data/"))]
 
@@ -352,6 +352,47 @@ def test_executed_notebook_is_kept_as_html(project, capsys):
     rc, _ = _main(["reproduce", "--profile", "smoke", "--out", str(out), "--only", "tiny_a"], capsys)
     html = (out / "smoke" / "tiny_a" / "executed.html").read_text()
     assert rc == 0 and "tiny done" in html and "<html" in html.lower()
+
+
+FIGURE_BODY = """from prodmaps.experiments import results as nbr
+plt = nbr.setup_matplotlib()
+fig, ax = plt.subplots(figsize=(2, 1.5))
+ax.plot([0, 1, 2], [0, 1, 0])
+nbr.save_figure(fig, out_dir, "tiny_figure")
+nbr.write_results(out_dir, {"n": 3}, {"profile": profile, "out_dir": out_dir})
+plt.show()
+"""
+
+
+def test_executed_notebook_shows_its_figures_and_its_own_output_folder(project, capsys):
+    nb = nbformat.v4.new_notebook()
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    nb.cells = [nbformat.v4.new_code_cell('profile = "smoke"\nout_dir = "results/x"',
+                                          metadata={"tags": ["parameters"]}),
+                nbformat.v4.new_code_cell(FIGURE_BODY)]
+    nbformat.write(nb, str(project / "notebooks" / "tiny_fig.ipynb"))
+    write_registry(project, {"tiny_fig": ("notebooks/tiny_fig.ipynb", {})})
+    out = project / "results"
+    rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(out), "--only", "tiny_fig"], capsys)
+    run = out / "smoke" / "tiny_fig"
+    assert rc == 0, text
+    executed = nbformat.read(str(run / "executed.ipynb"), as_version=4)
+    outputs = [o for c in executed.cells if c.cell_type == "code" for o in c.get("outputs", [])]
+    assert sum("image/png" in o.get("data", {}) for o in outputs) == 1  # inline, not swallowed by Agg
+    assert (run / "tiny_figure.png").is_file()  # and still saved for diffing
+    assert not [o for o in outputs if o.get("name") == "stderr"]
+    injected = [c.source for c in executed.cells if "injected-parameters" in c.metadata.get("tags", [])]
+    # the run's folder, relative to the project root as results.json records it; not the temporary folder
+    assert len(injected) == 1 and 'out_dir = "results/smoke/tiny_fig"' in injected[0], injected
+    assert json.loads((run / "results.json").read_text())["parameters"]["out_dir"] == "results/smoke/tiny_fig"
+    assert "<img" in (run / "executed.html").read_text()
+
+
+def test_setup_matplotlib_outside_a_kernel_is_agg():
+    code = ("from prodmaps.experiments.results import setup_matplotlib; import matplotlib; "
+            "setup_matplotlib(); print(matplotlib.get_backend())")
+    r = subprocess.run([PY, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and r.stdout.strip().lower() == "agg", r.stderr
 
 
 def test_a_value_that_does_not_parse_or_has_the_wrong_type_is_refused_up_front():

@@ -587,3 +587,29 @@ def test_a_prepared_dataset_gets_a_verdict_column_and_a_section(tmp_path):
     assert "Tables on FAUST" in faust_sec
     assert execute.profile_folder(tmp_path, "paper", "faust") == (tmp_path / "paper-faust").resolve()
     assert execute.profile_folder(tmp_path, "paper", "anny_humans") == (tmp_path / "paper").resolve()
+
+
+def test_html_leads_with_verdict_badges_left_aligned_and_quotes_folded(project):
+    text, page, ledger = project["text"], project["html_text"], load_ledger()
+    claims_md = _section(text, "Claims of the paper")
+    assert claims_md.strip().startswith(f"Totals over {len(ledger)} claims:")  # the counts lead the section
+    body = page.split('<h2>Claims of the paper', 1)[1]
+    counts = body.split("</p>", 1)[0]
+    assert 'class="counts"' in counts
+    assert re.findall(r'<span class="badge (v-\w+)">(\d+) ([a-z ]+)</span>', counts) == [
+        ("v-holds", "4", "holds"), ("v-not", "2", "does not hold"),
+        ("v-none", str(len(ledger) - len(EXPECTED)), "not measured here")]
+    table = body.split("<table>", 1)[1].split("</table>", 1)[0]
+    rows = table.split("<tr>")[2:]
+    assert len(rows) == len(ledger)
+    for row in rows:  # every verdict cell is a badge of its verdict's colour
+        cells = re.findall(r"<td[^>]*>(.*?)</td>", row, flags=re.S)
+        m = re.fullmatch(r'<span class="badge (v-\w+)">([a-z ]+)</span>', cells[3])
+        assert m, cells[3]
+        assert m.group(1) == {"holds": "v-holds", "does not hold": "v-not", "not measured here": "v-none"}[m.group(2)]
+        quote = cells[2]
+        if len(quote) > 60:
+            assert quote.startswith("<details><summary>"), quote  # long quotes folded away
+    style = page.split("<style>", 1)[1].split("</style>", 1)[0]
+    assert "text-align:left" in style and "text-align:right" not in style.replace("td.num{text-align:right", "")
+    assert '<td class="num">' in page  # numbers, and only numbers, right-aligned

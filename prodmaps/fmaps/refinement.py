@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..basis import Basis, check_basis
-from ..transfer import check_fmap
+from ..mapping import check_fmap
 
 __all__ = ["zoomout"]
 

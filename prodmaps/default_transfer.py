@@ -162,7 +162,7 @@ class SafeTransfer:
                  l0: float | None = DEFAULTS["l0"], e0: float | None = DEFAULTS["e0"],
                  floor: float = DEFAULTS["floor"],
                  h_min: float = DEFAULTS["h_min"], pairs: str = "unique"):
-        from .transfer import check_fmap
+        from .mapping import check_fmap
 
         C = check_fmap(C_12, basis_1, basis_2)
         if not (basis_1.mass_is_diagonal and basis_2.mass_is_diagonal):
@@ -261,7 +261,7 @@ def _key(C, basis_2: Basis, params: dict) -> tuple:
 def safe_operator(C_12, basis_1: Basis, basis_2: Basis, **params) -> SafeTransfer:
     """The :class:`SafeTransfer` of ``(C_12, basis_1, basis_2)``, cached on basis_1's product basis
     (keyed by the bytes of ``C_12`` and ``basis_2``), so repeated calls reuse it."""
-    from .transfer import check_fmap
+    from .mapping import check_fmap
 
     C = check_fmap(C_12, basis_1, basis_2)
     full = {**DEFAULTS, **params}
@@ -271,5 +271,47 @@ def safe_operator(C_12, basis_1: Basis, basis_2: Basis, **params) -> SafeTransfe
 
 
 def safe_transfer(F, C_12, basis_1: Basis, basis_2: Basis, **params) -> np.ndarray:
-    """Transfer ``F`` ``(n1,)``/``(n1, m)`` with the default extended rule (module doc)."""
+    """Transfer ``F`` ``(n1,)``/``(n1, m)`` with the default extended rule (module doc).
+
+    The same as ``pm.transfer(F, C_12, basis_1, basis_2, method="prod")`` without ``rtol``.
+
+    Parameters
+    ----------
+    F : (n1,) or (n1, m) array_like of float
+        Function(s) on shape 1.
+    C_12 : (k2, k1) array_like
+        Functional map, coefficients on shape 1 to shape 2.
+    basis_1, basis_2 : Basis
+        A-orthonormal bases, constant first.
+    **params
+        The rule's ``g0``, ``p``, ``l0``, ``floor``, ``h_min`` (defaults in
+        :data:`prodmaps.default_transfer.DEFAULTS`).
+
+    Returns
+    -------
+    (n2,) or (n2, m) ndarray
+        The transferred function(s) on shape 2.
+
+    Raises
+    ------
+    ValueError
+        For functions or maps of the wrong shape, complex or non-finite values.
+    TypeError
+        For a basis that is not a :class:`prodmaps.Basis` or an unknown parameter.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> mesh = ellipsoid(2)
+    >>> b = pm.eigenbasis(mesh, 6)
+    >>> f = mesh.vertices[:, 0] * mesh.vertices[:, 1]
+    >>> g = pm.safe_transfer(f, np.eye(6), b, b)
+    >>> g.shape
+    (162,)
+    >>> std = pm.transfer(f, np.eye(6), b, b)  # the products recover more of f than the standard transfer
+    >>> bool(pm.relative_error(g, f, b.mass) < pm.relative_error(std, f, b.mass))
+    True
+    """
     return safe_operator(C_12, basis_1, basis_2, **params)(F)

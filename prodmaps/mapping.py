@@ -20,7 +20,6 @@ import itertools
 import numpy as np
 import scipy.sparse as sp
 
-from ._callable import make_callable
 from .approx import check_functions
 from .basis import Basis
 from .products import _n_orderings, multi_indices, product_basis
@@ -71,7 +70,38 @@ def check_fmap(C_12, basis_1: Basis, basis_2: Basis, allow_truncation: bool = Fa
 
 
 def fmap_from_p2p(p2p_21, basis_1: Basis, basis_2: Basis) -> np.ndarray:
-    """Functional map ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` ``(k2, k1)`` induced by a point map."""
+    """Functional map ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` ``(k2, k1)`` induced by a point map.
+
+    Parameters
+    ----------
+    p2p_21 : (n2,) array_like of int
+        For each vertex of shape 2, its vertex on shape 1 (the pull-back direction).
+    basis_1, basis_2 : Basis
+        Bases on shape 1 (``n1`` points, ``k1`` columns) and shape 2 (``n2``, ``k2``).
+
+    Returns
+    -------
+    (k2, k1) ndarray
+        Maps coefficients on shape 1 to coefficients on shape 2.
+
+    Raises
+    ------
+    ValueError
+        If ``p2p_21`` is not ``(n2,)`` integer indices in ``[0, n1)``.
+    TypeError
+        If a basis is not a :class:`prodmaps.Basis`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> b1 = pm.eigenbasis(ellipsoid(2), 6)
+    >>> b2 = pm.eigenbasis(ellipsoid(2), 4)
+    >>> C = pm.fmap_from_p2p(np.arange(162), b1, b2)  # the identity point map
+    >>> C.shape, bool(np.allclose(C, np.eye(4, 6)))
+    ((4, 6), True)
+    """
     p = check_p2p(p2p_21, basis_1.n, basis_2.n)
     return basis_2.project(basis_1.vecs[p])  # (k2, k1)
 
@@ -89,6 +119,38 @@ def extend_fmap(C_12, basis_1: Basis, basis_2: Basis, order: int = 2, pairs: str
     of ``φ_{i1} ⊙ … ⊙ φ_{id}`` is ``Π_t (Φ2 C e_{it})``, expanded in the target's products;
     for ordered targets the coefficient of a multiset is spread evenly over its orderings.
     ``C`` may be rectangular (``k2 != k1``).
+
+    Parameters
+    ----------
+    C_12 : (k2, k1) array_like
+        Functional map from ``basis_1`` (shape 1) to ``basis_2`` (shape 2).
+    basis_1, basis_2 : Basis
+        The source and target bases (A-orthonormal, constant first).
+    order : int
+        Highest product degree, as in :func:`prodmaps.product_basis`.
+    pairs : ``"ordered"`` or ``"unique"``, as in :func:`prodmaps.product_basis`.
+
+    Returns
+    -------
+    (K2, K1) ndarray
+        ``K1``, ``K2`` the column counts of ``product_basis(basis_i, order, pairs)``.
+
+    Raises
+    ------
+    ValueError
+        If ``C_12`` is not ``(k2, k1)`` or not finite, ``order < 1`` or ``pairs`` is unknown.
+    TypeError
+        If a basis is not a :class:`prodmaps.Basis`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> b = pm.eigenbasis(ellipsoid(2), 6)
+    >>> Ct = pm.extend_fmap(np.eye(6), b, b)
+    >>> Ct.shape, bool(np.allclose(Ct, np.eye(31)))  # the identity map extends to the identity
+    ((31, 31), True)
     """
     C = check_fmap(C_12, basis_1, basis_2)
     if order < 1:
@@ -181,7 +243,7 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, or
     ``method="std"``: ``Φ2 C_12 Φ1ᵀ A1 F`` (A-orthogonal projection, then the map).
 
     ``method="prod"`` with no threshold given: **the library's default extended transfer**
-    (:mod:`prodmaps.safe_transfer`): the standard projection first, then the residual fitted with
+    (:mod:`prodmaps.default_transfer`): the standard projection first, then the residual fitted with
     the products that are A1-orthogonal to the basis; each product direction's image under ``C~``
     loses its part inside ``range(Φ2 C)`` and is kept only if it passes a gain, a leak and a
     truncation test (no ground truth needed). The paper's fixed threshold can make products worse
@@ -196,6 +258,54 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, or
     (with ``eps=...``) gives Approach A. ``params`` go to
     :func:`prodmaps.approx.approximation_operator`. Factorisations are cached on the bases, so
     transferring many functions in one call, or in repeated calls, reuses them.
+
+    Parameters
+    ----------
+    F : (n1,) or (n1, m) array_like of float
+        Function(s) on shape 1, real and finite.
+    C_12 : (k2, k1) array_like
+        Functional map from ``basis_1`` to ``basis_2``.
+    basis_1, basis_2 : Basis
+        Bases on shape 1 (``n1`` points, ``k1`` columns) and shape 2 (``n2``, ``k2``).
+    method : ``"std"`` (default) or ``"prod"``.
+    order, pairs : the product basis of ``method="prod"`` with ``rtol`` (the default rule uses
+        ``order=2``).
+    approx : ``None`` (Approach B) or ``"ridge"`` / ``"lasso"`` (Approach A), with ``rtol`` or ``eps``.
+    rtol : float, optional
+        Approach B's threshold; ``None`` selects the default extended transfer.
+    **params
+        The default rule's parameters, or :func:`prodmaps.approx.approximation_operator`'s.
+
+    Returns
+    -------
+    (n2,) or (n2, m) ndarray
+        The transferred function(s) on shape 2.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``method``, shapes that do not match the bases, complex or non-finite
+        values, or ``order != 2`` for the default rule.
+    TypeError
+        For parameters the chosen method does not take (e.g. ``rtol`` with ``method="std"``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> mesh = ellipsoid(2)
+    >>> b = pm.eigenbasis(mesh, 6)
+    >>> C = pm.fmap_from_p2p(np.arange(mesh.n_vertices), b, b)  # (k2, k1) = (6, 6)
+    >>> f = mesh.vertices[:, 0] * mesh.vertices[:, 1]
+    >>> std = pm.transfer(f, C, b, b)
+    >>> prod = pm.transfer(f, C, b, b, method="prod")            # the default extended transfer
+    >>> paper = pm.transfer(f, C, b, b, method="prod", rtol=1e-3)  # the paper's Approach B
+    >>> std.shape, prod.shape, paper.shape
+    ((162,), (162,), (162,))
+    >>> errors = [pm.relative_error(g, f, b.mass) for g in (std, prod, paper)]
+    >>> bool(errors[1] < errors[0] and errors[2] < errors[0])  # products help on a product
+    True
     """
     C = check_fmap(C_12, basis_1, basis_2)
     F = check_functions(F, basis_1.n)
@@ -214,7 +324,7 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, or
         if order != 2:
             raise ValueError("the default extended transfer uses pairwise products (order=2); pass rtol=... "
                              "for the paper's Approach B with higher orders")
-        from .safe_transfer import DEFAULTS, safe_operator
+        from .default_transfer import DEFAULTS, safe_operator
 
         unknown = set(params) - set(DEFAULTS)
         if unknown:
@@ -231,5 +341,3 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, or
     a = ext1.operator(approx, **params).coefficients(F)  # (K1,) or (K1, m)
     return ext2.evaluate(extend_fmap(C, basis_1, basis_2, order, pairs) @ a)
 
-
-make_callable(__name__)  # pm.transfer(...) calls transfer() above; prodmaps.transfer stays the module

@@ -15,8 +15,8 @@ import numpy as np
 from ..curvature import _check_mesh as check_mesh
 from ..curvature import principal_curvatures
 from ..eigensolver import smallest_eigenpairs
-from ..laplacian import anisotropic_laplacian, laplacian
 from ..mesh import Mesh
+from ..operators import anisotropic_laplacian, laplacian
 from .spectral import as_1d_finite
 
 __all__ = ["awft"]

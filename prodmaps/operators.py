@@ -26,7 +26,6 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ._callable import make_callable
 from .mesh import Mesh
 
 __all__ = ["laplacian", "cotan_weights", "lumped_mass", "fem_mass", "anisotropic_laplacian"]
@@ -79,10 +78,43 @@ def fem_mass(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
 def laplacian(mesh: Mesh, kind: str = "cotan", mass: str = "lumped"):
     """Stiffness and mass of ``mesh``: returns ``(W, A)``.
 
+    The weak Laplace–Beltrami problem is ``W φ = λ A φ`` with ``W`` positive semi-definite
+    (natural boundary condition on open meshes).
+
     Parameters
     ----------
+    mesh : Mesh
+        The surface.
     kind : ``"cotan"`` (default) or ``"robust"`` (intrinsic Delaunay, needs ``robust_laplacian``).
     mass : ``"lumped"`` (default, ``A`` is an ``(n,)`` vector) or ``"full"`` (sparse FEM mass).
+
+    Returns
+    -------
+    W : (n, n) scipy.sparse.csr_matrix
+        Symmetric stiffness (cotangent weights), ``W @ 1 = 0``.
+    A : (n,) ndarray or (n, n) scipy.sparse.csr_matrix
+        Lumped vertex areas (one third of the adjacent triangles' areas), or the FEM mass.
+
+    Raises
+    ------
+    TypeError
+        If ``mesh`` is not a :class:`prodmaps.Mesh`.
+    ValueError
+        For an unknown ``kind`` or ``mass``.
+    ImportError
+        For ``kind="robust"`` without the ``robust_laplacian`` package.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> mesh = ellipsoid(2)
+    >>> W, A = pm.laplacian(mesh)
+    >>> W.shape, A.shape
+    ((162, 162), (162,))
+    >>> bool(np.allclose(W @ np.ones(162), 0)), bool(np.isclose(A.sum(), mesh.area))
+    (True, True)
     """
     if not isinstance(mesh, Mesh):
         raise TypeError(f"laplacian expects a prodmaps.Mesh, got {type(mesh).__name__}")
@@ -150,5 +182,3 @@ def anisotropic_laplacian(
     W = 0.5 * (W + W.T)
     return W.tocsr(), lumped_mass(V, F)
 
-
-make_callable(__name__)  # pm.laplacian(mesh) calls laplacian() above; prodmaps.laplacian stays the module

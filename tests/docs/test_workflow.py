@@ -1,0 +1,49 @@
+"""The GitHub Actions workflow: it lints clean and runs what CI must run."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+WORKFLOW = ROOT / ".github" / "workflows" / "ci.yml"
+
+
+def _actionlint():
+    here = Path(sys.executable).parent / "actionlint"
+    return str(here) if here.is_file() else shutil.which("actionlint")
+
+
+def test_workflow_passes_actionlint():
+    tool = _actionlint()
+    if tool is None:
+        pytest.skip("actionlint is not installed (pip install '.[docs]')")
+    r = subprocess.run([tool, "-shellcheck=", "-pyflakes=", str(WORKFLOW)], capture_output=True, text=True,
+                       timeout=120, cwd=ROOT)
+    assert r.returncode == 0, r.stdout + r.stderr
+
+
+def test_actionlint_catches_a_broken_workflow(tmp_path):
+    tool = _actionlint()
+    if tool is None:
+        pytest.skip("actionlint is not installed (pip install '.[docs]')")
+    bad = tmp_path / "bad.yml"
+    bad.write_text(WORKFLOW.read_text().replace("runs-on: ubuntu-24.04", "runs-on: ${{ matrix.nope }}", 1))
+    r = subprocess.run([tool, "-shellcheck=", "-pyflakes=", str(bad)], capture_output=True, text=True, timeout=120)
+    assert r.returncode != 0 and "matrix" in r.stdout
+
+
+def test_workflow_runs_the_tests_the_smoke_diff_and_the_docs():
+    text = WORKFLOW.read_text()
+    assert "make test" in text
+    assert "prodmaps reproduce --profile smoke" in text
+    assert "prodmaps diff results/smoke paper/baselines/smoke" in text
+    assert "make docs" in text and "DOCS_RUNS=results/smoke" in text
+    failure = text.split("if: failure()", 1)[1]
+    assert "actions/upload-artifact" in failure
+    for what in ("results/diff/", "executed.ipynb", "executed.html", "REPORT."):
+        assert what in failure, what
