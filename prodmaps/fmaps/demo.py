@@ -20,13 +20,18 @@ def no17_demo_descriptors(
     landmarks=None,
     n_descr: int = 100,
     subsample_step: int = 5,
-    k_descr: int | None = 128,
+    k_descr: int | tuple | None = 128,
+    *,
+    scaled: bool = True,
 ):
     """Descriptors of pyFM's NO17 demo: WKS plus wave-kernel maps at landmarks, subsampled.
 
-    Built from the first ``k_descr`` eigenpairs of each basis (all if None), with the automatic
+    Built from the first ``k_descr`` eigenpairs of each basis (all if None; a pair
+    ``(k_descr_1, k_descr_2)`` gives one count per shape, as the NO17 authors' MATLAB demo, which
+    uses each shape's map size), with the automatic
     energies of :func:`auto_wks_energies` computed **on each shape's own spectrum** and scaled
-    weights ``w_e`` (:func:`wave_kernel_weights`):
+    weights ``w_e`` (:func:`prodmaps.descriptors.wks_weights`; ``scaled=False``: unscaled, as
+    the MATLAB demo):
 
     * WKS ``(n, n_descr)``: ``WKS_e(x) = Σ_i w_e,i φ_i(x)²``;
     * for each landmark pair ``(l1, l2)`` the wave-kernel maps ``x ↦ Σ_i w_e,i φ_i(l) φ_i(x)``
@@ -47,14 +52,20 @@ def no17_demo_descriptors(
             l1, l2 = lm[:, 0].astype(np.int64), lm[:, 1].astype(np.int64)
         else:
             raise ValueError(f"landmarks must be (q,) or (q, 2); got shape {lm.shape}")
+    if k_descr is None or isinstance(k_descr, (int, np.integer)):
+        ks = (k_descr, k_descr)
+    elif len(k_descr) == 2:
+        ks = tuple(k_descr)
+    else:
+        raise ValueError(f"k_descr must be None, an int or a pair (k_descr_1, k_descr_2); got {k_descr!r}")
     out = []
-    for basis, lms in ((basis_1, l1), (basis_2, l2)):
-        k = basis.k if k_descr is None else min(k_descr, basis.k)
+    for basis, lms, kd in ((basis_1, l1, ks[0]), (basis_2, l2, ks[1])):
+        k = basis.k if kd is None else min(int(kd), basis.k)
         if lms.size and (lms.min() < 0 or lms.max() >= basis.n):
             raise ValueError(f"landmark indices must be in [0, {basis.n})")
         Phi, ev = basis.vecs[:, :k], basis.evals[:k]
         energies, sigma = wks_energies_from_evals(ev, n_descr)
-        w = wks_weights(ev, energies, sigma)  # (n_descr, k)
+        w = wks_weights(ev, energies, sigma, scaled=scaled)  # (n_descr, k)
         cols = [(Phi**2) @ w.T]  # (n, n_descr)
         if lms.size:
             maps = np.einsum("ek,lk,nk->nle", w, Phi[lms], Phi, optimize=True)  # (n, q, n_descr)

@@ -31,7 +31,10 @@ With ``D1 = Φ1ᵀA1 d``, ``D2 = Φ2ᵀA2 d'`` the coefficient matrices ``(k1, p
   ``eigdiff`` mask grows like ``λ_k²`` and makes the weight depend on ``k``; the resolvent
   mask is bounded by 4 and has the same null set (``L_ij = 0`` iff ``λ_j = μ_i``).
 * Descriptor normalisation (``normalize_descr=True``): every descriptor column is divided by
-  its area L2 norm on its own shape, ``d_q / sqrt(d_qᵀ A d_q)``, before projection.
+  its area L2 norm on its own shape, ``d_q / sqrt(d_qᵀ A d_q)``, before projection;
+  ``normalize_descr="source"``: both columns of a pair are divided by the **source** column's
+  norm ``sqrt(d_qᵀ A1 d_q)`` (the NO17 authors' MATLAB demo), so a descriptor whose magnitude
+  differs between the shapes keeps that difference.
 * Weights: only ratios matter; ``(w_descr, w_lap, w_dcomm)`` are divided by their sum.
 * Term normalisation ``normalize="expected"`` (default): each term is divided by its expected
   value ``τ`` when ``C`` has i.i.d. centred entries of variance ``m/(k1 k2)``, ``m = min(k1, k2)``
@@ -49,7 +52,9 @@ With ``D1 = Φ1ᵀA1 d``, ``D2 = Φ2ᵀA2 d'`` the coefficient matrices ``(k1, p
   ``τ`` (zero) is replaced by 1. This is the normalisation pyFM >= 1.3 calls "canonical", so
   the same ``w_*`` mean the same energy in both packages (checked in
   ``tests/test_pyfmaps_crosscheck.py``). ``normalize="sum"``: ``τ_descr = τ_dcomm = 1`` and
-  ``τ_lap = Σ_ij L_ij`` (pyFM's ``normalize_weights=False``); ``normalize=None``: all ``τ = 1``.
+  ``τ_lap = Σ_ij L_ij`` (pyFM's ``normalize_weights=False``); ``normalize="frobenius"``:
+  ``τ_descr = τ_dcomm = 1`` and ``τ_lap = ‖L‖²_F`` (the NO17 authors' MATLAB demo divides its
+  ``eigdiff`` mask by its squared Frobenius norm); ``normalize=None``: all ``τ = 1``.
 * First column: ``C[0, 0] = s·sqrt(area_2/area_1)`` and ``C[1:, 0] = 0`` with
   ``s = sign(φ0¹ φ0²)`` (= +1 with prodmaps bases). Derivation: for any point map ``T``,
   ``T φ0¹`` is the constant ``1/sqrt(area_1)`` on shape 2, so
@@ -87,7 +92,8 @@ __all__ = [
 ]
 
 LAP_FORMS = ("resolvent", "eigdiff")
-NORMALIZATIONS = ("expected", "sum", None)
+NORMALIZATIONS = ("expected", "sum", "frobenius", None)
+DESCR_NORMALIZATIONS = (True, False, "source")
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -117,13 +123,18 @@ def first_column(basis_1: Basis, basis_2: Basis, k2: int | None = None) -> np.nd
     return col
 
 
-def _normalize_columns(descr: np.ndarray, basis: Basis) -> np.ndarray:
-    """Divide each column by its area L2 norm ``sqrt(dᵀ A d)``."""
+def _column_norms(descr: np.ndarray, basis: Basis) -> np.ndarray:
+    """``(p,)`` area L2 norms ``sqrt(d_qᵀ A d_q)`` of the columns; raises if one is zero."""
     sq = np.einsum("nq,nq->q", descr, basis.apply_mass(descr))  # (p,)
     if np.any(sq <= 0):
         bad = np.flatnonzero(sq <= 0)[:5]
         raise ValueError(f"descriptor columns {bad.tolist()} are zero; drop them before fitting")
-    return descr / np.sqrt(sq)[None, :]
+    return np.sqrt(sq)
+
+
+def _normalize_columns(descr: np.ndarray, basis: Basis) -> np.ndarray:
+    """Every column divided by its area L2 norm ``sqrt(dᵀ A d)``."""
+    return descr / _column_norms(descr, basis)[None, :]
 
 
 def multiplication_operators(basis: Basis, descr: np.ndarray) -> np.ndarray:
@@ -205,7 +216,7 @@ def no17_terms(
     lap: str = "resolvent",
     resolvent_gamma: float = 0.5,
     normalize: str | None = "expected",
-    normalize_descr: bool = True,
+    normalize_descr: bool | str = True,
 ) -> NO17Terms:
     """Precompute the NO17 energy terms for ``C_12`` of shape ``(basis_2.k, basis_1.k)``.
 
@@ -240,8 +251,13 @@ def no17_terms(
         )
     if normalize not in NORMALIZATIONS:
         raise ValueError(f"normalize must be one of {NORMALIZATIONS}, got {normalize!r}")
+    if not isinstance(normalize_descr, (bool, np.bool_, str)) or normalize_descr not in DESCR_NORMALIZATIONS:
+        raise ValueError(f"normalize_descr must be one of {DESCR_NORMALIZATIONS}, got {normalize_descr!r}")
     ws = ws / ws.sum()
-    if normalize_descr:
+    if normalize_descr == "source":
+        norms = _column_norms(d1, basis_1)  # (p,) the source norms divide both shapes' columns
+        d1, d2 = d1 / norms[None, :], d2 / norms[None, :]
+    elif normalize_descr:
         d1 = _normalize_columns(d1, basis_1)
         d2 = _normalize_columns(d2, basis_2)
     k1, k2 = basis_1.k, basis_2.k
@@ -265,6 +281,9 @@ def no17_terms(
         taus = tuple(t if t > 0 else 1.0 for t in (t_descr, t_lap, t_dcomm))
     elif normalize == "sum":
         taus = (1.0, float(L.sum()) if L.sum() > 0 else 1.0, 1.0)
+    elif normalize == "frobenius":
+        fro2 = float(np.sum(L * L))
+        taus = (1.0, fro2 if fro2 > 0 else 1.0, 1.0)
     else:
         taus = (1.0, 1.0, 1.0)
     mus = ws / np.array(taus)
@@ -347,7 +366,7 @@ def fit_no17(
     lap: str = "resolvent",
     resolvent_gamma: float = 0.5,
     normalize: str | None = "expected",
-    normalize_descr: bool = True,
+    normalize_descr: bool | str = True,
     init: str = "zeros",
     factr: float = 1e7,
     pgtol: float = 1e-5,

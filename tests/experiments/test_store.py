@@ -43,15 +43,26 @@ def test_disk_key_names_what_the_value_depends_on(tmp_path):
 
 def test_no17_map_is_shared_and_equals_the_direct_fit(store, tmp_path):
     gt = pm.datasets.ground_truth(DS, "anny_000", "anny_003")
-    C = maps.no17_demo_map(store, "anny_000", "anny_003", gt, 8, 10, k_descr=20)
+    C = maps.no17_demo_map(store, "anny_000", "anny_003", gt, 8, 10, recipe="pyfm", k_descr=20)
     lm = maps.landmark_pairs(store.mesh("anny_000").vertices, gt)
     D1, D2 = fmaps.no17_demo_descriptors(store.basis("anny_000"), store.basis("anny_003"), lm, n_descr=100,
                                          subsample_step=5, k_descr=20)
     direct = fmaps.fit_no17(store.basis("anny_000", 8), store.basis("anny_003", 10), D1, D2)
-    assert C.shape == (10, 8) and np.array_equal(C, direct)
+    assert C.shape == (10, 8) and np.array_equal(C, direct)  # the "pyfm" recipe is pyFM's demo fit, unrefined
     fresh = ShapeStore(DS, 20, cache_folder=tmp_path / "cache")
-    assert np.array_equal(maps.no17_demo_map(fresh, "anny_000", "anny_003", gt, 8, 10, k_descr=20), C)
+    assert np.array_equal(maps.no17_demo_map(fresh, "anny_000", "anny_003", gt, 8, 10, recipe="pyfm", k_descr=20), C)
     assert len(list((tmp_path / "cache").glob("no17_*.npz"))) == 1
+    rec = maps.recipe(maps.DEFAULT_RECIPE)
+    D = maps.no17_demo_map(store, "anny_000", "anny_003", gt, 8, 10)  # the paper profiles' recipe
+    lm_d = maps.landmark_pairs(store.mesh("anny_000").vertices, gt, rec.n_landmarks)
+    assert np.array_equal(D, maps.no17_fit(store.basis("anny_000"), store.basis("anny_003"), lm_d, 8, 10, rec))
+    assert len(list((tmp_path / "cache").glob("no17_*.npz"))) == 2 and not np.allclose(D, C)
+    if rec.refine == "icp":  # orthogonal ICP returns a partial isometry
+        np.testing.assert_allclose(D.T @ D, np.eye(8), atol=1e-12)
+    with pytest.raises(ValueError, match="unknown NO17 recipe"):
+        maps.no17_demo_map(store, "anny_000", "anny_003", gt, 8, 10, recipe="nope")
+    with pytest.raises(ValueError, match="refine"):
+        maps.NO17Recipe(refine="bcicp")
     assert np.allclose(maps.functional_map("gt", store, "anny_000", "anny_003", gt, 8, 10),
                        pm.fmap_from_p2p(gt, store.basis("anny_000", 8), store.basis("anny_003", 10)))
     with pytest.raises(ValueError, match="map kind"):

@@ -228,3 +228,56 @@ def test_direct_solver_is_the_exact_minimiser(demo):
     assert np.abs(G_dir[:, 1:]).max() < 1e-10  # stationary in the free columns
     assert E_dir <= fmaps.energy_and_gradient(C_lbfgs, terms)[0] + 1e-14
     assert np.linalg.norm(C_dir - C_lbfgs) < 1e-5 * np.linalg.norm(C_dir)
+
+
+def test_frobenius_normalisation_and_source_descriptor_norms(demo):
+    b1, b2, d1, d2, _ = demo
+    B1, B2 = b1.truncate(8), b2.truncate(10)
+    t = fmaps.no17_terms(B1, B2, d1, d2, lap="eigdiff", normalize="frobenius")
+    assert t.taus[0] == 1.0 and t.taus[2] == 1.0
+    assert np.isclose(t.taus[1], np.sum(t.L**2), rtol=1e-14) and t.taus[1] != np.sum(t.L)
+    s = fmaps.no17_terms(B1, B2, d1, d2, normalize=None, normalize_descr="source")
+    n1 = np.sqrt(np.einsum("nq,nq->q", d1, b1.mass[:, None] * d1))  # the source norms divide both shapes
+    np.testing.assert_allclose(s.D1, B1.project(d1 / n1), rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(s.D2, B2.project(d2 / n1), rtol=1e-12, atol=1e-14)
+    own = fmaps.no17_terms(B1, B2, d1, d2, normalize=None)  # each shape its own norms: D2 differs
+    assert not np.allclose(own.D2, s.D2, rtol=1e-6)
+    with pytest.raises(ValueError, match="normalize_descr"):
+        fmaps.no17_terms(B1, B2, d1, d2, normalize_descr="target")
+
+
+def test_demo_descriptors_per_shape_counts_and_unscaled_filter(demo):
+    b1, b2, _, _, lm = demo
+    a1, a2 = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=30, subsample_step=5, k_descr=(20, 40))
+    r1, _ = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=30, subsample_step=5, k_descr=20)
+    _, r2 = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=30, subsample_step=5, k_descr=40)
+    assert np.array_equal(a1, r1) and np.array_equal(a2, r2) and not np.allclose(a1, r2[: a1.shape[0]])
+    u1, _ = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=30, subsample_step=1, k_descr=20, scaled=False)
+    s1, _ = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=30, subsample_step=1, k_descr=20)
+    ratio = u1[:, :30] / s1[:, :30]  # WKS columns (positive): one factor per energy (the filter's sum)
+    assert np.all(ratio > 0) and np.allclose(ratio, ratio[:1], rtol=1e-10)
+    assert not np.allclose(ratio[0], 1.0)
+    np.testing.assert_allclose(u1[:, 30:60], s1[:, 30:60] * ratio[:1], rtol=1e-9, atol=1e-12)  # same factors
+    with pytest.raises(ValueError, match="k_descr"):
+        fmaps.no17_demo_descriptors(b1, b2, lm, k_descr=(10, 20, 30))
+
+
+def test_icp_refine_recovers_the_identity_and_returns_partial_isometries(human_0):
+    b = pm.eigenbasis(human_0, 30)
+    B = b.truncate(12)
+    rng = np.random.default_rng(1)
+    C0 = np.eye(12) + 0.05 * rng.normal(size=(12, 12))  # a slightly wrong self-map
+    before = np.mean(from_fmap(C0, B, B) == np.arange(b.n))
+    assert before < 0.5  # the initial point map is mostly wrong
+    C, p2p = fmaps.icp_refine(C0, B, B, 10, return_p2p=True)
+    assert np.array_equal(p2p, np.arange(b.n))
+    np.testing.assert_allclose(C, np.eye(12), atol=1e-10)
+    B2 = b.truncate(16)
+    R = fmaps.icp_refine(np.eye(16, 12) + 0.05 * rng.normal(size=(16, 12)), B, B2, 2)
+    assert R.shape == (16, 12)
+    np.testing.assert_allclose(R.T @ R, np.eye(12), atol=1e-12)  # orthonormal columns (k2 > k1)
+    W = fmaps.icp_refine(C0, B, B, 1, orthogonal=False)  # the induced map, not orthogonalised
+    np.testing.assert_allclose(W, B.project(B.vecs[from_fmap(C0, B, B)]), rtol=1e-12, atol=1e-14)
+    assert np.array_equal(fmaps.icp_refine(C0, B, B, 0), C0)
+    with pytest.raises(ValueError, match="n_iter"):
+        fmaps.icp_refine(C0, B, B, -1)
