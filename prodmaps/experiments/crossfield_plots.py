@@ -14,7 +14,8 @@ import numpy as np
 from ..fields.crossfield import field_vectors, singularities
 from ..fields.frames import tangent_frames
 
-__all__ = ["VIEWS", "plot_cross_field", "plot_quad_texture", "render_quad_texture", "figure14_figure"]
+__all__ = ["VIEWS", "plot_cross_field", "plot_quad_texture", "render_quad_texture", "figure14_figure", "joint_figure",
+           "pairs_figure"]
 
 VIEWS = {
     "front": ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)),
@@ -157,4 +158,46 @@ def figure14_figure(mesh_1, mesh_2, result: dict, names=("reference", "std", "ex
     if suptitle:
         fig.suptitle(suptitle, fontsize=9)
     fig.tight_layout(rect=(0, 0, 1, 0.97) if suptitle else None)
+    return fig
+
+
+def joint_figure(mesh_1, mesh_2, fields: dict, names, *, titles=None, view="front", n_glyphs=400, suptitle=None):
+    """Jointly designed fields of one pair: one column per design, source (top) and target (bottom).
+
+    ``fields`` maps a name to ``(z1, z2)`` (e.g. ``figure14_joint_pair(..., keep_fields=True)["fields"]``
+    re-keyed by name). Returns the figure.
+    """
+    import matplotlib.pyplot as plt
+
+    names = [n for n in names if n in fields]
+    fig, axes = plt.subplots(2, len(names), figsize=(2.4 * len(names), 7.0), squeeze=False)
+    for c, name in enumerate(names):
+        for r, mesh in enumerate((mesh_1, mesh_2)):
+            plot_cross_field(mesh.vertices, mesh.faces, fields[name][r], ax=axes[r, c], view=view, n_glyphs=n_glyphs)
+        axes[0, c].set_title((titles or {}).get(name, name), fontsize=8)
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=9)
+    fig.tight_layout(rect=(0, 0, 1, 0.97) if suptitle else None)
+    return fig
+
+
+def pairs_figure(per_pair: dict, ks, kinds, baselines=("independent", "copy"), measure="angle_regular_deg"):
+    """Per-pair strip chart of ``measure`` for every kind and k (one panel per k), baselines as marks."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(ks), figsize=(3.6 * len(ks), 3.2), squeeze=False, sharey=True)
+    names = list(per_pair)
+    x = np.arange(len(names))
+    for a, k in zip(axes[0], ks):
+        for j, kd in enumerate(kinds):
+            a.plot(x + 0.1 * (j - len(kinds) / 2), [per_pair[n][f"k{k}"][kd][measure] for n in names], "o", ms=4,
+                   label=kd)
+        for b, mk in zip(baselines, ("k_", "kx")):
+            v = [per_pair[n]["baselines"].get(b, {}).get(measure, np.nan) for n in names]
+            a.plot(x, [np.nan if t is None else t for t in v], mk, ms=9, label=b)
+        a.set_xticks(x, [n.replace("anny_", "").replace("tr_reg_", "") for n in names], rotation=60, fontsize=6)
+        a.set_title(f"k = {k}", fontsize=9)
+    axes[0, 0].set_ylabel(measure.replace("_", " "), fontsize=8)
+    axes[0, -1].legend(fontsize=6)
+    fig.tight_layout()
     return fig

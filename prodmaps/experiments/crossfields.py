@@ -50,6 +50,7 @@ from ..transfer import fmap_from_p2p
 
 __all__ = ["figure14_experiment", "figure14_study", "dataset_pair", "summary_rows", "match_singularities",
            "graph_distances", "surface_ground_truth", "low_curvature_vertices", "pair_measures", "figure14_joint_pair", "summarize_pairs",
+           "figure14_joint_study",
            "DEFAULTS", "JOINT_DEFAULTS", "JOINT_KINDS", "BASELINES"]
 
 DEFAULTS = {
@@ -460,7 +461,8 @@ def summarize_pairs(per_pair: dict, ks, kinds=JOINT_KINDS, measure: str = "angle
     """Across pairs, per k and kind: mean, standard deviation, min, max of ``measure``, and for each
     extended kind how many pairs it beats ``"std"`` on (``n_better``, of ``n_pairs``).
 
-    Also ``cells``: ``{kind: {"<pair>|k<k>": value}}`` (every pair and k, for the claims ledger).
+    Also ``cells``: ``{kind: {"<pair>|k<k>": value}}`` (every pair and k, for the claims ledger) and
+    ``pooled``: ``{kind: mean, std, min, max over all cells}``.
     """
     out = {"measure": measure, "cells": {kd: {} for kd in kinds}}
     for k in ks:
@@ -476,4 +478,34 @@ def summarize_pairs(per_pair: dict, ks, kinds=JOINT_KINDS, measure: str = "angle
             for name, p in per_pair.items():
                 out["cells"][kd][f"{name}|k{k}"] = float(p[f"k{k}"][kd][measure])
         out[f"k{k}"] = row
+    out["pooled"] = {}
+    for kd in kinds:
+        v = np.array(list(out["cells"][kd].values()))
+        out["pooled"][kd] = {"mean": float(np.mean(v)), "std": float(np.std(v)), "min": float(np.min(v)),
+                             "max": float(np.max(v)), "n_cells": int(v.size)}
     return out
+
+
+def figure14_joint_study(dataset: str, pairs, ks, *, params=None, shown: int = 0, verbose: bool = True) -> dict:
+    """:func:`figure14_joint_pair` on every pair ``(id_1, id_2)`` of ``dataset`` and every k.
+
+    Returns ``{"pairs": {"<id_1>-><id_2>": per-pair results}, "summary": {measure: summarize_pairs},
+    "shown": (mesh_1, mesh_2, fields) of pair number ``shown``, "kinds": ...}``.
+    """
+    from .. import datasets
+
+    per, shown_out = {}, None
+    for i, (a, b) in enumerate(pairs):
+        gt = surface_ground_truth(dataset, a, b)
+        m1, m2 = datasets.load_shape(dataset, a), datasets.load_shape(dataset, b)
+        r = figure14_joint_pair(m1, m2, gt, ks, params=params, keep_fields=(i == shown))
+        if i == shown:
+            shown_out = (m1, m2, r.pop("fields"))
+        per[f"{a}->{b}"] = r
+        if verbose:
+            k0 = f"k{ks[0]}"
+            print(f"{a} -> {b} ({r['seconds']:.0f} s), {k0} regular-face angle: " + ", ".join(
+                f"{kd} {r[k0][kd]['angle_regular_deg']:.2f}°" for kd in JOINT_KINDS)
+                + f", independent {r['baselines']['independent']['angle_regular_deg']:.2f}°")
+    summary = {m: summarize_pairs(per, ks, measure=m) for m in ("angle_regular_deg", "angle_mean_deg", "sing_recall")}
+    return {"pairs": per, "summary": summary, "shown": shown_out, "kinds": list(JOINT_KINDS)}
