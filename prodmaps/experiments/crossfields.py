@@ -1,24 +1,24 @@
-"""Figure 14 (Section 5.4): consistent cross fields and quad layouts through a functional map.
+"""Figure 14 (Section 5.4): consistent cross fields through a functional map.
 
 The cross-field library is :mod:`prodmaps.fields`; this module is the experiment of the Figure 14
 notebook (layer 2: it reads datasets and compares with a ground truth).
 
-:func:`figure14_experiment` runs, for one pair of shapes,
+Main experiment, the paper's setting ([ACBCO17] design both fields jointly):
+:func:`figure14_joint_pair` / :func:`figure14_joint_study` design the two cross fields of a pair
+at once (:func:`~prodmaps.fields.consistency.design_joint`: smoothness and curvature alignment on
+both shapes plus their consistency through the map) with the consistency through ``C``
+(``"std"``), through ``C~`` at the paper's Approach-B threshold (``"ext"``), through the
+library's default extended transfer (``"default"``) and through the exact point-map transfer of
+functions (``"p2p"``, an oracle), all with the **same** test functions; beside them the baselines
+``"independent"`` (no map), ``"copy"`` (face by face, one triangulation only) and
+``"pushforward"`` (ground truth). :func:`pair_measures` holds the measures (angle to the
+ground-truth push-forward of the source field on every face and on regular faces, alignment to
+each shape's curvature, singularities at low-curvature vertices matched through the ground truth);
+:func:`surface_ground_truth` gives remeshed targets a surface (barycentric) ground truth.
 
-1. a source cross field on shape 1 (curvature-aligned, :func:`~prodmaps.fields.crossfield.cross_field`);
-2. the **reference**: its push-forward through the ground-truth point map (evaluation only);
-3. target fields on shape 2 designed from the source field through the functional map only
-   (:func:`~prodmaps.fields.consistency.design_consistent_field`):
-   ``"std"`` with ``C`` ``(k+1, k+1)`` in the Laplace–Beltrami basis and ``"ext"`` with ``C~``
-   in the extended basis (products of basis functions, ``pairs="unique"``, Approach-B
-   threshold ``rtol``); optionally the ``"p2p"`` oracle (the same extended-basis comparison with
-   the exact point-map transfer: what a perfect transfer would give);
-4. a quad layout on each surface from its own field (:mod:`~prodmaps.fields.stripes`);
-
-and measures, per target: the area-weighted mean and 90th percentile of the angle to the
-reference cross (modulo 90°), the singularities (count, and position error after matching to
-the reference's singularities of the same index), and the layout consistency with the source
-layout transported by the ground truth.
+Earlier experiment, kept for its tests and callers: :func:`figure14_experiment` fixes a
+curvature-aligned source field and designs the target only (standard test functions for
+``"std"``, products for ``"ext"``: different test sets), with a stripe quad layout per surface.
 
 ``k`` is the paper's k: the number of **non-constant** eigenfunctions (``C`` has ``k+1`` rows
 and columns); the paper uses ``k = 5`` and a ground-truth functional map.
@@ -49,8 +49,8 @@ from ..mesh import Mesh, edges
 from ..transfer import fmap_from_p2p
 
 __all__ = ["figure14_experiment", "figure14_study", "dataset_pair", "summary_rows", "match_singularities",
-           "graph_distances", "surface_ground_truth", "low_curvature_vertices", "pair_measures", "figure14_joint_pair", "summarize_pairs",
-           "figure14_joint_study",
+           "graph_distances", "surface_ground_truth", "low_curvature_vertices", "pair_measures",
+           "figure14_joint_pair", "summarize_pairs", "figure14_joint_study",
            "DEFAULTS", "JOINT_DEFAULTS", "JOINT_KINDS", "BASELINES"]
 
 DEFAULTS = {
@@ -433,7 +433,8 @@ def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT
                                      p2p_21=gt["p2p_21"])
             z1, z2, inf = design_joint(pr, g1[0], g2[0], smoothness=P["smoothness"], align=P["align"],
                                        consistency=P["consistency"])
-            row[kd] = {**measure(z1, z2), "consistency_energy": inf["consistency"], "cg_iterations": inf["cg_iterations"]}
+            row[kd] = {**measure(z1, z2), "consistency_energy": inf["consistency"],
+                       "cg_iterations": inf["cg_iterations"]}
             if keep_fields:
                 fields[(int(k), kd)] = (z1, z2)
         out[f"k{k}"] = row
