@@ -15,7 +15,7 @@ from ..fields.crossfield import field_vectors, singularities
 from ..fields.frames import tangent_frames
 
 __all__ = ["VIEWS", "plot_cross_field", "plot_quad_texture", "render_quad_texture", "figure14_figure", "joint_figure",
-           "pairs_figure"]
+           "pairs_figure", "plot_quad_mesh", "quad_figure"]
 
 VIEWS = {
     "front": ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)),
@@ -200,4 +200,48 @@ def pairs_figure(per_pair: dict, ks, kinds, baselines=("independent", "copy"), m
     axes[0, 0].set_ylabel(measure.replace("_", " "), fontsize=8)
     axes[0, -1].legend(fontsize=6)
     fig.tight_layout()
+    return fig
+
+
+def plot_quad_mesh(V, F, Vq, Q, *, ax=None, view="front", title=None):
+    """A quad mesh ``(Vq, Q)`` drawn over its (grey) surface ``(V, F)``: front-facing quads as
+    outlined polygons (painter's order), orthographic ``view``."""
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(3, 6))
+    _shaded_mesh(ax, V, F, view)
+    Q = np.asarray(Q, dtype=np.int64)
+    if Q.size:
+        d, up, right = _camera(view)
+        P = np.stack([Vq @ right, Vq @ up], axis=1)
+        C = Vq[Q]  # (q, 4, 3)
+        nrm = np.cross(C[:, 2] - C[:, 0], C[:, 3] - C[:, 1])
+        front = nrm @ d > 0
+        order = np.argsort((Vq @ d)[Q].mean(1))
+        order = order[front[order]]
+        ax.add_collection(PolyCollection(P[Q[order]], facecolors=(0.85, 0.9, 1.0), edgecolors=(0.1, 0.2, 0.5),
+                                         linewidths=0.3))
+    if title:
+        ax.set_title(title, fontsize=8)
+    return ax
+
+
+def quad_figure(mesh_1, mesh_2, quad_meshes: dict, stats: dict, names, *, titles=None, suptitle=None):
+    """Quad meshes of source (top) and target (bottom), one column per design, with their counts."""
+    import matplotlib.pyplot as plt
+
+    names = [n for n in names if n in quad_meshes]
+    fig, axes = plt.subplots(2, len(names), figsize=(2.4 * len(names), 7.0), squeeze=False)
+    for c, name in enumerate(names):
+        for r, (mesh, side) in enumerate(((mesh_1, "source"), (mesh_2, "target"))):
+            Vq, Q = quad_meshes[name][r]
+            st = stats[name][side]
+            t = ((titles or {}).get(name, name) + "\n") if r == 0 else ""
+            plot_quad_mesh(mesh.vertices, mesh.faces, Vq, Q, ax=axes[r, c],
+                           title=t + f"{st['n_quads']} quads, {st['n_irregular']} irregular")
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=9)
+    fig.tight_layout(rect=(0, 0, 1, 0.97) if suptitle else None)
     return fig

@@ -50,7 +50,7 @@ from ..transfer import fmap_from_p2p
 
 __all__ = ["figure14_experiment", "figure14_study", "dataset_pair", "summary_rows", "match_singularities",
            "graph_distances", "surface_ground_truth", "low_curvature_vertices", "pair_measures",
-           "figure14_joint_pair", "summarize_pairs", "figure14_joint_study",
+           "figure14_joint_pair", "summarize_pairs", "figure14_joint_study", "quad_meshes_pair",
            "DEFAULTS", "JOINT_DEFAULTS", "JOINT_KINDS", "BASELINES"]
 
 DEFAULTS = {
@@ -279,6 +279,8 @@ JOINT_DEFAULTS = {
     "sing_quantile": 0.8,  # singularities are compared at vertices below this quantile of |Gaussian curvature|
     "sing_radius": 0.05,  # matching radius of singularities / sqrt(area_2)
     "regular_radius": 3.0,  # faces within this many mean edge lengths of a singularity are excluded
+    "quad_size": 0.02,  # target quad edge / sqrt(area) of the quad meshes (0: no quad meshes)
+    "quad_kinds": ("std", "ext", "default"),  # designs (at the first k) quadrangulated, plus "independent"
 }
 JOINT_KINDS = ("std", "ext", "default", "p2p")
 BASELINES = ("independent", "copy", "pushforward")
@@ -394,6 +396,43 @@ def pair_measures(fr1, fr2, mesh_1, mesh_2, z1, z2, gt, g1, g2, *, params=None) 
     return out
 
 
+def quad_meshes_pair(mesh_1: Mesh, mesh_2: Mesh, z1, z2, gt: dict, size: float) -> dict:
+    """Quad meshes of both shapes from their cross fields (partial extraction, see
+    :mod:`prodmaps.fields.quadmesh`) and how their irregular vertices correspond.
+
+    ``size`` is the quad edge over ``sqrt(area)`` (of each shape). Returns ``{"stats": {"source",
+    "target" (quad_mesh_stats without the vertex list, plus the parametrisation's flipped faces and
+    integer error), "irregular_matched": irregular vertices of the source's quad mesh whose
+    ground-truth image lies within 2 quad sizes of an irregular vertex of the target's,
+    "irregular_matched_of": the source's irregular count}, "meshes": ((V, Q) source, (V, Q) target)}``.
+    """
+    from scipy.spatial import cKDTree
+
+    from ..fields.quadmesh import lattice_quads, quad_mesh_stats, seamless_parametrization
+
+    stats, meshes = {}, []
+    for name, m, z in (("source", mesh_1, z1), ("target", mesh_2, z2)):
+        h = size * np.sqrt(m.area)
+        par = seamless_parametrization(m, z, h)
+        q = lattice_quads(par)
+        st = quad_mesh_stats(q["V"], q["Q"])
+        irr = st.pop("irregular")
+        st.update(n_flipped=par["n_flipped"], integer_error=par["integer_error"], h=float(h),
+                  n_field_singularities=int(par["singular"].size))
+        stats[name] = st
+        meshes.append((q["V"], q["Q"], q["V"][irr]))
+    # irregular vertices of the source carried to the target: nearest source vertex, p2p_12, then 3D
+    (_, _, I1), (_, _, I2) = meshes
+    n_match = 0
+    if len(I1) and len(I2):
+        v1 = cKDTree(mesh_1.vertices).query(I1)[1]
+        img = mesh_2.vertices[gt["p2p_12"][v1]]
+        d, _ = cKDTree(I2).query(img)
+        n_match = int(np.sum(d < 2 * stats["target"]["h"]))
+    return {"stats": {**stats, "irregular_matched": n_match, "irregular_matched_of": int(len(I1))},
+            "meshes": tuple((V, Q) for V, Q, _ in meshes)}
+
+
 def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT_KINDS, params=None,
                         keep_fields: bool = False) -> dict:
     """Figure 14 in the paper's setting ([ACBCO17]'s joint design) on one pair, for every k in ``ks``.
@@ -424,6 +463,7 @@ def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT
     def measure(z1, z2):
         return _finite_or_none(pair_measures(fr1, fr2, mesh_1, mesh_2, z1, z2, gt, g1, g2, params=P))
 
+    quad_fields = {}
     for k in ks:
         b1, b2 = B1.truncate(int(k) + 1), B2.truncate(int(k) + 1)
         C = fmap_from_p2p(gt["p2p_21"], b1, b2)
@@ -437,6 +477,8 @@ def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT
                        "cg_iterations": inf["cg_iterations"]}
             if keep_fields:
                 fields[(int(k), kd)] = (z1, z2)
+            if k == ks[0] and kd in P["quad_kinds"]:
+                quad_fields[kd] = (z1, z2)
         out[f"k{k}"] = row
     # baselines: no map
     b1, b2 = B1.truncate(2), B2.truncate(2)
@@ -452,6 +494,15 @@ def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT
     base["pushforward"] = measure(z1, zp)
     fields["pushforward"] = (z1, zp)
     out["baselines"] = base
+    if P["quad_size"] > 0:
+        quad_fields["independent"] = fields["independent"]
+        qs, qm = {}, {}
+        for name, (a, b) in quad_fields.items():
+            r = quad_meshes_pair(mesh_1, mesh_2, a, b, gt, P["quad_size"])
+            qs[name], qm[name] = r["stats"], r["meshes"]
+        out["quads"] = {"k": int(ks[0]), **qs}
+        if keep_fields:
+            fields["quad_meshes"] = qm
     out["seconds"] = time.perf_counter() - t0
     if keep_fields:
         out["fields"] = fields

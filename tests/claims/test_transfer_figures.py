@@ -117,10 +117,17 @@ def test_fig14_joint_cross_fields_well_formed(smoke_results):
                 assert 0.0 <= x["sing_recall"] <= 1.0 and 0.2 < x["regular_fraction"] < 1.0
                 assert x["n_sing_low_2"] < x["n_sing_2"]  # the comparison leaves the forced singularities out
                 assert x["consistency_energy"] < 1.0
+        q = p["quads"]
+        assert q["k"] == 5 and {"std", "ext", "default", "independent"} <= set(q)
+        for n in ("std", "ext", "default", "independent"):
+            for side in ("source", "target"):
+                assert q[n][side]["n_quads"] > 100 and q[n][side]["n_irregular"] <= q[n][side]["n_vertices"]
+            assert 0 <= q[n]["irregular_matched"] <= q[n]["irregular_matched_of"] == q[n]["source"]["n_irregular"]
     S = cf["summary"]["angle_regular_deg"]
     assert set(S["cells"]["std"]) == {f"{n}|{k}" for n in cf["pairs"] for k in cf["pairs"][n] if k.startswith("k")}
     assert S["k5"]["ext"]["n_pairs"] == len(cf["pairs"])
     assert (d / "fig14_cross_fields.png").is_file() and (d / "fig14_pairs.png").is_file()
+    assert (d / "fig14_quads.png").is_file()
 
 
 @pytest.mark.slow

@@ -77,7 +77,14 @@ def small_joint():
 
 def test_figure14_joint_pair_outputs(small_joint):
     m1, m2, r = small_joint
-    assert set(r) == {"k3", "k4", "baselines", "seconds", "fields"}
+    assert set(r) == {"k3", "k4", "baselines", "quads", "seconds", "fields"}
+    assert r["quads"]["k"] == 3 and set(r["quads"]) == {"k", "std", "ext", "default", "independent"}
+    for n in ("std", "independent"):
+        st = r["quads"][n]
+        assert st["source"]["n_quads"] > 0 and st["target"]["n_quads"] > 0
+        assert 0 <= st["irregular_matched"] <= st["irregular_matched_of"] == st["source"]["n_irregular"]
+        V, Q = r["fields"]["quad_meshes"][n][1]
+        assert Q.shape == (st["target"]["n_quads"], 4) and Q.max() < V.shape[0]
     assert set(r["k3"]) == set(cf.JOINT_KINDS) and set(r["baselines"]) == set(cf.BASELINES)
     assert r["baselines"]["pushforward"]["angle_mean_deg"] < 1e-9
     pf_ = r["baselines"]["pushforward"]
