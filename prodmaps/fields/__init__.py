@@ -15,6 +15,12 @@ subpackage implements the pieces on plain arrays:
   target field (or both) by linear least squares.
 * :mod:`.stripes` — two coupled stripe patterns per cross field [KCPS15], the quad texture and
   the layout-consistency score.
+* :mod:`.quadmesh` — a seamless integer parametrisation along a cross field (libigl's comb,
+  mismatch and cut, a scipy least-squares solve) and a partial extraction of its integer-lattice
+  quads (not watertight on meshes with many close singularities).
+
+What follows [ACBCO17] and what is this package's own is listed in the Figure 14 notebook
+(``notebooks/fig14_quad_transfer.ipynb``) and in :mod:`.consistency`'s module doc.
 
 The Figure 14 experiment (a dataset pair, the ground-truth reference, the measures) and its
 figures are in the experiments layer: :mod:`prodmaps.experiments.crossfields` and
@@ -70,6 +76,7 @@ from .operators import (
     reduced_derivation,
     span_projector,
 )
+from .quadmesh import lattice_quads, quad_mesh_stats, seamless_parametrization
 from .stripes import layout_consistency, quad_texture, stripe_patterns
 
 __all__ = [
@@ -83,4 +90,5 @@ __all__ = [
     "derivation_in", "field_action", "powered_gradients", "commutator_energy",
     "ConsistencyProblem", "consistency_problem", "design_consistent_field", "design_joint",
     "stripe_patterns", "quad_texture", "layout_consistency",
+    "seamless_parametrization", "lattice_quads", "quad_mesh_stats",
 ]
