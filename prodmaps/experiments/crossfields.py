@@ -50,7 +50,7 @@ from ..transfer import fmap_from_p2p
 
 __all__ = ["figure14_experiment", "figure14_study", "dataset_pair", "summary_rows", "match_singularities",
            "graph_distances", "surface_ground_truth", "low_curvature_vertices", "pair_measures",
-           "figure14_joint_pair", "summarize_pairs", "figure14_joint_study", "quad_meshes_pair",
+           "figure14_joint_pair", "summarize_pairs", "figure14_joint_study", "quad_meshes_pair", "study_lines", "PAIRS",
            "DEFAULTS", "JOINT_DEFAULTS", "JOINT_KINDS", "BASELINES"]
 
 DEFAULTS = {
@@ -561,3 +561,44 @@ def figure14_joint_study(dataset: str, pairs, ks, *, params=None, shown: int = 0
                 + f", independent {r['baselines']['independent']['angle_regular_deg']:.2f}°")
     summary = {m: summarize_pairs(per, ks, measure=m) for m in ("angle_regular_deg", "angle_mean_deg", "sing_recall")}
     return {"pairs": per, "summary": summary, "shown": shown_out, "kinds": list(JOINT_KINDS)}
+
+
+PAIRS = {
+    "anny_humans": {
+        "smoke": [["anny_000", "anny_003"], ["anny_000", "anny_013_remesh_iso"]],
+        "paper": [["anny_000", "anny_003"], ["anny_000", "anny_009"], ["anny_010", "anny_016"],  # intra subject
+                  ["anny_000", "anny_013"], ["anny_020", "anny_041"],  # inter subject
+                  ["anny_000", "anny_013_remesh_iso"]],  # remeshed target (surface ground truth)
+    },
+    "faust": {
+        "smoke": [["tr_reg_000", "tr_reg_001"]],
+        "paper": [["tr_reg_000", "tr_reg_001"], ["tr_reg_000", "tr_reg_002"], ["tr_reg_000", "tr_reg_003"],
+                  ["tr_reg_000", "tr_reg_010"], ["tr_reg_000", "tr_reg_025"], ["tr_reg_010", "tr_reg_031"]],
+    },
+}
+"""The Figure 14 pairs per dataset and profile (``[id_1, id_2]``; shape 2 may be a remeshed variant)."""
+
+
+def study_lines(study: dict, ks) -> list[str]:
+    """Text lines of a :func:`figure14_joint_study`: the summary per k, the baselines and the quad
+    meshes per pair (what the notebook prints)."""
+    S = study["summary"]["angle_regular_deg"]
+    lines = [f"regular-face angle to the reference (degrees), over {len(study['pairs'])} pairs: mean ± sd [min, max]"]
+    for k in ks:
+        r = S[f"k{k}"]
+        lines.append(f"k = {k}: " + "; ".join(
+            f"{kd} {r[kd]['mean']:.2f} ± {r[kd]['std']:.2f} [{r[kd]['min']:.2f}, {r[kd]['max']:.2f}]"
+            + (f" (beats std on {r[kd]['n_better']}/{r[kd]['n_pairs']})" if kd != "std" else "")
+            for kd in study["kinds"]))
+    lines.append("baselines per pair (regular angle, alignment on shape 2, singularity recall):")
+    for name, p in study["pairs"].items():
+        lines.append(f"  {name} " + ", ".join(
+            f"{n} ({m['angle_regular_deg']:.2f}, {m['align_2_deg']:.2f}, {m['sing_recall']:.2f})"
+            for n, m in p["baselines"].items()))
+    lines.append("quad meshes per pair (quads source/target, open edges of the target, matched irregular vertices):")
+    for name, p in study["pairs"].items():
+        if "quads" in p:
+            lines.append(f"  {name} " + ", ".join(
+                f"{n} {q['source']['n_quads']}/{q['target']['n_quads']}, {q['target']['n_boundary_edges']}, "
+                f"{q['irregular_matched']}/{q['irregular_matched_of']}" for n, q in p["quads"].items() if n != "k"))
+    return lines
