@@ -14,7 +14,8 @@ import numpy as np
 from ..fields.crossfield import field_vectors, singularities
 from ..fields.frames import tangent_frames
 
-__all__ = ["VIEWS", "plot_cross_field", "plot_quad_texture", "render_quad_texture", "figure14_figure"]
+__all__ = ["VIEWS", "plot_cross_field", "plot_quad_texture", "render_quad_texture", "figure14_figure", "joint_figure",
+           "pairs_figure", "plot_quad_mesh", "quad_figure"]
 
 VIEWS = {
     "front": ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)),
@@ -154,6 +155,92 @@ def figure14_figure(mesh_1, mesh_2, result: dict, names=("reference", "std", "ex
         if m is not None and "layout_agreement" in m:
             t += f"\nlayout {m['layout_agreement']:.2f}"
         axes[0, c].set_title(t, fontsize=8)
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=9)
+    fig.tight_layout(rect=(0, 0, 1, 0.97) if suptitle else None)
+    return fig
+
+
+def joint_figure(mesh_1, mesh_2, fields: dict, names, *, titles=None, view="front", n_glyphs=400, suptitle=None):
+    """Jointly designed fields of one pair: one column per design, source (top) and target (bottom).
+
+    ``fields`` maps a name to ``(z1, z2)`` (e.g. ``figure14_joint_pair(..., keep_fields=True)["fields"]``
+    re-keyed by name). Returns the figure.
+    """
+    import matplotlib.pyplot as plt
+
+    names = [n for n in names if n in fields]
+    fig, axes = plt.subplots(2, len(names), figsize=(2.4 * len(names), 7.0), squeeze=False)
+    for c, name in enumerate(names):
+        for r, mesh in enumerate((mesh_1, mesh_2)):
+            plot_cross_field(mesh.vertices, mesh.faces, fields[name][r], ax=axes[r, c], view=view, n_glyphs=n_glyphs)
+        axes[0, c].set_title((titles or {}).get(name, name), fontsize=8)
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=9)
+    fig.tight_layout(rect=(0, 0, 1, 0.97) if suptitle else None)
+    return fig
+
+
+def pairs_figure(per_pair: dict, ks, kinds, baselines=("independent", "copy"), measure="angle_regular_deg"):
+    """Per-pair strip chart of ``measure`` for every kind and k (one panel per k), baselines as marks."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(ks), figsize=(3.6 * len(ks), 3.2), squeeze=False, sharey=True)
+    names = list(per_pair)
+    x = np.arange(len(names))
+    for a, k in zip(axes[0], ks):
+        for j, kd in enumerate(kinds):
+            a.plot(x + 0.1 * (j - len(kinds) / 2), [per_pair[n][f"k{k}"][kd][measure] for n in names], "o", ms=4,
+                   label=kd)
+        for b, mk in zip(baselines, ("k_", "kx")):
+            v = [per_pair[n]["baselines"].get(b, {}).get(measure, np.nan) for n in names]
+            a.plot(x, [np.nan if t is None else t for t in v], mk, ms=9, label=b)
+        a.set_xticks(x, [n.replace("anny_", "").replace("tr_reg_", "") for n in names], rotation=60, fontsize=6)
+        a.set_title(f"k = {k}", fontsize=9)
+    axes[0, 0].set_ylabel(measure.replace("_", " "), fontsize=8)
+    axes[0, -1].legend(fontsize=6)
+    fig.tight_layout()
+    return fig
+
+
+def plot_quad_mesh(V, F, Vq, Q, *, ax=None, view="front", title=None):
+    """A quad mesh ``(Vq, Q)`` drawn over its (grey) surface ``(V, F)``: front-facing quads as
+    outlined polygons (painter's order), orthographic ``view``."""
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import PolyCollection
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(3, 6))
+    _shaded_mesh(ax, V, F, view)
+    Q = np.asarray(Q, dtype=np.int64)
+    if Q.size:
+        d, up, right = _camera(view)
+        P = np.stack([Vq @ right, Vq @ up], axis=1)
+        C = Vq[Q]  # (q, 4, 3)
+        nrm = np.cross(C[:, 2] - C[:, 0], C[:, 3] - C[:, 1])
+        front = nrm @ d > 0
+        order = np.argsort((Vq @ d)[Q].mean(1))
+        order = order[front[order]]
+        ax.add_collection(PolyCollection(P[Q[order]], facecolors=(0.85, 0.9, 1.0), edgecolors=(0.1, 0.2, 0.5),
+                                         linewidths=0.3))
+    if title:
+        ax.set_title(title, fontsize=8)
+    return ax
+
+
+def quad_figure(mesh_1, mesh_2, quad_meshes: dict, stats: dict, names, *, titles=None, suptitle=None):
+    """Quad meshes of source (top) and target (bottom), one column per design, with their counts."""
+    import matplotlib.pyplot as plt
+
+    names = [n for n in names if n in quad_meshes]
+    fig, axes = plt.subplots(2, len(names), figsize=(2.4 * len(names), 7.0), squeeze=False)
+    for c, name in enumerate(names):
+        for r, (mesh, side) in enumerate(((mesh_1, "source"), (mesh_2, "target"))):
+            Vq, Q = quad_meshes[name][r]
+            st = stats[name][side]
+            t = ((titles or {}).get(name, name) + "\n") if r == 0 else ""
+            plot_quad_mesh(mesh.vertices, mesh.faces, Vq, Q, ax=axes[r, c],
+                           title=t + f"{st['n_quads']} quads, {st['n_irregular']} irregular")
     if suptitle:
         fig.suptitle(suptitle, fontsize=9)
     fig.tight_layout(rect=(0, 0, 1, 0.97) if suptitle else None)

@@ -1,24 +1,24 @@
-"""Figure 14 (Section 5.4): consistent cross fields and quad layouts through a functional map.
+"""Figure 14 (Section 5.4): consistent cross fields through a functional map.
 
 The cross-field library is :mod:`prodmaps.fields`; this module is the experiment of the Figure 14
 notebook (layer 2: it reads datasets and compares with a ground truth).
 
-:func:`figure14_experiment` runs, for one pair of shapes,
+Main experiment, the paper's setting ([ACBCO17] design both fields jointly):
+:func:`figure14_joint_pair` / :func:`figure14_joint_study` design the two cross fields of a pair
+at once (:func:`~prodmaps.fields.consistency.design_joint`: smoothness and curvature alignment on
+both shapes plus their consistency through the map) with the consistency through ``C``
+(``"std"``), through ``C~`` at the paper's Approach-B threshold (``"ext"``), through the
+library's default extended transfer (``"default"``) and through the exact point-map transfer of
+functions (``"p2p"``, an oracle), all with the **same** test functions; beside them the baselines
+``"independent"`` (no map), ``"copy"`` (face by face, one triangulation only) and
+``"pushforward"`` (ground truth). :func:`pair_measures` holds the measures (angle to the
+ground-truth push-forward of the source field on every face and on regular faces, alignment to
+each shape's curvature, singularities at low-curvature vertices matched through the ground truth);
+:func:`surface_ground_truth` gives remeshed targets a surface (barycentric) ground truth.
 
-1. a source cross field on shape 1 (curvature-aligned, :func:`~prodmaps.fields.crossfield.cross_field`);
-2. the **reference**: its push-forward through the ground-truth point map (evaluation only);
-3. target fields on shape 2 designed from the source field through the functional map only
-   (:func:`~prodmaps.fields.consistency.design_consistent_field`):
-   ``"std"`` with ``C`` ``(k+1, k+1)`` in the Laplace–Beltrami basis and ``"ext"`` with ``C~``
-   in the extended basis (products of basis functions, ``pairs="unique"``, Approach-B
-   threshold ``rtol``); optionally the ``"p2p"`` oracle (the same extended-basis comparison with
-   the exact point-map transfer: what a perfect transfer would give);
-4. a quad layout on each surface from its own field (:mod:`~prodmaps.fields.stripes`);
-
-and measures, per target: the area-weighted mean and 90th percentile of the angle to the
-reference cross (modulo 90°), the singularities (count, and position error after matching to
-the reference's singularities of the same index), and the layout consistency with the source
-layout transported by the ground truth.
+Earlier experiment, kept for its tests and callers: :func:`figure14_experiment` fixes a
+curvature-aligned source field and designs the target only (standard test functions for
+``"std"``, products for ``"ext"``: different test sets), with a stripe quad layout per surface.
 
 ``k`` is the paper's k: the number of **non-constant** eigenfunctions (``C`` has ``k+1`` rows
 and columns); the paper uses ``k = 5`` and a ground-truth functional map.
@@ -34,16 +34,24 @@ from scipy.optimize import linear_sum_assignment
 from scipy.sparse.csgraph import dijkstra
 
 from ..basis import eigenbasis
-from ..fields.consistency import consistency_problem, design_consistent_field
-from ..fields.crossfield import angle_stats, cross_field, curvature_guide, pushforward_field, singularities
+from ..fields.consistency import consistency_problem, design_consistent_field, design_joint
+from ..fields.crossfield import (
+    angle_stats,
+    cross_angle,
+    cross_field,
+    curvature_guide,
+    pushforward_field,
+    singularities,
+)
 from ..fields.frames import Frames, mesh_frames
 from ..fields.stripes import layout_consistency, mean_edge_length, quad_texture, stripe_patterns
 from ..mapping import fmap_from_p2p
 from ..mesh import Mesh, edges
 
 __all__ = ["figure14_experiment", "figure14_study", "dataset_pair", "summary_rows", "match_singularities",
-           "graph_distances",
-           "DEFAULTS"]
+           "graph_distances", "surface_ground_truth", "low_curvature_vertices", "pair_measures",
+           "figure14_joint_pair", "summarize_pairs", "figure14_joint_study", "quad_meshes_pair", "study_lines", "PAIRS",
+           "DEFAULTS", "JOINT_DEFAULTS", "JOINT_KINDS", "BASELINES"]
 
 DEFAULTS = {
     "source_scale": 0.05,  # smoothing length of the source field / sqrt(area)
@@ -259,3 +267,338 @@ def _finite_or_none(obj):
     if isinstance(obj, float) and not np.isfinite(obj):
         return None
     return obj
+
+
+# ============================================================================ joint design (main)
+JOINT_DEFAULTS = {
+    "smoothness": 1e-3,  # μ on both shapes (dimensionless, see design_joint)
+    "align": 1.0,  # α, curvature alignment on both shapes
+    "consistency": 1.0,  # β, weight of the consistency term through the map
+    "tests": "pairs",  # the same test functions for every kind: base functions and pairwise sums
+    "rtol": 1e-3,  # Approach B threshold (the paper's)
+    "sing_quantile": 0.8,  # singularities are compared at vertices below this quantile of |Gaussian curvature|
+    "sing_radius": 0.05,  # matching radius of singularities / sqrt(area_2)
+    "regular_radius": 3.0,  # faces within this many mean edge lengths of a singularity are excluded
+    "quad_size": 0.02,  # target quad edge / sqrt(area) of the quad meshes (0: no quad meshes)
+    "quad_kinds": ("std", "ext", "default"),  # designs (at the first k) quadrangulated, plus "independent"
+}
+JOINT_KINDS = ("std", "ext", "default", "p2p")
+BASELINES = ("independent", "copy", "pushforward")
+
+
+def surface_ground_truth(dataset: str, id_1: str, id_2: str) -> dict:
+    """Ground truth of a dataset pair for evaluating fields (never used by a design).
+
+    Returns ``{"p2p_21" (n2,), "p2p_12" (n1,), "same_triangulation": bool, "face_21" (n2,) or
+    None, "bary_21" (n2, 3) or None}``: the vertex maps of :func:`prodmaps.datasets.ground_truth`
+    both ways and, when shape 2 is a remeshed variant of a shape with shape 1's triangulation,
+    the surface correspondence: each variant vertex's closest point on its base shape as (face,
+    barycentric coordinates), which name the same point on shape 1 (same triangulation). The
+    push-forward of a field then goes through those points
+    (:func:`prodmaps.fields.crossfield.pushforward_field_barycentric`), not through the nearest
+    vertex. A variant as shape 1 is not supported.
+    """
+    from .. import datasets
+    from ..fields.crossfield import closest_point_correspondence
+
+    if id_1 in datasets.variants(dataset):
+        raise ValueError(f"{id_1!r} is a remeshed variant; put it as shape 2")
+    m1, m2 = datasets.load_shape(dataset, id_1), datasets.load_shape(dataset, id_2)
+    out = {"p2p_21": np.asarray(datasets.ground_truth(dataset, id_1, id_2), dtype=np.int64),
+           "p2p_12": np.asarray(datasets.ground_truth(dataset, id_2, id_1), dtype=np.int64),
+           "same_triangulation": bool(m1.faces.shape == m2.faces.shape and np.array_equal(m1.faces, m2.faces)),
+           "face_21": None, "bary_21": None}
+    if id_2 in datasets.variants(dataset):
+        base = datasets.load_shape(dataset, datasets.base_shape(dataset, id_2))
+        out["face_21"], out["bary_21"] = closest_point_correspondence(m2.vertices, base.vertices, base.faces)
+    return out
+
+
+def _pushforward(fr1, z1, fr2, gt):
+    from ..fields.crossfield import pushforward_field_barycentric
+
+    if gt.get("face_21") is not None:
+        return pushforward_field_barycentric(fr1, z1, fr2, gt["face_21"], gt["bary_21"])
+    return pushforward_field(fr1, z1, fr2, gt["p2p_21"])
+
+
+def _far_from(V, F, vertices, radius):
+    """Vertex mask: edge-graph distance to every vertex of ``vertices`` larger than ``radius``."""
+    if len(vertices) == 0:
+        return np.ones(V.shape[0], bool)
+    e, _ = edges(np.asarray(F))
+    w = np.linalg.norm(V[e[:, 1]] - V[e[:, 0]], axis=1)
+    n = V.shape[0]
+    G = sp.csr_matrix((np.concatenate([w, w]), (np.concatenate([e[:, 0], e[:, 1]]),
+                                                np.concatenate([e[:, 1], e[:, 0]]))), shape=(n, n))
+    d = dijkstra(G, directed=False, indices=np.asarray(vertices, dtype=np.int64), min_only=True, limit=radius * 1.01)
+    return d > radius
+
+
+def low_curvature_vertices(mesh: Mesh, quantile: float = 0.8) -> np.ndarray:
+    """Vertex mask ``(n,)``: curvature density ``|angle defect| / lumped area`` below its ``quantile``."""
+    from ..fields.frames import angle_defect
+    from ..laplacian import lumped_mass
+
+    K = np.abs(angle_defect(mesh.vertices, mesh.faces)) / lumped_mass(mesh.vertices, mesh.faces)
+    return K < np.quantile(K, quantile)
+
+
+def pair_measures(fr1, fr2, mesh_1, mesh_2, z1, z2, gt, g1, g2, *, params=None) -> dict:
+    """The discriminating measures of one pair of fields ``(z1 on shape 1, z2 on shape 2)``.
+
+    * ``angle_mean_deg`` / ``angle_p90_deg``: area-weighted angle (modulo 90°) of ``z2`` to the
+      ground-truth push-forward of ``z1`` (the consistency of the two fields), on every valid face;
+    * ``angle_regular_deg``: the same mean on the *regular* faces only: anisotropic (curvature
+      guide weight > 0 on shape 2) and farther than ``regular_radius`` mean edge lengths from every
+      singularity of either field (umbilic and singular regions, where a cross is ill-defined, out);
+    * ``align_1_deg`` / ``align_2_deg``: guide-weighted angle of each field to its own shape's
+      curvature directions (what the alignment term asks);
+    * singularities: counts of the raw fields (``n_sing_1``, ``n_sing_2``; ~230 on a human, most
+      forced by the angle defects of face, fingers and toes: even the smoothest field has them,
+      and they match trivially); the comparison keeps those at **low-curvature** vertices of
+      shape 2 (``|K_v|/A_v`` below its ``sing_quantile`` quantile, :func:`low_curvature_vertices`;
+      ~20 per field), ``z1``'s carried to shape 2 by ``gt["p2p_12"]``: ``sing_recall`` is the
+      fraction of ``z1``'s matched (same index, :func:`match_singularities`) to one of ``z2``'s
+      within ``sing_radius·sqrt(area_2)``, ``sing_mean_dist`` the mean matched distance over
+      ``sqrt(area_2)`` and ``sing_extra`` the unmatched ones of both.
+    """
+    P = {**JOINT_DEFAULTS, **(params or {})}
+    q1, w1 = g1
+    q2, w2 = g2
+    ref, valid = _pushforward(fr1, z1, fr2, gt)
+    V2, F2 = mesh_2.vertices, mesh_2.faces
+    st = angle_stats(z2, ref, fr2.area, 4, valid)
+    s_ref, _ = singularities(fr2, ref, 4)
+    s_2, _ = singularities(fr2, z2, 4)
+    h = mean_edge_length(V2, F2)
+    far = _far_from(V2, F2, np.union1d(s_ref, s_2), P["regular_radius"] * h)
+    regular = valid & (w2 > 0) & far[F2].all(axis=1)
+    reg = angle_stats(z2, ref, fr2.area, 4, regular) if regular.any() else {"mean_deg": float("nan")}
+    a1 = np.degrees(cross_angle(z1, q1, 4))
+    a2 = np.degrees(cross_angle(z2, q2, 4))
+    out = {"angle_mean_deg": st["mean_deg"], "angle_p90_deg": st["p90_deg"], "angle_regular_deg": reg["mean_deg"],
+           "regular_fraction": float(np.sum(fr2.area * regular) / fr2.area.sum()),
+           "align_1_deg": float(np.sum(fr1.area * w1 * a1) / np.sum(fr1.area * w1)),
+           "align_2_deg": float(np.sum(fr2.area * w2 * a2) / np.sum(fr2.area * w2)),
+           "n_sing_1": int(singularities(fr1, z1, 4)[0].size), "n_sing_2": int(s_2.size)}
+    v1, i1 = singularities(fr1, z1, 4)
+    v2, i2 = singularities(fr2, z2, 4)
+    low = low_curvature_vertices(mesh_2, P["sing_quantile"])
+    v1m = gt["p2p_12"][v1]
+    k1, k2 = low[v1m], low[v2]
+    L = np.sqrt(fr2.area.sum())
+    m = match_singularities(V2, F2, v2[k2], i2[k2], v1m[k1], i1[k1], radius=P["sing_radius"] * L)
+    n_hit = int(round(m["recall"] * int(k1.sum())))
+    out.update(n_sing_low_1=int(k1.sum()), n_sing_low_2=int(k2.sum()), sing_recall=float(m["recall"]),
+               sing_mean_dist=float(m["mean_dist"] / L) if m["n_matched"] else float("nan"),
+               sing_extra=int(k1.sum() + k2.sum() - 2 * n_hit))
+    return out
+
+
+def quad_meshes_pair(mesh_1: Mesh, mesh_2: Mesh, z1, z2, gt: dict, size: float) -> dict:
+    """Quad meshes of both shapes from their cross fields (partial extraction, see
+    :mod:`prodmaps.fields.quadmesh`) and how their irregular vertices correspond.
+
+    ``size`` is the quad edge over ``sqrt(area)`` (of each shape). Returns ``{"stats": {"source",
+    "target" (quad_mesh_stats without the vertex list, plus the parametrisation's flipped faces and
+    integer error), "irregular_matched": irregular vertices of the source's quad mesh whose
+    ground-truth image lies within 2 quad sizes of an irregular vertex of the target's,
+    "irregular_matched_of": the source's irregular count}, "meshes": ((V, Q) source, (V, Q) target)}``.
+    """
+    from scipy.spatial import cKDTree
+
+    from ..fields.quadmesh import lattice_quads, quad_mesh_stats, seamless_parametrization
+
+    stats, meshes = {}, []
+    for name, m, z in (("source", mesh_1, z1), ("target", mesh_2, z2)):
+        h = size * np.sqrt(m.area)
+        par = seamless_parametrization(m, z, h)
+        q = lattice_quads(par)
+        st = quad_mesh_stats(q["V"], q["Q"])
+        irr = st.pop("irregular")
+        st.update(n_flipped=par["n_flipped"], integer_error=par["integer_error"], h=float(h),
+                  n_field_singularities=int(par["singular"].size))
+        stats[name] = st
+        meshes.append((q["V"], q["Q"], q["V"][irr]))
+    # irregular vertices of the source carried to the target: nearest source vertex, p2p_12, then 3D
+    (_, _, I1), (_, _, I2) = meshes
+    n_match = 0
+    if len(I1) and len(I2):
+        v1 = cKDTree(mesh_1.vertices).query(I1)[1]
+        img = mesh_2.vertices[gt["p2p_12"][v1]]
+        d, _ = cKDTree(I2).query(img)
+        n_match = int(np.sum(d < 2 * stats["target"]["h"]))
+    return {"stats": {**stats, "irregular_matched": n_match, "irregular_matched_of": int(len(I1))},
+            "meshes": tuple((V, Q) for V, Q, _ in meshes)}
+
+
+def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT_KINDS, params=None,
+                        keep_fields: bool = False) -> dict:
+    """Figure 14 in the paper's setting ([ACBCO17]'s joint design) on one pair, for every k in ``ks``.
+
+    Both cross fields are designed at once (:func:`prodmaps.fields.consistency.design_joint`):
+    smoothness and curvature alignment on each shape plus the consistency of their actions on
+    functions through the map, with the same test functions (``params["tests"]``) for every kind:
+    ``"std"`` (``C``), ``"ext"`` (``C~``, Approach B at ``rtol``), ``"default"`` (the library's
+    default extended transfer of ``C``) and ``"p2p"`` (the exact point-map transfer of functions,
+    an oracle). ``C`` is the ground-truth functional map (``fmap_from_p2p`` of ``gt["p2p_21"]``).
+    Baselines (no k): ``"independent"`` (the same design with ``β = 0``: no map), ``"copy"``
+    (the source's independent field copied face by face, only on one triangulation) and
+    ``"pushforward"`` (the source's independent field pushed through the ground truth: consistent
+    by construction, its alignment to shape 2 is the price).
+
+    ``gt`` is :func:`surface_ground_truth`'s dict. Returns ``{"k<k>": {kind: measures},
+    "baselines": {name: measures}, "seconds": ..., "fields": {...} (with keep_fields)}``; the
+    measures are :func:`pair_measures`'.
+    """
+    P = {**JOINT_DEFAULTS, **(params or {})}
+    t0 = time.perf_counter()
+    fr1, fr2 = mesh_frames(mesh_1), mesh_frames(mesh_2)
+    g1, g2 = curvature_guide(mesh_1, fr1), curvature_guide(mesh_2, fr2)
+    kmax = max(int(k) for k in ks) + 1
+    B1, B2 = eigenbasis(mesh_1, kmax), eigenbasis(mesh_2, kmax)
+    out, fields = {}, {}
+
+    def measure(z1, z2):
+        return _finite_or_none(pair_measures(fr1, fr2, mesh_1, mesh_2, z1, z2, gt, g1, g2, params=P))
+
+    quad_fields = {}
+    for k in ks:
+        b1, b2 = B1.truncate(int(k) + 1), B2.truncate(int(k) + 1)
+        C = fmap_from_p2p(gt["p2p_21"], b1, b2)
+        row = {}
+        for kd in kinds:
+            pr = consistency_problem(fr1, b1, fr2, b2, C, kind=kd, tests=P["tests"], rtol=P["rtol"],
+                                     p2p_21=gt["p2p_21"])
+            z1, z2, inf = design_joint(pr, g1[0], g2[0], smoothness=P["smoothness"], align=P["align"],
+                                       consistency=P["consistency"])
+            row[kd] = {**measure(z1, z2), "consistency_energy": inf["consistency"],
+                       "cg_iterations": inf["cg_iterations"]}
+            if keep_fields:
+                fields[(int(k), kd)] = (z1, z2)
+            if k == ks[0] and kd in P["quad_kinds"]:
+                quad_fields[kd] = (z1, z2)
+        out[f"k{k}"] = row
+    # baselines: no map
+    b1, b2 = B1.truncate(2), B2.truncate(2)
+    pr = consistency_problem(fr1, b1, fr2, b2, fmap_from_p2p(gt["p2p_21"], b1, b2), kind="std", tests="base")
+    z1, z2, _ = design_joint(pr, g1[0], g2[0], smoothness=P["smoothness"], align=P["align"], consistency=0.0)
+    base = {"independent": measure(z1, z2)}
+    fields["independent"] = (z1, z2)
+    if gt["same_triangulation"]:
+        base["copy"] = measure(z1, z1.copy())
+        fields["copy"] = (z1, z1.copy())
+    zp, _ = _pushforward(fr1, z1, fr2, gt)
+    zp = np.where(np.abs(zp) > 0, zp, z2)  # invalid faces (degenerate images): the independent field
+    base["pushforward"] = measure(z1, zp)
+    fields["pushforward"] = (z1, zp)
+    out["baselines"] = base
+    if P["quad_size"] > 0:
+        quad_fields["independent"] = fields["independent"]
+        qs, qm = {}, {}
+        for name, (a, b) in quad_fields.items():
+            r = quad_meshes_pair(mesh_1, mesh_2, a, b, gt, P["quad_size"])
+            qs[name], qm[name] = r["stats"], r["meshes"]
+        out["quads"] = {"k": int(ks[0]), **qs}
+        if keep_fields:
+            fields["quad_meshes"] = qm
+    out["seconds"] = time.perf_counter() - t0
+    if keep_fields:
+        out["fields"] = fields
+    return out
+
+
+def summarize_pairs(per_pair: dict, ks, kinds=JOINT_KINDS, measure: str = "angle_regular_deg") -> dict:
+    """Across pairs, per k and kind: mean, standard deviation, min, max of ``measure``, and for each
+    extended kind how many pairs it beats ``"std"`` on (``n_better``, of ``n_pairs``).
+
+    Also ``cells``: ``{kind: {"<pair>|k<k>": value}}`` (every pair and k, for the claims ledger) and
+    ``pooled``: ``{kind: mean, std, min, max over all cells}``.
+    """
+    out = {"measure": measure, "cells": {kd: {} for kd in kinds}}
+    for k in ks:
+        row = {}
+        for kd in kinds:
+            v = np.array([p[f"k{k}"][kd][measure] for p in per_pair.values()], dtype=float)
+            row[kd] = {"mean": float(np.mean(v)), "std": float(np.std(v)), "min": float(np.min(v)),
+                       "max": float(np.max(v))}
+            if kd != "std":
+                s = np.array([p[f"k{k}"]["std"][measure] for p in per_pair.values()], dtype=float)
+                row[kd]["n_better"] = int(np.sum(v < s))
+                row[kd]["n_pairs"] = int(v.size)
+            for name, p in per_pair.items():
+                out["cells"][kd][f"{name}|k{k}"] = float(p[f"k{k}"][kd][measure])
+        out[f"k{k}"] = row
+    out["pooled"] = {}
+    for kd in kinds:
+        v = np.array(list(out["cells"][kd].values()))
+        out["pooled"][kd] = {"mean": float(np.mean(v)), "std": float(np.std(v)), "min": float(np.min(v)),
+                             "max": float(np.max(v)), "n_cells": int(v.size)}
+    return out
+
+
+def figure14_joint_study(dataset: str, pairs, ks, *, params=None, shown: int = 0, verbose: bool = True) -> dict:
+    """:func:`figure14_joint_pair` on every pair ``(id_1, id_2)`` of ``dataset`` and every k.
+
+    Returns ``{"pairs": {"<id_1>-><id_2>": per-pair results}, "summary": {measure: summarize_pairs},
+    "shown": (mesh_1, mesh_2, fields) of pair number ``shown``, "kinds": ...}``.
+    """
+    from .. import datasets
+
+    per, shown_out = {}, None
+    for i, (a, b) in enumerate(pairs):
+        gt = surface_ground_truth(dataset, a, b)
+        m1, m2 = datasets.load_shape(dataset, a), datasets.load_shape(dataset, b)
+        r = figure14_joint_pair(m1, m2, gt, ks, params=params, keep_fields=(i == shown))
+        if i == shown:
+            shown_out = (m1, m2, r.pop("fields"))
+        per[f"{a}->{b}"] = r
+        if verbose:
+            k0 = f"k{ks[0]}"
+            print(f"{a} -> {b} ({r['seconds']:.0f} s), {k0} regular-face angle: " + ", ".join(
+                f"{kd} {r[k0][kd]['angle_regular_deg']:.2f}°" for kd in JOINT_KINDS)
+                + f", independent {r['baselines']['independent']['angle_regular_deg']:.2f}°")
+    summary = {m: summarize_pairs(per, ks, measure=m) for m in ("angle_regular_deg", "angle_mean_deg", "sing_recall")}
+    return {"pairs": per, "summary": summary, "shown": shown_out, "kinds": list(JOINT_KINDS)}
+
+
+PAIRS = {
+    "anny_humans": {
+        "smoke": [["anny_000", "anny_003"], ["anny_000", "anny_013_remesh_iso"]],
+        "paper": [["anny_000", "anny_003"], ["anny_000", "anny_009"], ["anny_010", "anny_016"],  # intra subject
+                  ["anny_000", "anny_013"], ["anny_020", "anny_041"],  # inter subject
+                  ["anny_000", "anny_013_remesh_iso"]],  # remeshed target (surface ground truth)
+    },
+    "faust": {
+        "smoke": [["tr_reg_000", "tr_reg_001"]],
+        "paper": [["tr_reg_000", "tr_reg_001"], ["tr_reg_000", "tr_reg_002"], ["tr_reg_000", "tr_reg_003"],
+                  ["tr_reg_000", "tr_reg_010"], ["tr_reg_000", "tr_reg_025"], ["tr_reg_010", "tr_reg_031"]],
+    },
+}
+"""The Figure 14 pairs per dataset and profile (``[id_1, id_2]``; shape 2 may be a remeshed variant)."""
+
+
+def study_lines(study: dict, ks) -> list[str]:
+    """Text lines of a :func:`figure14_joint_study`: the summary per k, the baselines and the quad
+    meshes per pair (what the notebook prints)."""
+    S = study["summary"]["angle_regular_deg"]
+    lines = [f"regular-face angle to the reference (degrees), over {len(study['pairs'])} pairs: mean ± sd [min, max]"]
+    for k in ks:
+        r = S[f"k{k}"]
+        lines.append(f"k = {k}: " + "; ".join(
+            f"{kd} {r[kd]['mean']:.2f} ± {r[kd]['std']:.2f} [{r[kd]['min']:.2f}, {r[kd]['max']:.2f}]"
+            + (f" (beats std on {r[kd]['n_better']}/{r[kd]['n_pairs']})" if kd != "std" else "")
+            for kd in study["kinds"]))
+    lines.append("baselines per pair (regular angle, alignment on shape 2, singularity recall):")
+    for name, p in study["pairs"].items():
+        lines.append(f"  {name} " + ", ".join(
+            f"{n} ({m['angle_regular_deg']:.2f}, {m['align_2_deg']:.2f}, {m['sing_recall']:.2f})"
+            for n, m in p["baselines"].items()))
+    lines.append("quad meshes per pair (quads source/target, open edges of the target, matched irregular vertices):")
+    for name, p in study["pairs"].items():
+        if "quads" in p:
+            lines.append(f"  {name} " + ", ".join(
+                f"{n} {q['source']['n_quads']}/{q['target']['n_quads']}, {q['target']['n_boundary_edges']}, "
+                f"{q['irregular_matched']}/{q['irregular_matched_of']}" for n, q in p["quads"].items() if n != "k"))
+    return lines

@@ -15,6 +15,12 @@ subpackage implements the pieces on plain arrays:
   target field (or both) by linear least squares.
 * :mod:`.stripes` — two coupled stripe patterns per cross field [KCPS15], the quad texture and
   the layout-consistency score.
+* :mod:`.quadmesh` — a seamless integer parametrisation along a cross field (libigl's comb,
+  mismatch and cut, a scipy least-squares solve) and a partial extraction of its integer-lattice
+  quads (not watertight on meshes with many close singularities).
+
+What follows [ACBCO17] and what is this package's own is listed in the Figure 14 notebook
+(``notebooks/fig14_quad_transfer.ipynb``) and in :mod:`.consistency`'s module doc.
 
 The Figure 14 experiment (a dataset pair, the ground-truth reference, the measures) and its
 figures are in the experiments layer: :mod:`prodmaps.experiments.crossfields` and
@@ -32,6 +38,7 @@ from .consistency import ConsistencyProblem, consistency_problem, design_consist
 from .crossfield import (
     aligned_field,
     angle_stats,
+    closest_point_correspondence,
     connection_laplacian,
     cross_angle,
     cross_field,
@@ -39,6 +46,7 @@ from .crossfield import (
     field_vectors,
     normalize_field,
     pushforward_field,
+    pushforward_field_barycentric,
     rotate_field,
     singularities,
     singularity_index,
@@ -68,6 +76,7 @@ from .operators import (
     reduced_derivation,
     span_projector,
 )
+from .quadmesh import lattice_quads, quad_mesh_stats, seamless_parametrization
 from .stripes import layout_consistency, quad_texture, stripe_patterns
 
 __all__ = [
@@ -76,8 +85,10 @@ __all__ = [
     "connection_laplacian", "smoothest_field", "curvature_guide", "aligned_field", "cross_field",
     "normalize_field", "rotate_field", "field_vectors", "cross_angle", "angle_stats", "singularity_index",
     "singularities", "vertex_power_field", "pushforward_field",
+    "pushforward_field_barycentric", "closest_point_correspondence",
     "derivation_matrix", "reduced_derivation", "leibniz_extension", "SpanProjector", "span_projector",
     "derivation_in", "field_action", "powered_gradients", "commutator_energy",
     "ConsistencyProblem", "consistency_problem", "design_consistent_field", "design_joint",
     "stripe_patterns", "quad_texture", "layout_consistency",
+    "seamless_parametrization", "lattice_quads", "quad_mesh_stats",
 ]

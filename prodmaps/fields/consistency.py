@@ -31,6 +31,9 @@ through coordinates in an A-orthonormal basis ``Q2`` of it (area inner product):
   ``C~ = extend_fmap(C, ..., pairs="unique")`` ``(K2, K1)``, and ``Q2`` an orthonormal basis of
   the span of ``B2``: ``||C~ Q~_1 - Q~_2 C~||²`` on the extended test functions; products let
   the map carry the high-frequency functions ``Q_z(f_j)``.
+* ``"default"``: ``T h`` is the library's default extended transfer of ``h``
+  (:func:`prodmaps.safe_transfer.safe_operator` of ``C``, no threshold), compared in the same
+  span of ``B2`` as ``"ext"``; not in the paper.
 * ``"p2p"`` (oracle, evaluation only): ``T h = h ∘ p2p_21`` and test images ``f_j ∘ p2p_21``,
   compared in the span of ``B2``: what a perfect transfer would give in that span.
 
@@ -76,7 +79,7 @@ from .operators import SpanProjector, powered_gradients, span_projector
 __all__ = ["ConsistencyProblem", "consistency_problem", "design_consistent_field", "design_joint",
            "KINDS", "TESTS"]
 
-KINDS = ("std", "ext", "p2p")
+KINDS = ("std", "ext", "default", "p2p")
 TESTS = ("base", "pairs", "products")
 
 
@@ -178,7 +181,8 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
     C_12 : functional map from shape 1 to shape 2 (``T f ≈ Φ2 C Φ1ᵀ A1 f``). For
         ``kind="p2p"`` it may be None (then the images of the test functions are pulled back
         through ``p2p_21`` too and ``span_k`` sets the comparison span).
-    kind : ``"std"`` (basis, ``C``), ``"ext"`` (extended basis, ``C~``, pairs="unique") or
+    kind : ``"std"`` (basis, ``C``), ``"ext"`` (extended basis, ``C~``, pairs="unique"),
+        ``"default"`` (the default extended transfer of ``C``, :mod:`prodmaps.safe_transfer`) or
         ``"p2p"`` (oracle through the point map ``p2p_21``, evaluation only).
     N : symmetry order of the fields (4 for cross fields, 1 for vector fields).
     tests : test functions: ``"base"`` (the ``k`` non-constant base functions), ``"pairs"``
@@ -186,7 +190,8 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
         column of the extended basis: the base functions and their products ``φ_a φ_b``, whose
         images are the exact products of the images, ``B2 C~``). Default: ``"base"`` for
         ``"std"``, ``"products"`` for ``"ext"`` and ``"p2p"`` (the extended basis replaces the
-        basis everywhere).
+        basis everywhere); ``"base"`` for ``"default"``. Comparing kinds, pass the same
+        ``tests`` to all of them (``"pairs"`` is available to every kind).
     rtol : SVD threshold of the extended bases (Approach B, the paper's 1e-3).
     p2p_21 : ``(n2,)`` point map, only for ``kind="p2p"``; ``span_k`` its basis size if ``C_12`` is None.
     power : magnitude exponent ``p`` of the action (:func:`~prodmaps.fields.operators.field_action`):
@@ -214,11 +219,13 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
         raise ValueError("bases and frames describe different meshes")
     if not (b1.mass_is_diagonal and b2.mass_is_diagonal):
         raise ValueError("fields need lumped (diagonal) masses")
+    if kind == "default" and C_12 is None:
+        raise ValueError("kind='default' needs C_12 (k2, k1)")
     if tests is None:
-        tests = "base" if kind == "std" else "products"
+        tests = "base" if kind in ("std", "default") else "products"
     if tests not in TESTS:
         raise ValueError(f"tests must be one of {TESTS}, got {tests!r}")
-    if tests == "products" and kind == "std":
+    if tests == "products" and kind in ("std", "default"):
         raise ValueError("tests='products' needs the extended basis (kind='ext' or 'p2p'): a (k2, k1) "
                          "map does not transfer products")
     if k1 < 2:
@@ -266,6 +273,18 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
             P1 = proj1.Vt.T @ ((proj1.Q.T * A1[None, :]) / proj1.s[:, None])  # (K1, n1)
             Tr = proj2.from_basis(Ct @ P1)  # (r, n1)
             info.update(K1=ext1.K, K2=ext2.K, rank_1=proj1.rank, rank_2=proj2.rank)
+        elif kind == "default":  # coords = Q2ᵀ A2 S(h), S the default transfer (linear in h)
+            from ..safe_transfer import safe_operator
+
+            op = safe_operator(C, b1, b2)
+            M2 = (Q2 * A2[:, None]).T  # (r, n2)
+            Tr = np.empty((Q2.shape[1], b1.n))
+            step = 512
+            for s0 in range(0, b1.n, step):  # the operator applied to blocks of the identity
+                E = np.zeros((b1.n, min(step, b1.n - s0)))
+                E[np.arange(s0, s0 + E.shape[1]), np.arange(E.shape[1])] = 1.0
+                Tr[:, s0:s0 + E.shape[1]] = M2 @ op(E)
+            info.update(rank_2=proj2.rank, kept_products=op.rank)
         else:  # p2p oracle: coords = Q2ᵀ A2 (h ∘ p2p)
             w = Q2 * A2[:, None]  # (n2, r)
             Tr = np.zeros((Q2.shape[1], b1.n))

@@ -48,7 +48,7 @@ __all__ = [
     "connection_laplacian", "smoothest_field", "curvature_guide", "aligned_field", "cross_field",
     "normalize_field", "rotate_field", "field_angles", "field_vectors", "cross_angle",
     "weighted_quantile", "angle_stats", "singularity_index", "singularities", "vertex_power_field",
-    "pushforward_field",
+    "pushforward_field", "pushforward_field_barycentric", "closest_point_correspondence",
 ]
 
 
@@ -375,3 +375,91 @@ def pushforward_field(fr1: Frames, z1: np.ndarray, fr2: Frames, p2p_21: np.ndarr
         out += normalize_field(xc) ** N
     out = np.where(valid, normalize_field(out), 0.0)
     return out, valid
+
+
+def pushforward_field_barycentric(fr1: Frames, z1: np.ndarray, fr2: Frames, face_21: np.ndarray,
+                                  bary_21: np.ndarray, N: int = 4, *, min_area_ratio: float = 1e-3):
+    """Push an ``N``-direction field through a **surface** correspondence (evaluation only).
+
+    The correspondence gives every vertex ``v`` of shape 2 a point of shape 1: the face
+    ``face_21[v]`` of shape 1 and barycentric coordinates ``bary_21[v]`` ``(3,)`` in it (e.g.
+    the closest point of a remeshed surface on its original triangulation, carried to another
+    pose of that triangulation). Unlike :func:`pushforward_field` through a vertex-to-vertex
+    map, nothing is snapped to the vertices of shape 1, so the image triangles are not distorted
+    on a different triangulation.
+
+    Face ``(a, b, c)`` of shape 2 corresponds to the triangle ``P`` of the three image points;
+    the affine map ``P -> face`` has differential ``dT``. The source directions are those of the
+    faces ``face_21[a], face_21[b], face_21[c]`` (their representative vectors projected on the
+    plane of ``P``, averaged in the power domain); each of the ``N`` directions ``w`` is mapped to
+    ``dT w`` and the result is the normalised mean of ``(dT w / |dT w|)^N``.
+
+    Returns ``(z2 (m2,) unit, valid (m2,) bool)``; faces whose image triangle is degenerate
+    (area below ``min_area_ratio`` times the mean face area of shape 1) are invalid and get 0.
+    """
+    from ..curvature import face_frames
+
+    N = _check_N(N)
+    fr1, fr2 = as_frames(fr1), as_frames(fr2)
+    z1 = _check_field(z1, fr1, "z1")
+    fa = np.asarray(face_21, dtype=np.int64)
+    bw = np.asarray(bary_21, dtype=np.float64)
+    if fa.shape != (fr2.n_vertices,) or bw.shape != (fr2.n_vertices, 3):
+        raise ValueError(f"face_21 must be (n2,) and bary_21 (n2, 3) with n2 = {fr2.n_vertices}; "
+                         f"got {fa.shape} and {bw.shape}")
+    if fa.min() < 0 or fa.max() >= fr1.n_faces:
+        raise ValueError(f"face_21 indices must be in [0, {fr1.n_faces})")
+    if not np.allclose(bw.sum(axis=1), 1.0, atol=1e-6) or bw.min() < -1e-6:
+        raise ValueError("bary_21 rows must be barycentric coordinates (non-negative, summing to 1)")
+    X = np.einsum("vc,vcd->vd", bw, fr1.vertices[fr1.faces[fa]])  # (n2, 3) image points on shape 1
+    P = X[fr2.faces]  # (m2, 3, 3)
+    dbl = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+    valid = dbl > 2 * min_area_ratio * fr1.area.mean()
+    Pn, Pu, Pv, _ = face_frames(np.where(valid[:, None, None], P, fr2.vertices[fr2.faces]).reshape(-1, 3),
+                                np.arange(3 * fr2.n_faces).reshape(-1, 3))
+    d_face = field_vectors(z1, fr1, N)[:, 0, :]  # (m1, 3)
+    src = fa[fr2.faces]  # (m2, 3) source faces at the corners
+    zc = np.zeros(fr2.n_faces, dtype=np.complex128)
+    for c in range(3):
+        dc = d_face[src[:, c]]
+        a = np.arctan2(np.einsum("ij,ij->i", dc, Pv), np.einsum("ij,ij->i", dc, Pu))
+        zc += np.exp(1j * N * a)
+    alpha = np.angle(zc) / N
+    Q = fr2.vertices[fr2.faces]
+    e1 = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2)  # (m2, 3, 2)
+    e2 = np.stack([Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0]], axis=2)
+    E1 = np.stack([np.einsum("ij,ijk->ik", Pu, e1), np.einsum("ij,ijk->ik", Pv, e1)], axis=1)
+    E2 = np.stack([np.einsum("ij,ijk->ik", fr2.u, e2), np.einsum("ij,ijk->ik", fr2.v, e2)], axis=1)
+    E1 = np.where(valid[:, None, None], E1, np.eye(2)[None])
+    dT = E2 @ np.linalg.inv(E1)
+    out = np.zeros(fr2.n_faces, dtype=np.complex128)
+    for j in range(N):
+        a = alpha + 2 * np.pi * j / N
+        x = np.einsum("fij,fj->fi", dT, np.stack([np.cos(a), np.sin(a)], axis=1))
+        out += normalize_field(x[:, 0] + 1j * x[:, 1]) ** N
+    return np.where(valid, normalize_field(out), 0.0), valid
+
+
+def closest_point_correspondence(V_query: np.ndarray, V: np.ndarray, F: np.ndarray):
+    """Closest points of ``V_query`` ``(q, 3)`` on the mesh ``(V, F)``: ``(face (q,), bary (q, 3))``.
+
+    Barycentric coordinates are clipped to the triangle (the closest point lies in it) and sum to 1.
+    With ``(V, F)`` one pose of a triangulation, the same ``(face, bary)`` names the corresponding
+    point on every other pose of it (the surface ground truth of a remeshed variant).
+    """
+    import igl
+
+    V_query = np.ascontiguousarray(V_query, dtype=np.float64)
+    V = np.ascontiguousarray(V, dtype=np.float64)
+    F = np.ascontiguousarray(F, dtype=np.int64)
+    _, face, C = igl.point_mesh_squared_distance(V_query, V, F)
+    face = np.asarray(face, dtype=np.int64).ravel()
+    T = V[F[face]]  # (q, 3, 3)
+    e0, e1, d = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0], np.asarray(C) - T[:, 0]
+    d00, d01, d11 = (e0 * e0).sum(1), (e0 * e1).sum(1), (e1 * e1).sum(1)
+    d20, d21 = (d * e0).sum(1), (d * e1).sum(1)
+    den = d00 * d11 - d01 ** 2
+    b1 = (d11 * d20 - d01 * d21) / den
+    b2 = (d00 * d21 - d01 * d20) / den
+    B = np.clip(np.stack([1 - b1 - b2, b1, b2], axis=1), 0.0, 1.0)
+    return face, B / B.sum(axis=1, keepdims=True)

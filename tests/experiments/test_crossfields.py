@@ -63,3 +63,69 @@ def test_plots(small_experiment):
     assert len(ax.collections) >= 2 and len(ax.collections[1].get_segments()) == 100
     fig = figure14_figure(m1, m2, res)
     assert len(fig.axes) == 8
+
+
+# ----------------------------------------------------------------------------- joint design (main)
+@pytest.fixture(scope="module")
+def small_joint():
+    m1 = ellipsoid(2)
+    m2 = pm.Mesh(m1.vertices * [1.0, 1.1, 1.3], m1.faces)
+    gt = {"p2p_21": np.arange(m1.n_vertices), "p2p_12": np.arange(m1.n_vertices), "same_triangulation": True,
+          "face_21": None, "bary_21": None}
+    return m1, m2, cf.figure14_joint_pair(m1, m2, gt, (3, 4), keep_fields=True)
+
+
+def test_figure14_joint_pair_outputs(small_joint):
+    m1, m2, r = small_joint
+    assert set(r) == {"k3", "k4", "baselines", "quads", "seconds", "fields"}
+    assert r["quads"]["k"] == 3 and set(r["quads"]) == {"k", "std", "ext", "default", "independent"}
+    for n in ("std", "independent"):
+        st = r["quads"][n]
+        assert st["source"]["n_quads"] > 0 and st["target"]["n_quads"] > 0
+        assert 0 <= st["irregular_matched"] <= st["irregular_matched_of"] == st["source"]["n_irregular"]
+        V, Q = r["fields"]["quad_meshes"][n][1]
+        assert Q.shape == (st["target"]["n_quads"], 4) and Q.max() < V.shape[0]
+    assert set(r["k3"]) == set(cf.JOINT_KINDS) and set(r["baselines"]) == set(cf.BASELINES)
+    assert r["baselines"]["pushforward"]["angle_mean_deg"] < 1e-9
+    pf_ = r["baselines"]["pushforward"]
+    assert pf_["sing_recall"] in (None, 1.0) or pf_["n_sing_low_1"] == 0
+    for k in ("k3", "k4"):
+        for kd in cf.JOINT_KINDS:
+            m = r[k][kd]
+            assert 0 <= m["angle_mean_deg"] <= m["angle_p90_deg"] <= 45
+            assert 0 <= m["align_1_deg"] <= 45 and 0 <= m["align_2_deg"] <= 45
+            assert 0 <= m["consistency_energy"] < 1
+            z1, z2 = r["fields"][(int(k[1:]), kd)]
+            np.testing.assert_allclose(np.abs(z2), 1.0)
+    # the baselines share the independent source field
+    b = r["baselines"]
+    assert b["copy"]["align_1_deg"] == b["independent"]["align_1_deg"] == b["pushforward"]["align_1_deg"]
+    np.testing.assert_array_equal(r["fields"]["copy"][1], r["fields"]["independent"][0])
+
+
+def test_summarize_pairs_counts_and_pools():
+    def cell(v):
+        return {"angle_regular_deg": v}
+
+    per = {"a": {"k5": {"std": cell(2.0), "ext": cell(1.0), "default": cell(3.0), "p2p": cell(0.5)}},
+           "b": {"k5": {"std": cell(2.0), "ext": cell(2.5), "default": cell(1.0), "p2p": cell(0.5)}},
+           "c": {"k5": {"std": cell(4.0), "ext": cell(3.0), "default": cell(4.0), "p2p": cell(0.5)}}}
+    s = cf.summarize_pairs(per, [5])
+    assert s["k5"]["ext"]["n_better"] == 2 and s["k5"]["default"]["n_better"] == 1 and s["k5"]["ext"]["n_pairs"] == 3
+    assert s["k5"]["std"]["mean"] == pytest.approx(8 / 3) and s["k5"]["ext"]["max"] == 3.0
+    assert s["cells"]["ext"] == {"a|k5": 1.0, "b|k5": 2.5, "c|k5": 3.0}
+    assert s["pooled"]["default"]["n_cells"] == 3 and s["pooled"]["p2p"]["std"] == 0.0
+
+
+def test_surface_ground_truth_of_a_remeshed_variant():
+    from prodmaps import datasets
+
+    gt = cf.surface_ground_truth("anny_humans", "anny_000", "anny_013_remesh_iso")
+    var = datasets.load_shape("anny_humans", "anny_013_remesh_iso")
+    base = datasets.load_shape("anny_humans", "anny_013")
+    assert not gt["same_triangulation"] and gt["face_21"].shape == (var.n_vertices,)
+    X = np.einsum("vc,vcd->vd", gt["bary_21"], base.vertices[base.faces[gt["face_21"]]])
+    assert np.linalg.norm(X - var.vertices, axis=1).max() < 0.01  # metres: the variant lies on its base
+    assert gt["p2p_12"].shape == (5002,) and gt["p2p_12"].max() < var.n_vertices
+    with pytest.raises(ValueError, match="variant"):
+        cf.surface_ground_truth("anny_humans", "anny_013_remesh_iso", "anny_000")

@@ -441,3 +441,76 @@ def test_layout_of_relabelled_copy_agrees(pair3):
     assert pf.layout_consistency(q1, q2, d["p"], A2)["agreement"] > 0.95
     q_rot = pf.quad_texture(pf.stripe_patterns(d["fr2"], pf.rotate_field(z2, np.pi / 4), period=per))
     assert pf.layout_consistency(q1, q_rot, d["p"], A2)["agreement"] < 0.8
+
+
+# ----------------------------------------------------------------------------- surface ground truth
+def _rotated_ellipsoid(subdivisions, axes, angle):
+    """The ellipsoid with axes ``axes`` triangulated by a rotated icosphere (another connectivity)."""
+    s = icosphere(subdivisions)
+    c, si = np.cos(angle), np.sin(angle)
+    R = np.array([[c, -si, 0.0], [si, c, 0.0], [0.0, 0.0, 1.0]]) @ np.array([[1, 0, 0], [0, c, -si], [0, si, c]])
+    return pm.Mesh((s.vertices @ R.T) * np.asarray(axes), s.faces)
+
+
+def test_barycentric_pushforward_across_triangulations():
+    axes = (1.0, 0.6, 0.4)
+    m1 = _rotated_ellipsoid(3, axes, 0.0)  # 642 vertices
+    m2 = _rotated_ellipsoid(3, axes, 0.45)  # the same surface, another triangulation
+    fr1, fr2 = pf.mesh_frames(m1), pf.mesh_frames(m2)
+    a = (0.3, 0.5, 0.8)
+    z1, z2_true = direction_guide(fr1, a), direction_guide(fr2, a)  # one analytic field on both
+    face, bary = pf.closest_point_correspondence(m2.vertices, m1.vertices, m1.faces)
+    assert face.shape == (m2.n_vertices,) and bary.shape == (m2.n_vertices, 3)
+    np.testing.assert_allclose(bary.sum(axis=1), 1.0)
+    assert bary.min() >= 0.0
+    X = np.einsum("vc,vcd->vd", bary, m1.vertices[m1.faces[face]])
+    assert np.linalg.norm(X - m2.vertices, axis=1).max() < 0.02  # the inscribed polyhedra differ a little
+    zb, ok = pf.pushforward_field_barycentric(fr1, z1, fr2, face, bary)
+    assert ok.all()
+    # away from the two points where the projected direction vanishes
+    t = np.asarray(a) / np.linalg.norm(a)
+    far = np.abs(fr2.normal @ t) < 0.9
+    err_b = np.degrees(pf.cross_angle(zb, z2_true))[far]
+    # the nearest-vertex ground truth distorts the image triangles: much worse on the same surface
+    from scipy.spatial import cKDTree
+
+    p = cKDTree(m1.vertices).query(m2.vertices)[1]
+    zn, okn = pf.pushforward_field(fr1, z1, fr2, p)
+    err_n = np.degrees(pf.cross_angle(zn, z2_true))[far & okn]
+    assert np.mean(err_b) < 1.0 and np.mean(err_b) < 0.25 * np.mean(err_n)
+    # on one triangulation with the identity correspondence it is the identity
+    verts, first = np.unique(m1.faces.ravel(), return_index=True)  # one incident face per vertex
+    onehot_face = first // 3
+    bary_id = np.zeros((m1.n_vertices, 3))
+    bary_id[verts, first % 3] = 1.0
+    zi, _ = pf.pushforward_field_barycentric(fr1, z1, fr1, onehot_face, bary_id)
+    assert np.degrees(pf.cross_angle(zi, z1)).mean() < 2.0
+    with pytest.raises(ValueError, match="barycentric"):
+        pf.pushforward_field_barycentric(fr1, z1, fr2, face, 2 * bary)
+    with pytest.raises(ValueError, match="face_21"):
+        pf.pushforward_field_barycentric(fr1, z1, fr2, face[:-1], bary[:-1])
+
+
+def test_default_kind_transfers_through_the_default_operator(ell_pair3):
+    from prodmaps.fields.operators import span_projector
+    from prodmaps.safe_transfer import safe_operator
+
+    d = ell_pair3
+    b1, b2 = d["b1"].truncate(7), d["b2"].truncate(7)
+    C = pm.fmap_from_p2p(d["p"], b1, b2)
+    P = consistency_problem(d["fr1"], b1, d["fr2"], b2, C, kind="default", tests="pairs")
+    E = consistency_problem(d["fr1"], b1, d["fr2"], b2, C, kind="ext", tests="pairs")
+    assert P.info["J"] == E.info["J"] == 6 + 15  # the same test functions
+    np.testing.assert_allclose(P.W_2, E.W_2)  # the same comparison span
+    np.testing.assert_allclose(P.H_1, E.H_1)
+    x = np.random.default_rng(0).standard_normal(d["fr1"].n_faces)  # face values
+    h = pf.face_to_vertex(d["fr1"]) @ x
+    Q2 = span_projector(pm.product_basis(b2, 2, "unique").matrix, b2.mass, 1e-3).Q
+    expected = Q2.T @ (b2.mass * safe_operator(C, b1, b2)(h))
+    np.testing.assert_allclose(P.W_1.T @ x, expected, rtol=1e-8, atol=1e-10 * np.abs(expected).max())
+    z_ref, _ = pf.pushforward_field(d["fr1"], d["z1"], d["fr2"], d["p"])
+    assert P.energy(d["z1"], z_ref) < 0.05 < P.energy(d["z1"], pf.rotate_field(z_ref, np.radians(30)))
+    with pytest.raises(ValueError, match="C_12"):
+        consistency_problem(d["fr1"], b1, d["fr2"], b2, None, kind="default")
+    with pytest.raises(ValueError, match="products"):
+        consistency_problem(d["fr1"], b1, d["fr2"], b2, C, kind="default", tests="products")
