@@ -338,7 +338,7 @@ def _far_from(V, F, vertices, radius):
 def low_curvature_vertices(mesh: Mesh, quantile: float = 0.8) -> np.ndarray:
     """Vertex mask ``(n,)``: curvature density ``|angle defect| / lumped area`` below its ``quantile``."""
     from ..fields.frames import angle_defect
-    from ..laplacian import lumped_mass
+    from ..operators import lumped_mass
 
     K = np.abs(angle_defect(mesh.vertices, mesh.faces)) / lumped_mass(mesh.vertices, mesh.faces)
     return K < np.quantile(K, quantile)

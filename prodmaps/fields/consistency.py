@@ -274,7 +274,7 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
             Tr = proj2.from_basis(Ct @ P1)  # (r, n1)
             info.update(K1=ext1.K, K2=ext2.K, rank_1=proj1.rank, rank_2=proj2.rank)
         elif kind == "default":  # coords = Q2ᵀ A2 S(h), S the default transfer (linear in h)
-            from ..safe_transfer import safe_operator
+            from ..default_transfer import safe_operator
 
             op = safe_operator(C, b1, b2)
             M2 = (Q2 * A2[:, None]).T  # (r, n2)
