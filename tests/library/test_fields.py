@@ -492,8 +492,8 @@ def test_barycentric_pushforward_across_triangulations():
 
 
 def test_default_kind_transfers_through_the_default_operator(ell_pair3):
-    from prodmaps.fields.operators import span_projector
     from prodmaps.default_transfer import safe_operator
+    from prodmaps.fields.operators import span_projector
 
     d = ell_pair3
     b1, b2 = d["b1"].truncate(7), d["b2"].truncate(7)
