@@ -66,6 +66,11 @@ conditions (2158 functions) worst +0.0022, 0.85 times. Without the truncation te
 safe per family but not per function (20 of 4648 functions above std + 0.01 with ground-truth maps
 at 9/9 on the 56 FAUST pairs, worst +0.10 on a coordinate; up to +0.12 with NO17 maps), with a
 lower mean (0.73-0.78 times std): the test trades part of the average gain for that guarantee.
+Known limit: the truncation test reads the map's losses from ``CᵀC``; a map orthogonalised
+afterwards (ICP's projection on orthogonal matrices, as the paper profiles' NO17 recipe does) has
+``CᵀC = I`` whatever it lost, and the test is blind. With such maps on the embedded humans'
+smoke conditions 2 of 2158 single functions (heat kernels from 200 eigenpairs, one intra pair, at
+27/35 and 29/39) came out above std + 0.01 (worst +0.36); per family none did.
 
 Cost: one ``Kp x Kp`` symmetric eigendecomposition (as Approach B) on the source, reusing the
 product Gram, plus ``Z`` and ``Y = (Z - ΨH) V`` on the target (``n2 · Kp · r`` flops) per map. The
