@@ -37,8 +37,9 @@ Extended conversion (``method="extended"``)
     ``pairs`` (default ``"unique"``: same span and the same canonical coefficients as
     ``"ordered"``, fewer columns).
 
-Nearest neighbours are exact, computed with blocked matrix products
-(:func:`nearest_neighbors`), not a kd-tree (the extended embedding has up to ~2.5k dimensions).
+Nearest neighbours are exact with ties to the smallest index (:func:`nearest_neighbors`): a
+kd-tree in low dimensions, blocked float32 matrix products with an exact float64 recheck of every
+near tie in high ones (the extended embedding has up to ~2.5k dimensions).
 """
 
 from __future__ import annotations
@@ -52,39 +53,136 @@ __all__ = ["nearest_neighbors", "from_fmap", "heat_square_coefficients", "extend
 METHODS = ("std", "extended")
 
 
-def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None = None, return_distance: bool = False):
+_U64 = np.finfo(np.float64).eps / 2
+_U32 = float(np.finfo(np.float32).eps) / 2
+KDTREE_MAX_DIM = 32  # auto: kd-tree up to this dimension (or when a brute-force pass would be too large)
+GEMM_MAX_PAIRS = 4e10  # auto: above n_q * n_p pairs the brute force is not attempted (kd-tree instead)
+PRUNE_MIN_DIM = 24  # gemm: products on at least this many leading coordinates ...
+PRUNE_SHARE = 0.995  # ... and on as many as hold this share of the points' spread
+NN_METHODS = ("auto", "kdtree", "gemm")
+
+
+def _exact_pick(Q, P, rows, cols, n_rows):
+    """Among candidate pairs ``(rows, cols)`` the exact nearest per row (ties: smallest index).
+
+    Distances are recomputed directly as ``Σ (q − p)²`` in float64 (in chunks of pairs); every
+    row in ``range(n_rows)`` must have at least one candidate. Returns ``idx (n_rows,)``.
+    """
+    d2 = np.empty(rows.shape[0])
+    step = max(1, 2_000_000 // max(1, Q.shape[1]))
+    for s in range(0, rows.shape[0], step):  # chunks of candidate pairs, vectorised inside
+        diff = Q[rows[s : s + step]] - P[cols[s : s + step]]
+        d2[s : s + step] = np.einsum("ij,ij->i", diff, diff)
+    order = np.lexsort((cols, d2, rows))  # by row, then distance, then index
+    r, first = np.unique(rows[order], return_index=True)
+    if r.shape[0] != n_rows:
+        raise AssertionError("internal error: a row without candidates")
+    return cols[order[first]]
+
+
+def _nn_gemm(Q, P, block):
+    """Exact nearest neighbours by blocked float32 products on the leading coordinates, then an
+    exact float64 recheck of every candidate (see :func:`nearest_neighbors`)."""
+    d = Q.shape[1]
+    # coordinates by decreasing spread of the points (a permutation: distances unchanged); the first
+    # r of them give lower bounds ‖q_r − p_r‖² ≤ ‖q − p‖²
+    spread = P.var(axis=0)
+    order = np.argsort(-spread, kind="stable")
+    share = np.cumsum(spread[order]) / max(spread.sum(), np.finfo(float).tiny)
+    r = d if d <= PRUNE_MIN_DIM else int(min(d, max(PRUNE_MIN_DIM, np.searchsorted(share, PRUNE_SHARE) + 1)))
+    lead = order[:r]
+    Qr, Pr = np.ascontiguousarray(Q[:, lead]), np.ascontiguousarray(P[:, lead])
+    u = _U32
+    gamma = 2.0 * (r + 8) * u  # |G − D'_r| ≤ γ (‖q_r‖² + 2‖p_r‖²) for the float32 product G
+    pr_sq = np.einsum("ij,ij->i", Pr, Pr)
+    qr_sq = np.einsum("ij,ij->i", Qr, Qr)
+    Pa = np.empty((P.shape[0], r + 1), dtype=np.float32)  # (n_p, r + 1): [−2p_r, (1 − 2γ)‖p_r‖²]
+    Pa[:, :r] = -2.0 * Pr
+    Pa[:, r] = (1.0 - 2.0 * gamma) * pr_sq
+    idx = np.empty(Q.shape[0], dtype=np.int64)
+    Qa = np.empty((min(block, Q.shape[0]), r + 1), dtype=np.float32)
+    slack = 1.0 + 4.0 * (d + 8) * _U64  # rounding of the float64 distances that define the answer
+    for s in range(0, Q.shape[0], block):  # blocks of queries, vectorised inside
+        b = min(block, Q.shape[0] - s)
+        Qa[:b, :r] = Qr[s : s + b]
+        Qa[:b, r] = 1.0
+        low = Qa[:b] @ Pa.T  # (b, n_p): L ≤ ‖q_r − p_r‖² − ‖q_r‖² ≤ ‖q − p‖² − ‖q_r‖²
+        j0 = np.argmin(low, axis=1)
+        diff = Q[s : s + b] - P[j0]
+        upper = np.einsum("ij,ij->i", diff, diff) * slack  # exact distance to one point, rounded up
+        thr = upper - qr_sq[s : s + b] + gamma * qr_sq[s : s + b]
+        thr = np.nextafter(thr.astype(np.float32), np.float32(np.inf))  # rounded up
+        at = np.arange(b)
+        first = low[at, j0].copy()
+        low[at, j0] = np.inf
+        amb = np.flatnonzero(low.min(axis=1) <= thr)  # a second candidate: recheck exactly
+        idx[s : s + b] = j0
+        if amb.size:
+            low[amb, j0[amb]] = first[amb]
+            rows, cols = np.nonzero(low[amb] <= thr[amb, None])
+            idx[s + amb] = _exact_pick(Q[s + amb], P, rows, cols, amb.size)
+    return idx
+
+
+def _nn_kdtree(Q, P, block):
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(P)
+    if P.shape[0] == 1:
+        return np.zeros(Q.shape[0], dtype=np.int64)
+    dist, nn = tree.query(Q, k=2, workers=-1)  # (n_q, 2) the two nearest
+    idx = nn[:, 0].astype(np.int64)
+    d = Q.shape[1]
+    # the kd-tree's distances carry a relative rounding of about (d + 3) u: the first neighbour is
+    # the exact answer unless the second one is as close up to four times that
+    amb = np.flatnonzero(dist[:, 1] ** 2 <= dist[:, 0] ** 2 * (1.0 + 4.0 * (d + 8) * _U64))
+    if amb.size:
+        idx[amb] = _nn_gemm(Q[amb], P, block)
+    return idx
+
+
+def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None = None,
+                      return_distance: bool = False, method: str = "auto"):
     """Exact Euclidean nearest neighbour in ``points`` ``(n_p, d)`` of every row of ``queries`` ``(n_q, d)``.
 
-    Distances ``‖q‖² + ‖p‖² − 2 q·p`` are formed block by block (``block`` query rows at a time;
-    default such that a block of distances holds about 4·10⁶ entries), and the argmin is taken
-    per block. Ties go to the smallest index. Returns ``idx (n_q,)`` int64 (and the distances
-    ``(n_q,)`` if ``return_distance``).
+    The answer is the index minimising the squared distance ``Σ_i (q_i − p_i)²`` computed in
+    float64; **ties go to the smallest index**. It does not depend on ``method`` or ``block``:
+
+    * ``"gemm"``: blocked brute force (``block`` query rows at a time, default about 4·10⁶
+      distances per block) by one float32 matrix product of ``[q, 1]`` and ``[−2p, ‖p‖²]``;
+      every point within the rounding bound of a row's minimum is a candidate, and rows with
+      several candidates are decided by the exact float64 distances of their candidates.
+    * ``"kdtree"``: ``scipy.spatial.cKDTree`` (both cores), the two nearest per query; a query
+      whose second neighbour is as close as the first up to rounding is decided by ``"gemm"``.
+    * ``"auto"`` (default): ``"kdtree"`` in up to ``KDTREE_MAX_DIM`` dimensions or when the
+      brute force would compare more than ``GEMM_MAX_PAIRS`` pairs, ``"gemm"`` otherwise.
+
+    Returns ``idx (n_q,)`` int64 (and the Euclidean distances ``(n_q,)`` if ``return_distance``).
     """
-    Q = np.asarray(queries, dtype=np.float64)
-    P = np.asarray(points, dtype=np.float64)
+    Q = np.ascontiguousarray(queries, dtype=np.float64)
+    P = np.ascontiguousarray(points, dtype=np.float64)
     if Q.ndim != 2 or P.ndim != 2:
         raise ValueError(f"queries and points must be 2D arrays (n, d); got {Q.shape} and {P.shape}")
     if Q.shape[1] != P.shape[1]:
         raise ValueError(f"queries have dimension {Q.shape[1]} but points have {P.shape[1]}; they must match")
     if P.shape[0] == 0:
         raise ValueError("points is empty: nothing to match to")
+    if method not in NN_METHODS:
+        raise ValueError(f"method must be one of {NN_METHODS}, got {method!r}")
     if block is None:
         block = max(1, int(4_000_000 // P.shape[0]))
     block = int(block)
     if block < 1:
         raise ValueError(f"block must be >= 1, got {block}")
-    p_sq = np.einsum("ij,ij->i", P, P)  # (n_p,)
-    idx = np.empty(Q.shape[0], dtype=np.int64)
-    dist = np.empty(Q.shape[0]) if return_distance else None
-    for s in range(0, Q.shape[0], block):  # blocks of queries, vectorised inside
-        q = Q[s : s + block]
-        d2 = p_sq[None, :] - 2.0 * (q @ P.T)  # (b, n_p); ‖q‖² is constant per row
-        j = np.argmin(d2, axis=1)
-        idx[s : s + block] = j
-        if return_distance:
-            q_sq = np.einsum("ij,ij->i", q, q)
-            dist[s : s + block] = np.sqrt(np.maximum(d2[np.arange(q.shape[0]), j] + q_sq, 0.0))
-    return (idx, dist) if return_distance else idx
+    if method == "auto":
+        big = float(Q.shape[0]) * float(P.shape[0]) > GEMM_MAX_PAIRS
+        method = "kdtree" if (Q.shape[1] <= KDTREE_MAX_DIM or big) else "gemm"
+    idx = np.zeros(Q.shape[0], dtype=np.int64) if Q.shape[0] == 0 else (
+        _nn_kdtree(Q, P, block) if method == "kdtree" else _nn_gemm(Q, P, block))
+    if not return_distance:
+        return idx
+    diff = Q - P[idx]
+    return idx, np.sqrt(np.einsum("ij,ij->i", diff, diff))
 
 
 def _check_inputs(C_12, basis_1, basis_2) -> np.ndarray:

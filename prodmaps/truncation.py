@@ -58,18 +58,23 @@ def singular_directions(basis_1: Basis, order: int = 2, pairs: str = "ordered", 
     ``normalization`` (:func:`prodmaps.approx.column_weights`; default
     :data:`prodmaps.approx.DEFAULT_NORMALIZATION`). Direction ``i`` is the function
     ``B_s D V[:, i]``; ``ext.expand() @ (D V)`` gives the directions as coefficients of ``pairs``'
-    basis. Diagonalises the Gram matrix ``D B_sᵀ A B_s D`` (fast for ``n >> K``; squares the
+    basis. Diagonalises the Gram matrix ``D B_sᵀ A B_s D`` once per product basis and
+    normalization, shared with Approach B's operator (:func:`prodmaps.approx._gram_eig`, cached;
+    fast for ``n >> K``; squares the
     condition number: ``sigma_i`` has a relative error of about ``1e-16 (sigma_max / sigma_i)²``,
     below ``1e-7`` for the thresholds ``>= 1e-4`` studied here).
     """
-    from .approx import DEFAULT_NORMALIZATION, column_weights
+    from .approx import DEFAULT_NORMALIZATION, _gram_eig, column_weights
 
     ext = product_basis(basis_1, order, pairs)
-    d = column_weights(ext, normalization or DEFAULT_NORMALIZATION)
-    G = ext.solver_gram()
-    w, V = np.linalg.eigh(G if d is None else d[:, None] * G * d)
-    w, V = w[::-1], V[:, ::-1]
-    return np.sqrt(np.maximum(w, 0.0)), V
+    norm = normalization or DEFAULT_NORMALIZATION
+    w, V, side = _gram_eig(ext, norm)  # the decomposition Approach B's operator caches and reuses
+    if side != "primal":  # K_u > n: the operator diagonalises X Xᵀ; the directions need Xᵀ X
+        d = column_weights(ext, norm)
+        G = ext.solver_gram()
+        w, V = np.linalg.eigh(G if d is None else d[:, None] * G * d)
+        w, V = w[::-1], V[:, ::-1]
+    return np.sqrt(np.maximum(w, 0.0)), np.array(V)  # a copy: the cached decomposition stays intact
 
 
 def transfer_gains(C_12, basis_1: Basis, basis_2: Basis, order: int = 2, pairs: str = "ordered",

@@ -13,10 +13,36 @@ from ..mapping import check_fmap
 
 __all__ = ["zoomout"]
 
+PROGRESS_MIN_WORK = 2e10  # progress=None: a bar when Σ n1·n2·k over the steps exceeds this (long runs)
 
 
+def _progress(total: int, enabled: bool, stream=None):
+    """A tqdm bar on ``stream`` (stderr) when tqdm is installed, plain lines otherwise; ``None`` if off."""
+    import sys
 
-def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return_p2p: bool = False):
+    if not enabled:
+        return None
+    stream = sys.stderr if stream is None else stream
+    try:
+        from tqdm import tqdm
+
+        return tqdm(total=total, desc="zoomout", unit="step", file=stream, dynamic_ncols=True)
+    except ImportError:
+        class _Lines:
+            n = 0
+
+            def update(self, k=1):
+                self.n += k
+                print(f"zoomout: step {self.n}/{total}", file=stream, flush=True)
+
+            def close(self):
+                pass
+
+        return _Lines()
+
+
+def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return_p2p: bool = False,
+            progress: bool | None = None):
     """ZoomOut refinement (Melzi et al. 2019, "ZoomOut: spectral upsampling for efficient shape correspondence").
 
     Starting from ``C_12`` ``(k2, k1)``, repeat: convert the current map to a point map with
@@ -30,6 +56,12 @@ def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return
         the constant; must not exceed the bases' column counts nor be below ``C_12.shape``.
     step : size increase per iteration (>= 1).
     return_p2p : also return the last point map (the one that produced the final ``C``).
+    progress : report progress per step on stderr (tqdm bar, or plain lines without tqdm);
+        ``None`` (default): only on long runs (more than ``PROGRESS_MIN_WORK`` multiply-adds of
+        nearest-neighbour search) and when stderr is a terminal.
+
+    Each step's point map is the exact nearest-neighbour answer of
+    :func:`prodmaps.p2p.nearest_neighbors` (ties to the smallest source index).
     """
     from ..p2p import from_fmap
 
@@ -47,13 +79,24 @@ def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return
         raise ValueError(f"k_final (k2, k1) = {(K2, K1)} is smaller than the initial map {C.shape}")
     if int(step) < 1:
         raise ValueError(f"step must be >= 1, got {step}")
+    n_steps = 1 + max(-(-(K1 - k1) // int(step)), -(-(K2 - k2) // int(step)))  # conversions done
+    if progress is None:
+        import sys
+
+        work = float(basis_1.n) * basis_2.n * max(K1, K2) * n_steps
+        progress = work > PROGRESS_MIN_WORK and getattr(sys.stderr, "isatty", lambda: False)()
+    bar = _progress(n_steps, bool(progress))
     p2p = None
     while True:
         p2p = from_fmap(C, basis_1, basis_2, method="std")
+        if bar is not None:
+            bar.update(1)
         if k1 == K1 and k2 == K2:
             # one last conversion at the final size so the returned C comes from a point map
             C = basis_2.truncate(K2).project(basis_1.vecs[p2p, :K1])
             break
         k1, k2 = min(k1 + step, K1), min(k2 + step, K2)
         C = basis_2.truncate(k2).project(basis_1.vecs[p2p, :k1])  # (k2, k1)
+    if bar is not None:
+        bar.close()
     return (C, p2p) if return_p2p else C

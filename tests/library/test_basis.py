@@ -102,3 +102,30 @@ def test_unreferenced_vertices_error_names_both_fixes():
     s = icosphere(1)
     with pytest.raises(pm.MeshError, match="remove_unreferenced_vertices.*load_mesh_repaired"):
         pm.Mesh(np.vstack([s.vertices, [[5.0, 5.0, 5.0]]]), s.faces)
+
+
+def test_shift_inside_the_spectrum_gives_the_safe_shifts_eigenpairs(human_0, monkeypatch):
+    """The default (checked) shift inside the wanted spectrum and the safe shift below 0 give the
+    same eigenpairs; a shift too high to return the k smallest is detected and redone safely."""
+    from scipy.sparse.linalg import eigsh as real_eigsh
+
+    from prodmaps import eigensolver
+    from prodmaps.basis import fix_signs
+
+    W, A = pm.laplacian(human_0)
+    k = 60
+    ev_safe, V_safe = eigensolver.smallest_eigenpairs(W, A, k, sigma=eigensolver.shift(W, A))
+    shifts = []
+
+    def spy(*a, **kw):
+        shifts.append(kw["sigma"])
+        return real_eigsh(*a, **kw)
+
+    monkeypatch.setattr("scipy.sparse.linalg.eigsh", spy)
+    for mid, calls in ((eigensolver.MID_SHIFT, 1), (5.0, 2)):  # 5 x Weyl: far above lambda_k, must fall back
+        monkeypatch.setattr(eigensolver, "MID_SHIFT", mid)
+        shifts.clear()
+        ev, V = eigensolver.smallest_eigenpairs(W, A, k)
+        assert len(shifts) == calls and shifts[0] > 0
+        np.testing.assert_allclose(ev[1:], ev_safe[1:], rtol=1e-10)
+        np.testing.assert_allclose(fix_signs(V[:, 1:]), fix_signs(V_safe[:, 1:]), atol=1e-8 * np.abs(V_safe).max())

@@ -193,6 +193,18 @@ def test_zoomout_keeps_exact_maps_and_grows(human_0):
         fmaps.zoomout(C, b, b, 5)
 
 
+def test_zoomout_reports_progress(human_0, capsys):
+    b = pm.eigenbasis(human_0, 20)
+    C = fmaps.ground_truth(np.arange(b.n), b.truncate(10), b.truncate(10))
+    C_p = fmaps.zoomout(C, b, b, 20, step=5, progress=True)  # 10 -> 15 -> 20: three conversions
+    err = capsys.readouterr().err
+    assert "zoomout" in err and "3/3" in err
+    assert np.array_equal(C_p, fmaps.zoomout(C, b, b, 20, step=5, progress=False))
+    assert capsys.readouterr().err == ""  # off: silent; default on a short run (not a terminal): silent
+    fmaps.zoomout(C, b, b, 20, step=5)
+    assert capsys.readouterr().err == ""
+
+
 def test_zoomout_improves_a_coarse_computed_map(demo, human_0):
     b1, b2, d1, d2, _ = demo
     C = fmaps.fit_no17(b1.truncate(12), b2.truncate(12), d1, d2)

@@ -6,7 +6,7 @@ from scipy.spatial.distance import cdist
 
 import prodmaps as pm
 from prodmaps import fmaps
-from prodmaps.p2p import extended_embeddings, from_fmap, heat_square_coefficients, nearest_neighbors
+from prodmaps.p2p import NN_METHODS, extended_embeddings, from_fmap, heat_square_coefficients, nearest_neighbors
 
 
 @pytest.mark.parametrize("dim", [3, 40, 2500])
@@ -24,7 +24,61 @@ def test_blocked_nn_equals_brute_force(dim, block):
 
 def test_nn_exact_hits_and_ties():
     P = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 0.0], [5.0, 5.0]])
-    assert np.array_equal(nearest_neighbors(P, P), [0, 1, 1, 3])  # duplicate rows: smallest index
+    for method in NN_METHODS:
+        assert np.array_equal(nearest_neighbors(P, P, method=method), [0, 1, 1, 3])  # duplicates: smallest index
+    # a query exactly half-way between two points goes to the smaller index, whatever the order
+    Q = np.array([[0.5, 0.0], [3.0, 2.5]])
+    for method in NN_METHODS:
+        assert np.array_equal(nearest_neighbors(Q, P, method=method), [0, 1])
+        assert np.array_equal(nearest_neighbors(Q, P[::-1], method=method), [1, 0])
+
+
+def _brute_force(Q, P):
+    """Reference: squared distances by direct differences, first index of the minimum."""
+    return np.argmin(cdist(Q, P, "sqeuclidean"), axis=1)
+
+
+@pytest.mark.parametrize("method", NN_METHODS)
+@pytest.mark.parametrize("dim", [1, 2, 5, 30, 33, 64, 300])
+def test_nn_methods_equal_brute_force_with_exact_ties(method, dim):
+    """Grid points (many duplicates and equidistant neighbours, every distance exact in floating
+    point) and half-integer queries: every method returns the brute force's first minimiser."""
+    rng = np.random.default_rng(dim)
+    P = rng.integers(-2, 3, size=(400, dim)).astype(float)
+    Q = rng.integers(-2, 3, size=(250, dim)) + 0.5 * rng.integers(0, 2, size=(250, dim))
+    D = cdist(Q, P, "sqeuclidean")
+    assert np.sum(D == D.min(axis=1, keepdims=True)) > Q.shape[0]  # the data has exact ties
+    for block in (1, 37, None):
+        assert np.array_equal(nearest_neighbors(Q, P, method=method, block=block), _brute_force(Q, P))
+    Pr, Qr = rng.normal(size=(500, dim)), rng.normal(size=(300, dim))  # generic data, one scale spread out
+    Pr *= np.geomspace(1.0, 1e-3, dim)[None, :]
+    Qr *= np.geomspace(1.0, 1e-3, dim)[None, :]
+    assert np.array_equal(nearest_neighbors(Qr, Pr, method=method), _brute_force(Qr, Pr))
+
+
+def test_nn_near_ties_are_decided_exactly():
+    """Points whose distances differ below float32 resolution: the float32 stage must hand them
+    to the exact recheck (a float32-only argmin would pick either)."""
+    rng = np.random.default_rng(5)
+    base = rng.normal(size=(1, 50))
+    P = np.repeat(base, 40, axis=0) + 1e-9 * rng.normal(size=(40, 50))
+    P = np.vstack([P, rng.normal(size=(200, 50))])
+    Q = base + 1e-9 * rng.normal(size=(30, 50))
+    for method in NN_METHODS:
+        assert np.array_equal(nearest_neighbors(Q, P, method=method), _brute_force(Q, P))
+
+
+def test_nn_auto_agrees_with_kdtree_on_spectral_embeddings(human_0, human_13):
+    """The standard conversion's embeddings in both regimes of ``auto`` (kd-tree, products)."""
+    from scipy.spatial import cKDTree
+
+    b1, b2 = pm.eigenbasis(human_0, 50), pm.eigenbasis(human_13, 50)
+    C = np.random.default_rng(2).normal(size=(50, 50)) * 0.1 + np.eye(50)
+    for k in (10, 50):
+        P, Q = b1.vecs[:, :k] @ C[:k, :k].T, b2.vecs[:, :k]
+        d_kd, i_kd = cKDTree(P).query(Q, k=2)
+        assert np.all(d_kd[:, 1] > d_kd[:, 0])  # no near ties: the kd-tree's answer is the exact one
+        assert np.array_equal(nearest_neighbors(Q, P), i_kd[:, 0])
 
 
 def test_nn_bad_inputs():
@@ -36,6 +90,8 @@ def test_nn_bad_inputs():
         nearest_neighbors(np.zeros((3, 2)), np.zeros((0, 2)))
     with pytest.raises(ValueError, match="block"):
         nearest_neighbors(np.zeros((3, 2)), np.zeros((4, 2)), block=0)
+    with pytest.raises(ValueError, match="method"):
+        nearest_neighbors(np.zeros((3, 2)), np.zeros((4, 2)), method="ball")
 
 
 def test_std_matches_its_definition(basis_0, basis_13):
