@@ -18,6 +18,7 @@ import time
 import numpy as np
 
 from .. import datasets
+from . import compare
 from . import families as pfam
 from .protocol import ProtocolSettings, family_means, method_label, run_protocol
 from .store import ShapeStore
@@ -83,6 +84,11 @@ def default_transfer_study(store: ShapeStore, pairs_by_kind: dict, *, map_kinds,
             "seconds": time.perf_counter() - t0}
 
 
+def _excess(a: float, b: float) -> float:
+    """``a - b``, or 0 when the two errors tie (:func:`prodmaps.experiments.compare.is_tie`)."""
+    return 0.0 if compare.is_tie(a, b) else float(a - b)
+
+
 def single_function_excess(result, pairs) -> dict:
     """Per method: the worst single-function excess over the standard transfer in one condition.
 
@@ -98,7 +104,8 @@ def single_function_excess(result, pairs) -> dict:
         fam_of[sl] = pfam.PAPER_LABELS[f]
     out = {}
     for m in METHODS[1:]:
-        E = np.array(by_m[m]) - S  # (pairs, m)
+        M = np.array(by_m[m])  # (pairs, m)
+        E = np.where(np.abs(M - S) <= compare.TIE_REL * np.maximum(np.abs(M), np.abs(S)), 0.0, M - S)  # ties: 0
         i, j = np.unravel_index(int(np.argmax(E)), E.shape)
         out[method_label(m)] = {"worst_excess": float(E[i, j]), "worst_family": str(fam_of[j]),
                                 "worst_pair": list(pairs[i]), "above_0.01": int((E > 0.01).sum()),
@@ -111,7 +118,9 @@ def summary(errors: dict, single: dict | None = None) -> dict:
     with ``single`` (:func:`single_function_excess` per condition) the same per single function."""
     out = {}
     for m in ("our_B", "our_B_gainrule", "our_default"):
-        d = [(c, f, v[m] - v["std"], v[m] / v["std"]) for c, fams in errors.items() for f, v in fams.items()]
+        # an excess between errors that tie (compare.is_tie: equal up to rounding, e.g. a function in
+        # the source's span) is 0, so the worst cell is never picked by rounding noise
+        d = [(c, f, _excess(v[m], v["std"]), v[m] / v["std"]) for c, fams in errors.items() for f, v in fams.items()]
         worst = max(d, key=lambda x: x[2])
         out[m] = {"worst_excess": worst[2], "worst_cell": f"{worst[0]}/{worst[1]}",
                   "cells_above_std_plus_0.01": int(sum(x[2] > 0.01 for x in d)), "cells": len(d),
