@@ -40,7 +40,7 @@ import scipy.sparse as sp
 
 from .mesh import Mesh
 
-__all__ = ["distances", "all_pairs", "map_error", "error_curve", "cache_dir", "mesh_key"]
+__all__ = ["distances", "DistanceRows", "all_pairs", "map_error", "error_curve", "cache_dir", "mesh_key"]
 
 _METHODS = ("heat", "graph", "exact")
 
@@ -104,6 +104,42 @@ class _HeatSolver:
         for row, s in enumerate(sources.tolist()):  # one prefactorised solve per source (C++)
             out[row] = self.solver.compute_distance(int(s))
         return out
+
+
+class DistanceRows:
+    """Rows of one mesh's geodesic distance matrix, computed on demand and kept for reuse.
+
+    ``rows(sources)`` returns the ``(s, n)`` float64 array of :func:`distances` (``method``),
+    row for row the same numbers (each source is one independent solve), but a source seen
+    before is not solved again. Pass one instance to :func:`map_error` for every map evaluated
+    on the same shape (e.g. all pairs with the same source shape): the union of their true
+    images is solved once. Memory: ``8 n`` bytes per kept row; beyond ``max_bytes`` the kept
+    rows are dropped and the cache starts over (results unchanged).
+    """
+
+    def __init__(self, mesh: Mesh, method: str = "heat", *, max_bytes: float = 1e9):
+        if method not in _METHODS:
+            raise ValueError(f"unknown method {method!r}; choose one of {_METHODS}")
+        self.mesh, self.method, self.n = mesh, method, mesh.n_vertices
+        self.max_rows = max(1, int(max_bytes // (8 * self.n)))
+        self._solver = _HeatSolver(mesh) if method == "heat" else None
+        self._slot = np.full(self.n, -1, dtype=np.int64)  # (n,) row of each kept source, -1 if none
+        self._data = np.empty((0, self.n))  # (kept, n)
+        self.n_solved = 0
+
+    def __call__(self, sources) -> np.ndarray:
+        src = _check_sources(self.mesh, sources)
+        need = np.unique(src[self._slot[src] < 0])
+        if need.size:
+            if self._data.shape[0] + need.size > self.max_rows:  # start over
+                self._slot[:] = -1
+                self._data = np.empty((0, self.n))
+                need = np.unique(src)
+            new = self._solver(need) if self._solver is not None else distances(self.mesh, need, self.method)
+            self._slot[need] = self._data.shape[0] + np.arange(need.size)
+            self._data = np.concatenate([self._data, new]) if self._data.size else new
+            self.n_solved += int(need.size)
+        return self._data[self._slot[src]]
 
 
 def _exact(mesh: Mesh, sources: np.ndarray) -> np.ndarray:
@@ -185,7 +221,7 @@ def all_pairs(mesh: Mesh, *, cache: bool = True, method: str = "heat", verbose: 
 
 
 def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=None,
-              batch: int = 256) -> np.ndarray:
+              batch: int = 256, rows: DistanceRows | None = None) -> np.ndarray:
     """Geodesic error of a point map, normalised by ``sqrt(area of shape 1)``.
 
     Parameters
@@ -200,6 +236,8 @@ def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=N
         :func:`all_pairs`; pass it when evaluating many maps onto the same shape); then no
         distance is computed.
     batch : number of sources per solver batch (memory ``batch * n1`` floats).
+    rows : optional :class:`DistanceRows` of shape 1 shared between calls (its method is used,
+        the numbers are the same): sources solved by an earlier call are not solved again.
 
     Returns
     -------
@@ -235,7 +273,10 @@ def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=N
         vals = np.empty(targets.shape)
         order = np.argsort(inv, kind="stable")
         bounds = np.searchsorted(inv[order], np.arange(0, src.size + batch, batch))
-        solver = _HeatSolver(mesh_1) if method == "heat" else None
+        if rows is not None and rows.mesh is not mesh_1 and (
+                rows.n != mesh_1.n_vertices or mesh_key(rows.mesh) != mesh_key(mesh_1)):
+            raise ValueError("rows (DistanceRows) belong to another mesh than mesh_1")
+        solver = rows if rows is not None else (_HeatSolver(mesh_1) if method == "heat" else None)
         for b, start in enumerate(range(0, src.size, batch)):
             chunk = src[start:start + batch]
             d = solver(chunk) if solver is not None else distances(mesh_1, chunk, method=method)  # (b, n1)

@@ -89,7 +89,8 @@ def score_recipes(store: ShapeStore, pairs, recipes, *, k_M: int = 29, k_N: int 
         idx = np.arange(b2.n)
         if n_eval is not None and n_eval < b2.n:
             idx = np.sort(np.random.default_rng([seed, ip]).choice(b2.n, int(n_eval), replace=False))
-        geo = map_error(store.mesh(s1), p2p[:, idx], gt[idx]).mean(axis=1)  # (len(names),)
+        geo = map_error(store.mesh(s1), p2p[:, idx], gt[idx],
+                        rows=store.distance_rows(s1)).mean(axis=1)  # (len(names),)
         for r, g in zip(names, geo):
             out["geo_error"][r].append(float(g))
         if progress:

@@ -67,7 +67,8 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
                 recovered[m, method] = from_fmap(C, b1, b2, method)[ev]  # (n_eval,) target vertex -> source vertex
                 timing[method] += time.perf_counter() - t1
         # all maps of the pair against the same truth: geodesics from the true images computed once
-        E = geodesics.map_error(store.mesh(s1), np.stack(list(recovered.values())), gt[ev])  # (maps, n_eval)
+        E = geodesics.map_error(store.mesh(s1), np.stack(list(recovered.values())), gt[ev],
+                               rows=store.distance_rows(s1))  # (maps, n_eval)
         for (m, method), e in zip(recovered, E):
             errs[m][method].append(e)
             row[f"{m}_{method}"] = float(e.mean())

@@ -24,7 +24,7 @@ import numpy as np
 from ..basis import Basis, eigenbasis
 from ..cache import Cache
 from ..files import atomic_path, sha256_bytes
-from ..geodesics import cache_dir, mesh_key
+from ..geodesics import DistanceRows, cache_dir, mesh_key
 from ..mesh import Mesh
 from . import families as pfam
 
@@ -100,6 +100,7 @@ class ShapeStore:
         self._mesh: dict[str, Mesh] = {}
         self._basis: dict[str, Basis] = {}
         self._family_cache: dict[str, Cache] = {}
+        self._rows: dict[str, DistanceRows] = {}  # the last two shapes' kept distance rows
         self.memo = Cache(max_entries=512)  # per-process values of the experiments (maps, descriptors)
 
     # ---------------------------------------------------------------- per shape
@@ -110,6 +111,18 @@ class ShapeStore:
 
             self._mesh[sid] = datasets.load_shape(self.dataset, sid)
         return self._mesh[sid]
+
+    def distance_rows(self, sid: str) -> DistanceRows:
+        """Heat-method distance rows of shape ``sid``, kept across calls
+        (:class:`prodmaps.geodesics.DistanceRows`: the same numbers, each source solved once).
+        Rows of the two most recently used shapes are kept (memory ``8 n`` bytes a row)."""
+        if sid not in self._rows:
+            while len(self._rows) >= 2:
+                self._rows.pop(next(iter(self._rows)))
+            self._rows[sid] = DistanceRows(self.mesh(sid))
+        else:
+            self._rows[sid] = self._rows.pop(sid)  # most recent last
+        return self._rows[sid]
 
     def mesh_key(self, sid: str) -> str:
         return self.memo.get(("mesh_key", sid), lambda: mesh_key(self.mesh(sid)))

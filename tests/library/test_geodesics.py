@@ -174,3 +174,24 @@ def test_map_error_of_several_maps_at_once(human_0):
     for j in range(3):
         np.testing.assert_array_equal(together[j], pm.geodesics.map_error(human_0, maps[j], truth))
     assert np.all(together[0] == 0) and together[1].mean() > 0.1
+
+
+@pytest.mark.parametrize("method", ["heat", "graph"])
+def test_distance_rows_reuse_solves_and_keep_the_numbers(sphere3, method):
+    """DistanceRows gives distances()' rows exactly, solves each source once, and map_error with
+    shared rows equals map_error without them."""
+    rows = geo.DistanceRows(sphere3, method)
+    a, b = np.array([3, 7, 7, 100]), np.array([100, 5, 3])
+    np.testing.assert_array_equal(rows(a), geo.distances(sphere3, a, method=method))
+    assert rows.n_solved == 3
+    np.testing.assert_array_equal(rows(b), geo.distances(sphere3, b, method=method))
+    assert rows.n_solved == 4  # only vertex 5 was new
+    rng = np.random.default_rng(1)
+    truth = rng.choice(sphere3.n_vertices, 50, replace=False)
+    p2p = rng.choice(sphere3.n_vertices, 50)
+    shared = geo.map_error(sphere3, p2p, truth, method=method, rows=rows)
+    np.testing.assert_array_equal(shared, geo.map_error(sphere3, p2p, truth, method=method))
+    small = geo.DistanceRows(sphere3, method, max_bytes=8 * sphere3.n_vertices * 4)  # keeps 4 rows
+    np.testing.assert_array_equal(small(np.arange(10)), geo.distances(sphere3, np.arange(10), method=method))
+    with pytest.raises(ValueError, match="another mesh"):
+        geo.map_error(icosphere(2), p2p[:5] % 162, truth[:5] % 162, rows=rows)
