@@ -416,8 +416,9 @@ def _fista(op: ApproximationOperator, F: np.ndarray) -> np.ndarray:
             return G_s @ x
         b = b_s
     else:
+        Et = E.T.tocsr()  # (K_u, K), formed once: the loop runs up to max_iter times
         def gram(x):
-            return E @ (G_s @ (E.T @ x))
+            return E @ (G_s @ (Et @ x))
         b = E @ b_s
     L = sla.eigh(G_s, eigvals_only=True, subset_by_index=[G_s.shape[0] - 1] * 2)[0]
     lam = op.params["eps"] * np.max(np.abs(b), axis=0)  # (m,)

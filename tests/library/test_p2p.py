@@ -174,3 +174,26 @@ def test_from_fmap_bad_inputs(basis_0, basis_13):
         from_fmap(C, basis_0, basis_13, method="extended", t=-1.0)
     with pytest.raises(TypeError):
         from_fmap(C, basis_0.vecs, basis_13)
+
+
+
+def test_effective_dimension_and_auto_on_extended_embeddings(basis_0, basis_13, monkeypatch):
+    """effective_dimension counts the coordinates that carry the spread; on the extended
+    conversion's embeddings (more than KDTREE_MAX_DIM coordinates, a few carry the spread)
+    ``auto`` takes the kd-tree and returns the brute force's answer."""
+    from prodmaps import p2p
+
+    rng = np.random.default_rng(4)
+    assert p2p.effective_dimension(rng.normal(size=(4000, 50))) == pytest.approx(50, rel=0.05)
+    assert p2p.effective_dimension(np.c_[rng.normal(size=(100, 1)), np.zeros((100, 9))]) == pytest.approx(1.0)
+    assert p2p.effective_dimension(np.ones((5, 3))) == 0.0
+    C = rng.normal(size=(40, 30)) * 0.05 + np.eye(40, 30)
+    e1, e2, _ = extended_embeddings(C, basis_0.truncate(30), basis_13.truncate(40))
+    assert e1.shape[1] > p2p.KDTREE_MAX_DIM and p2p.effective_dimension(e1) <= p2p.KDTREE_MAX_EFFECTIVE_DIM
+    calls = []
+    real = p2p._nn_kdtree
+    monkeypatch.setattr(p2p, "_nn_kdtree", lambda *a: calls.append(1) or real(*a))
+    assert np.array_equal(nearest_neighbors(e2, e1), _brute_force(e2, e1))
+    assert calls == [1]
+    Q, P = rng.normal(size=(50, 60)), rng.normal(size=(80, 60))  # isotropic: the products
+    assert np.array_equal(nearest_neighbors(Q, P), _brute_force(Q, P)) and calls == [1]
