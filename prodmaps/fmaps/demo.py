@@ -6,12 +6,43 @@ descriptors and :func:`prodmaps.descriptors.wks` agree exactly.
 
 from __future__ import annotations
 
+from collections import OrderedDict
+
 import numpy as np
 
 from ..basis import Basis
 from ..descriptors.spectral import wks_energies_from_evals, wks_weights
 
 __all__ = ["no17_demo_descriptors"]
+
+MEMO_BYTES = 2.5e8  # kept descriptors (the most recent first) up to this many bytes
+_memo: OrderedDict = OrderedDict()  # key -> (basis, descriptors); the basis object is checked by identity
+
+
+def _shape_descriptors(basis: Basis, lms: np.ndarray, k: int, n_descr: int, step: int, scaled: bool) -> np.ndarray:
+    """One shape's ``[WKS, wave-kernel maps at lms]`` columns, every ``step``-th (see below).
+
+    Kept in a small LRU (``MEMO_BYTES``): experiments fit many maps from the same shape with the
+    same landmarks (every pair with the same source), and the result is a pure function of the
+    basis and the arguments, so a kept array is the array a new computation would give."""
+    key = (id(basis), basis.n, k, lms.tobytes(), int(n_descr), int(step), bool(scaled))
+    hit = _memo.get(key)
+    if hit is not None and hit[0] is basis:
+        _memo.move_to_end(key)
+        return hit[1]
+    Phi, ev = basis.vecs[:, :k], basis.evals[:k]
+    energies, sigma = wks_energies_from_evals(ev, n_descr)
+    w = wks_weights(ev, energies, sigma, scaled=scaled)  # (n_descr, k)
+    cols = [(Phi**2) @ w.T]  # (n, n_descr)
+    if lms.size:
+        maps = np.einsum("ek,lk,nk->nle", w, Phi[lms], Phi, optimize=True)  # (n, q, n_descr)
+        cols.append(maps.reshape(basis.n, -1))
+    out = np.concatenate(cols, axis=1)[:, ::step]
+    out.setflags(write=False)  # shared between callers
+    _memo[key] = (basis, out)
+    while len(_memo) > 1 and sum(v[1].nbytes for v in _memo.values()) > MEMO_BYTES:
+        _memo.popitem(last=False)
+    return out
 
 
 def no17_demo_descriptors(
@@ -40,7 +71,8 @@ def no17_demo_descriptors(
 
     ``landmarks``: None, ``(q,)`` (same indices on both shapes) or ``(q, 2)`` (column 0 on
     shape 1, column 1 on shape 2). No normalisation here (:func:`fit_no17` normalises).
-    Returns ``(descr_1 (n1, p), descr_2 (n2, p))``.
+    Returns ``(descr_1 (n1, p), descr_2 (n2, p))``, read-only arrays (one shape's descriptors
+    are kept and shared by later calls with the same basis, landmarks and settings).
     """
     if landmarks is None:
         l1 = l2 = np.zeros(0, dtype=np.int64)
@@ -63,12 +95,5 @@ def no17_demo_descriptors(
         k = basis.k if kd is None else min(int(kd), basis.k)
         if lms.size and (lms.min() < 0 or lms.max() >= basis.n):
             raise ValueError(f"landmark indices must be in [0, {basis.n})")
-        Phi, ev = basis.vecs[:, :k], basis.evals[:k]
-        energies, sigma = wks_energies_from_evals(ev, n_descr)
-        w = wks_weights(ev, energies, sigma, scaled=scaled)  # (n_descr, k)
-        cols = [(Phi**2) @ w.T]  # (n, n_descr)
-        if lms.size:
-            maps = np.einsum("ek,lk,nk->nle", w, Phi[lms], Phi, optimize=True)  # (n, q, n_descr)
-            cols.append(maps.reshape(basis.n, -1))
-        out.append(np.concatenate(cols, axis=1)[:, ::subsample_step])
+        out.append(_shape_descriptors(basis, lms, k, n_descr, subsample_step, scaled))
     return out[0], out[1]

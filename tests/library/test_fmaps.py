@@ -293,3 +293,21 @@ def test_icp_refine_recovers_the_identity_and_returns_partial_isometries(human_0
     assert np.array_equal(fmaps.icp_refine(C0, B, B, 0), C0)
     with pytest.raises(ValueError, match="n_iter"):
         fmaps.icp_refine(C0, B, B, -1)
+
+
+def test_demo_descriptors_are_kept_per_shape_and_equal_a_fresh_computation(basis_0, basis_13):
+    """A second fit from the same source shape reuses its descriptors (the same read-only
+    array), and a kept array equals what a new computation gives; other landmarks, another."""
+    from prodmaps.fmaps import demo
+
+    lm = np.array([[1, 2], [300, 400], [1000, 900]])
+    demo._memo.clear()
+    d1, d2 = fmaps.no17_demo_descriptors(basis_0, basis_13, lm, n_descr=40, subsample_step=3, k_descr=30)
+    e1, e2 = fmaps.no17_demo_descriptors(basis_0, basis_13, lm, n_descr=40, subsample_step=3, k_descr=30)
+    assert e1 is d1 and e2 is d2 and not d1.flags.writeable
+    demo._memo.clear()
+    f1, f2 = fmaps.no17_demo_descriptors(basis_0, basis_13, lm, n_descr=40, subsample_step=3, k_descr=30)
+    np.testing.assert_array_equal(f1, d1)
+    np.testing.assert_array_equal(f2, d2)
+    g1, _ = fmaps.no17_demo_descriptors(basis_0, basis_13, lm[:2], n_descr=40, subsample_step=3, k_descr=30)
+    assert g1 is not d1 and g1.shape[1] < d1.shape[1]
