@@ -514,10 +514,15 @@ def _dataset_section(d: "_Doc", ds: str, folder: Path, infos, published_rows, ba
         _table_summaries(d, present, published_rows, matches, heading=f"Tables on {name}: our values beside the "
                          "published ones", only_run=True, differences=False)
     for i in present:
-        if i.name in DATASET_FIGURE_RUNS and i.figures:
+        if i.name in DATASET_FIGURE_RUNS and i.figures and not (i.name == "study_normalization"
+                                                               and i.doc.get("results", {}).get("scores")):
             d.h(3, f"{i.name} on {name}" + (f" — {i.reproduces}" if i.reproduces else ""))
             _figures(d, i, base, copy_figures, prefix=f"{ds}/")
     _default_study_section(d, present, base, copy_figures, dataset=ds)
+    norm = next((i for i in present if i.name == "study_normalization" and i.doc.get("results", {}).get("scores")),
+                None)
+    if norm is not None:  # its scores and cell-by-cell table, as for the main dataset
+        _normalization_section(d, norm, base, copy_figures, ds)
 
 
 def _normalization_section(d: "_Doc", info, base: Path, copy_figures: bool, dataset: str) -> None:
