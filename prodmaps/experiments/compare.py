@@ -33,7 +33,9 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 
-__all__ = ["TIE_REL", "ROUNDING_REL", "OUTCOMES", "relative_difference", "compare", "is_tie", "lower",
+import numpy as np
+
+__all__ = ["TIE_REL", "ROUNDING_REL", "OUTCOMES", "relative_difference", "compare", "is_tie", "tie_mask", "lower",
            "not_higher", "count_outcomes"]
 
 TIE_REL = 1e-5
@@ -80,6 +82,19 @@ def compare(a: float, b: float, rel: float = TIE_REL) -> str:
 def is_tie(a: float, b: float, rel: float = TIE_REL) -> bool:
     """``compare(a, b, rel) == "tie"``."""
     return compare(a, b, rel) == "tie"
+
+
+def tie_mask(a, b, rel: float = TIE_REL) -> np.ndarray:
+    """:func:`is_tie` elementwise on arrays of errors: ``|a - b| <= rel * max(|a|, |b|)``
+    (``True`` where both are 0); broadcasts like ``a - b``.
+
+    Examples
+    --------
+    >>> tie_mask([0.1, 0.2, 0.0], [0.2, 0.2 * (1 + 1e-12), 0.0]).tolist()
+    [False, True, True]
+    """
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    return np.abs(a - b) <= rel * np.maximum(np.abs(a), np.abs(b))
 
 
 def lower(a: float, b: float, rel: float = TIE_REL) -> bool:

@@ -105,7 +105,7 @@ def single_function_excess(result, pairs) -> dict:
     out = {}
     for m in METHODS[1:]:
         M = np.array(by_m[m])  # (pairs, m)
-        E = np.where(np.abs(M - S) <= compare.TIE_REL * np.maximum(np.abs(M), np.abs(S)), 0.0, M - S)  # ties: 0
+        E = np.where(compare.tie_mask(M, S), 0.0, M - S)  # ties: 0
         i, j = np.unravel_index(int(np.argmax(E)), E.shape)
         out[method_label(m)] = {"worst_excess": float(E[i, j]), "worst_family": str(fam_of[j]),
                                 "worst_pair": list(pairs[i]), "above_0.01": int((E > 0.01).sum()),

@@ -2,6 +2,7 @@
 
 import math
 
+import numpy as np
 import pytest
 
 from prodmaps.experiments import claims, compare
@@ -81,3 +82,17 @@ def test_explain_cell_separates_reproduced_data_and_unexplained():
     why = explain_cell(0.25, 0.217, 0.47, 0.451)  # the control matches: not explained by the data
     assert "not explained" in why and "-0.033" in why and "-0.019" in why
     assert "not explained" in explain_cell(0.25, 0.2, None, 0.45)
+
+
+def test_tie_mask_is_is_tie_elementwise():
+    """The vectorised rule equals the scalar one on random pairs, at the tie boundary, and at 0."""
+    from prodmaps.experiments import compare as cmp
+
+    rng = np.random.default_rng(0)
+    a = rng.random(2000)
+    b = a * (1 + rng.choice([0.0, 1e-12, 5e-6, 2e-5, -3e-5, 0.5], size=a.size))
+    a[:3], b[:3] = 0.0, [0.0, 1e-300, 0.0]
+    mask = cmp.tie_mask(a, b)
+    assert mask.shape == a.shape and mask.dtype == bool
+    assert mask.tolist() == [cmp.is_tie(x, y) for x, y in zip(a, b)]
+    assert 0 < mask.sum() < a.size
