@@ -236,8 +236,8 @@ def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=N
         :func:`all_pairs`; pass it when evaluating many maps onto the same shape); then no
         distance is computed.
     batch : number of sources per solver batch (memory ``batch * n1`` floats).
-    rows : optional :class:`DistanceRows` of shape 1 shared between calls (its method is used,
-        the numbers are the same): sources solved by an earlier call are not solved again.
+    rows : optional :class:`DistanceRows` of shape 1 (same ``method``) shared between calls, the
+        numbers are the same: sources solved by an earlier call are not solved again.
 
     Returns
     -------
@@ -276,6 +276,8 @@ def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=N
         if rows is not None and rows.mesh is not mesh_1 and (
                 rows.n != mesh_1.n_vertices or mesh_key(rows.mesh) != mesh_key(mesh_1)):
             raise ValueError("rows (DistanceRows) belong to another mesh than mesh_1")
+        if rows is not None and rows.method != method:
+            raise ValueError(f"rows compute {rows.method!r} distances but method={method!r}")
         solver = rows if rows is not None else (_HeatSolver(mesh_1) if method == "heat" else None)
         for b, start in enumerate(range(0, src.size, batch)):
             chunk = src[start:start + batch]

@@ -100,7 +100,7 @@ class ShapeStore:
         self._mesh: dict[str, Mesh] = {}
         self._basis: dict[str, Basis] = {}
         self._family_cache: dict[str, Cache] = {}
-        self._rows: dict[str, DistanceRows] = {}  # the last two shapes' kept distance rows
+        self._rows = Cache(max_entries=2)  # sid -> DistanceRows of the two most recently used shapes
         self.memo = Cache(max_entries=512)  # per-process values of the experiments (maps, descriptors)
 
     # ---------------------------------------------------------------- per shape
@@ -116,13 +116,7 @@ class ShapeStore:
         """Heat-method distance rows of shape ``sid``, kept across calls
         (:class:`prodmaps.geodesics.DistanceRows`: the same numbers, each source solved once).
         Rows of the two most recently used shapes are kept (memory ``8 n`` bytes a row)."""
-        if sid not in self._rows:
-            while len(self._rows) >= 2:
-                self._rows.pop(next(iter(self._rows)))
-            self._rows[sid] = DistanceRows(self.mesh(sid))
-        else:
-            self._rows[sid] = self._rows.pop(sid)  # most recent last
-        return self._rows[sid]
+        return self._rows.get(sid, lambda: DistanceRows(self.mesh(sid)))
 
     def mesh_key(self, sid: str) -> str:
         return self.memo.get(("mesh_key", sid), lambda: mesh_key(self.mesh(sid)))

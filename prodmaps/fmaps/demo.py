@@ -6,17 +6,18 @@ descriptors and :func:`prodmaps.descriptors.wks` agree exactly.
 
 from __future__ import annotations
 
-from collections import OrderedDict
-
 import numpy as np
 
 from ..basis import Basis
+from ..cache import Cache
 from ..descriptors.spectral import wks_energies_from_evals, wks_weights
 
 __all__ = ["no17_demo_descriptors"]
 
-MEMO_BYTES = 2.5e8  # kept descriptors (the most recent first) up to this many bytes
-_memo: OrderedDict = OrderedDict()  # key -> (basis, descriptors); the basis object is checked by identity
+MEMO_BYTES = 250_000_000  # kept descriptors (least recently used dropped first) up to this many bytes
+# key -> (basis, descriptors): keying by id(basis) is safe because the entry holds the basis itself,
+# so no other object can take its id while the entry lives
+_memo = Cache(max_entries=64, max_bytes=MEMO_BYTES)
 
 
 def _shape_descriptors(basis: Basis, lms: np.ndarray, k: int, n_descr: int, step: int, scaled: bool) -> np.ndarray:
@@ -25,11 +26,9 @@ def _shape_descriptors(basis: Basis, lms: np.ndarray, k: int, n_descr: int, step
     Kept in a small LRU (``MEMO_BYTES``): experiments fit many maps from the same shape with the
     same landmarks (every pair with the same source), and the result is a pure function of the
     basis and the arguments, so a kept array is the array a new computation would give."""
-    key = (id(basis), basis.n, k, lms.tobytes(), int(n_descr), int(step), bool(scaled))
-    hit = _memo.get(key)
-    if hit is not None and hit[0] is basis:
-        _memo.move_to_end(key)
-        return hit[1]
+    key = (id(basis), k, lms.tobytes(), int(n_descr), int(step), bool(scaled))
+    if key in _memo:
+        return _memo.get(key, None)[1]
     Phi, ev = basis.vecs[:, :k], basis.evals[:k]
     energies, sigma = wks_energies_from_evals(ev, n_descr)
     w = wks_weights(ev, energies, sigma, scaled=scaled)  # (n_descr, k)
@@ -39,9 +38,7 @@ def _shape_descriptors(basis: Basis, lms: np.ndarray, k: int, n_descr: int, step
         cols.append(maps.reshape(basis.n, -1))
     out = np.concatenate(cols, axis=1)[:, ::step]
     out.setflags(write=False)  # shared between callers
-    _memo[key] = (basis, out)
-    while len(_memo) > 1 and sum(v[1].nbytes for v in _memo.values()) > MEMO_BYTES:
-        _memo.popitem(last=False)
+    _memo.put(key, (basis, out))
     return out
 
 

@@ -513,16 +513,20 @@ def _dataset_section(d: "_Doc", ds: str, folder: Path, infos, published_rows, ba
         matches, _ = match_entries(entries, published_rows)
         _table_summaries(d, present, published_rows, matches, heading=f"Tables on {name}: our values beside the "
                          "published ones", only_run=True, differences=False)
+    norm = _normalization_run(present)  # gets its own section (scores, cells, figure) below
     for i in present:
-        if i.name in DATASET_FIGURE_RUNS and i.figures and not (i.name == "study_normalization"
-                                                               and i.doc.get("results", {}).get("scores")):
+        if i.name in DATASET_FIGURE_RUNS and i.figures and i is not norm:
             d.h(3, f"{i.name} on {name}" + (f" — {i.reproduces}" if i.reproduces else ""))
             _figures(d, i, base, copy_figures, prefix=f"{ds}/")
     _default_study_section(d, present, base, copy_figures, dataset=ds)
-    norm = next((i for i in present if i.name == "study_normalization" and i.doc.get("results", {}).get("scores")),
-                None)
-    if norm is not None:  # its scores and cell-by-cell table, as for the main dataset
+    if norm is not None:
         _normalization_section(d, norm, base, copy_figures, ds)
+
+
+def _normalization_run(infos):
+    """The ``study_normalization`` run among ``infos`` if it has scores, else None."""
+    return next((i for i in infos if i.name == "study_normalization" and i.doc
+                 and i.doc.get("results", {}).get("scores")), None)
 
 
 def _normalization_section(d: "_Doc", info, base: Path, copy_figures: bool, dataset: str) -> None:
@@ -627,7 +631,7 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
         _table_summaries(d, infos, published_rows, matches)
     for ds, (folder, _) in others.items():
         _dataset_section(d, ds, folder, collect_runs(folder, registry), published_rows, base, copy_figures)
-    norm = next((i for i in infos if i.name == "study_normalization" and i.doc), None)
+    norm = _normalization_run(infos)
     if norm is not None:
         _normalization_section(d, norm, base, copy_figures, norm.doc.get("results", {}).get("dataset", "anny_humans"))
     _study_section(d, infos, base, copy_figures)

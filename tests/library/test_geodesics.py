@@ -195,3 +195,6 @@ def test_distance_rows_reuse_solves_and_keep_the_numbers(sphere3, method):
     np.testing.assert_array_equal(small(np.arange(10)), geo.distances(sphere3, np.arange(10), method=method))
     with pytest.raises(ValueError, match="another mesh"):
         geo.map_error(icosphere(2), p2p[:5] % 162, truth[:5] % 162, rows=rows)
+    other = "graph" if method == "heat" else "heat"
+    with pytest.raises(ValueError, match="distances but method"):
+        geo.map_error(sphere3, p2p, truth, method=other, rows=rows)
