@@ -162,9 +162,37 @@ def check_basis(basis, name: str = "basis") -> Basis:
     return basis
 
 
-def fix_signs(vecs: np.ndarray) -> np.ndarray:
-    """Flip columns so the entry of largest magnitude of each column is positive."""
-    idx = np.argmax(np.abs(vecs), axis=0)  # (k,)
+SIGN_TIE_RTOL = 1e-6
+"""Entries within this relative distance of a column's largest magnitude count as tied for it."""
+
+
+def fix_signs(vecs: np.ndarray, rtol: float = SIGN_TIE_RTOL) -> np.ndarray:
+    """Flip columns so the entry of largest magnitude of each column is positive.
+
+    Ties are settled by index, not by rounding: among the entries whose magnitude is within
+    ``rtol`` (relative) of the column's largest, the one of **smallest row index** decides.
+    Why: on a shape with a reflection symmetry an odd eigenfunction takes ``+m`` and ``-m`` at
+    mirrored vertices, and which of the two is larger in floating point (a difference of
+    ~1e-15) depends on the BLAS kernel, so a plain ``argmax`` flips the sign from machine to
+    machine. Columns without such a tie get the same sign as with a plain ``argmax`` (entries
+    near a single extremum share its sign).
+
+    Parameters
+    ----------
+    vecs : (n, k) ndarray
+    rtol : float
+        Relative width of the tie band; 1e-6 is far above the solvers' rounding and far below
+        the gaps of generic eigenfunctions' extrema.
+
+    Returns
+    -------
+    (n, k) ndarray
+        ``vecs`` with some columns negated.
+    """
+    a = np.abs(vecs)  # (n, k)
+    top = a.max(axis=0)  # (k,)
+    tied = a >= (1.0 - rtol) * top  # (n, k), at least one True per column
+    idx = np.argmax(tied, axis=0)  # (k,) first (smallest-index) tied row
     s = np.sign(vecs[idx, np.arange(vecs.shape[1])])
     s[s == 0] = 1.0
     return vecs * s
@@ -232,7 +260,8 @@ def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped") ->
             f"eigenbasis needs a connected mesh: {mesh.name or 'this mesh'} has {ncomp} connected components "
             f"(vertex counts {sorted(sizes.tolist(), reverse=True)[:5]}); each has its own constant eigenfunction, "
             "so the conventions (one constant column, A-orthonormal) cannot hold. Keep the largest with "
-            "pm.mesh.largest_component(mesh.vertices, mesh.faces), or load with pm.load_mesh_repaired(path)")
+            "pm.mesh.largest_component(mesh.vertices, mesh.faces), or load with pm.load_mesh_repaired(path)"
+        )
     W, A = laplacian(mesh, kind=kind, mass=mass)
     evals, vecs = smallest_eigenpairs(W, A, k)  # ascending, A-normalised
     # fix the constant exactly (round-off only) and the signs
@@ -330,15 +359,19 @@ def from_arrays(vecs, evals, mass, *, name: str = "", atol: float = 1e-6) -> Bas
         raise ValueError(f"mass must have one area weight per vertex ({V.shape[0]},); got {mass_v.shape}")
     c = V[:, 0]
     if np.max(np.abs(c - c.mean())) > atol * abs(c.mean()) or c.mean() == 0:
-        raise ValueError("the first column of vecs is not constant: prodmaps bases have the constant "
-                         "eigenfunction first (sort the eigenpairs by eigenvalue)")
+        raise ValueError(
+            "the first column of vecs is not constant: prodmaps bases have the constant "
+            "eigenfunction first (sort the eigenpairs by eigenvalue)"
+        )
     AV = mass_v @ V if sp.issparse(mass_v) else mass_v[:, None] * V
     G = V.T @ AV  # (k, k)
     dev = float(np.max(np.abs(G - np.eye(V.shape[1]))))
     if dev > atol:
-        raise ValueError(f"the eigenvectors are not orthonormal in the area inner product (max |ΦᵀAΦ - I| = "
-                         f"{dev:.2e}); pass the mass the eigenproblem was solved with (pyFM: vertex_areas), "
-                         "or A-normalise the columns")
+        raise ValueError(
+            f"the eigenvectors are not orthonormal in the area inner product (max |ΦᵀAΦ - I| = "
+            f"{dev:.2e}); pass the mass the eigenproblem was solved with (pyFM: vertex_areas), "
+            "or A-normalise the columns"
+        )
     if np.any(np.diff(ev) < -atol * max(abs(ev).max(), 1.0)) or abs(ev[0]) > atol * max(abs(ev).max(), 1.0):
         raise ValueError("evals must be ascending with the constant's eigenvalue 0 first")
     return Basis(V, ev, mass_v, name=name)

@@ -129,3 +129,48 @@ def test_shift_inside_the_spectrum_gives_the_safe_shifts_eigenpairs(human_0, mon
         assert len(shifts) == calls and shifts[0] > 0
         np.testing.assert_allclose(ev[1:], ev_safe[1:], rtol=1e-10)
         np.testing.assert_allclose(fix_signs(V[:, 1:]), fix_signs(V_safe[:, 1:]), atol=1e-8 * np.abs(V_safe).max())
+
+
+def test_fix_signs_settles_mirror_ties_by_index_not_rounding():
+    """An odd eigenfunction of a mirror-symmetric shape has +m and -m at mirrored vertices; which
+    magnitude is larger is rounding, so the sign must not depend on it (it did with argmax)."""
+    from prodmaps.basis import fix_signs
+    from prodmaps.mesh import ellipsoid
+
+    V = pm.eigenbasis(ellipsoid(2), 6).vecs[:, 1:]  # (162, 5), odd functions among them
+    a = np.abs(V)
+    top = a.max(axis=0)
+    opposite_tie = [
+        j
+        for j in range(V.shape[1])
+        if np.any((a[:, j] > top[j] * (1 - 1e-12)) & (np.sign(V[:, j]) != np.sign(V[np.argmax(a[:, j]), j])))
+    ]
+    assert opposite_tie, "the ellipsoid should have an exact mirror tie to test"
+    rng = np.random.default_rng(0)
+    for _ in range(20):  # perturbations at rounding level reorder the tied magnitudes
+        W = V * (1 + 1e-14 * rng.standard_normal(V.shape))
+        np.testing.assert_array_equal(np.sign(fix_signs(W)), np.sign(fix_signs(V)))
+    # the smallest-index tied entry is the positive one
+    F = fix_signs(V)
+    for j in opposite_tie:
+        i = int(np.flatnonzero(a[:, j] >= top[j] * (1 - 1e-6))[0])
+        assert F[i, j] > 0
+
+
+def test_fix_signs_without_ties_is_the_largest_entry_rule():
+    from prodmaps.basis import fix_signs
+
+    rng = np.random.default_rng(1)
+    V = rng.standard_normal((500, 8))
+    F = fix_signs(V)
+    idx = np.argmax(np.abs(V), axis=0)
+    assert np.all(F[idx, np.arange(8)] > 0)
+    np.testing.assert_array_equal(np.abs(F), np.abs(V))
+
+
+def test_truncated_and_longer_eigenbases_agree_on_a_symmetric_shape():
+    """The doctest's premise: k=4 and the first 4 of k=6 are the same functions with the same signs."""
+    from prodmaps.mesh import ellipsoid
+
+    b4, b6 = pm.eigenbasis(ellipsoid(2), 4), pm.eigenbasis(ellipsoid(2), 6)
+    np.testing.assert_allclose(b4.vecs, b6.vecs[:, :4], atol=1e-8)
