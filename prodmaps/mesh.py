@@ -94,9 +94,16 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 def edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unique undirected edges ``(e, 2)`` (sorted pairs) and how many faces use each ``(e,)``."""
+    faces = np.asarray(faces)
+    if faces.size == 0:
+        return np.zeros((0, 2), dtype=faces.dtype), np.zeros(0, dtype=np.int64)
     half = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])  # (3m, 2)
     half.sort(axis=1)
-    uniq, counts = np.unique(half, axis=0, return_counts=True)
+    # one int64 key a·n + b per edge (lexicographic order = key order): a 1D unique, ~10x faster
+    # than np.unique(axis=0), same answer
+    n = np.int64(half.max()) + 1
+    key, counts = np.unique(half[:, 0].astype(np.int64) * n + half[:, 1], return_counts=True)
+    uniq = np.column_stack([key // n, key % n]).astype(half.dtype, copy=False)
     return uniq, counts
 
 

@@ -85,11 +85,11 @@ def score_recipes(store: ShapeStore, pairs, recipes, *, k_M: int = 29, k_N: int 
             e = relative_error(b2.vecs @ (maps[r] @ a), G, b2.mass)  # (m,)
             for f in fams:
                 out["transfer"][r][f].append(float(np.mean(e[cols[f]])))
-        p2p = np.stack([from_fmap(maps[r], b1, b2, "std") for r in names])  # (len(names), n2)
         idx = np.arange(b2.n)
         if n_eval is not None and n_eval < b2.n:
             idx = np.sort(np.random.default_rng([seed, ip]).choice(b2.n, int(n_eval), replace=False))
-        geo = map_error(store.mesh(s1), p2p[:, idx], gt[idx],
+        p2p = np.stack([from_fmap(maps[r], b1, b2, "std", vertices=idx) for r in names])  # (len(names), n_eval)
+        geo = map_error(store.mesh(s1), p2p, gt[idx],
                         rows=store.distance_rows(s1)).mean(axis=1)  # (len(names),)
         for r, g in zip(names, geo):
             out["geo_error"][r].append(float(g))

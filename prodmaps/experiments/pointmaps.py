@@ -64,7 +64,7 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
                 timing["no17"] += time.perf_counter() - t1
             for method in CONVERSIONS:
                 t1 = time.perf_counter()
-                recovered[m, method] = from_fmap(C, b1, b2, method)[ev]  # (n_eval,) target vertex -> source vertex
+                recovered[m, method] = from_fmap(C, b1, b2, method, vertices=ev)  # (n_eval,) target -> source vertex
                 timing[method] += time.perf_counter() - t1
         # all maps of the pair against the same truth: geodesics from the true images computed once
         E = geodesics.map_error(store.mesh(s1), np.stack(list(recovered.values())), gt[ev],

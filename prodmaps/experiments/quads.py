@@ -175,7 +175,7 @@ def point_map_quad_transport(dataset: str, source_id: str, target_id: str, ks, *
         C_21 = fmap_from_p2p(p2p_12_true, b2, b1)  # (k1, k2): target -> source, ground truth
         for method in ("std", "extended"):
             t0 = time.perf_counter()
-            tv = from_fmap(C_21, b2, b1, method)[src_v]  # target vertex of each quad vertex
+            tv = from_fmap(C_21, b2, b1, method, vertices=src_v)  # target vertex of each quad vertex
             verr = geodesics.map_error(mesh_2, tv, p2p_12_true[src_v])  # (m,) on the target
             m_, _, _ = quad_measures(mesh_2.vertices, tv, V_true, quads)
             m_.update({"vertex_error_mean": float(verr.mean()), "vertex_error_median": float(np.median(verr)),

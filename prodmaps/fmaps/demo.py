@@ -32,11 +32,16 @@ def _shape_descriptors(basis: Basis, lms: np.ndarray, k: int, n_descr: int, step
     Phi, ev = basis.vecs[:, :k], basis.evals[:k]
     energies, sigma = wks_energies_from_evals(ev, n_descr)
     w = wks_weights(ev, energies, sigma, scaled=scaled)  # (n_descr, k)
-    cols = [(Phi**2) @ w.T]  # (n, n_descr)
-    if lms.size:
-        maps = np.einsum("ek,lk,nk->nle", w, Phi[lms], Phi, optimize=True)  # (n, q, n_descr)
-        cols.append(maps.reshape(basis.n, -1))
-    out = np.concatenate(cols, axis=1)[:, ::step]
+    n_descr = w.shape[0]
+    # column j of [WKS (n_descr), maps (q·n_descr, landmark-major)] is kept when j % step == 0;
+    # only the kept wave-kernel maps are computed, by one product Φ (w_e ⊙ φ(l))ᵀ
+    cols = [((Phi**2) @ w.T)[:, ::step]]  # (n, ceil(n_descr / step))
+    j = np.arange(n_descr + lms.size * n_descr)[::step]
+    j = j[j >= n_descr] - n_descr  # kept map columns, as (landmark, energy) = divmod(j, n_descr)
+    if j.size:
+        li, ei = np.divmod(j, n_descr)
+        cols.append(Phi @ (w[ei] * Phi[lms[li]]).T)  # (n, kept maps)
+    out = np.concatenate(cols, axis=1)
     out.setflags(write=False)  # shared between callers
     _memo.put(key, (basis, out))
     return out

@@ -57,7 +57,7 @@ class ParameterError(ValueError):
 # ------------------------------------------------------------------------------ one notebook
 def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *,
                  timeout: float | None = None, cwd=None, executed_name: str = "executed.ipynb",
-                 html: bool = True, shown_out_dir: str | None = None):
+                 html: bool = True, shown_out_dir: str | None = None, shown_notebook: str | None = None):
     """Execute ``notebook`` with papermill, writing into ``out_dir``; return the executed notebook path.
 
     ``out_dir`` is passed to the notebook as the ``out_dir`` parameter (absolute path) and the
@@ -66,7 +66,8 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
     notebook with the traceback is still written, and rendered as HTML). ``timeout`` is per
     cell, in seconds. With ``html`` the executed notebook is also written as ``executed.html``.
     ``shown_out_dir`` replaces ``out_dir`` in the executed notebook's injected parameters cell
-    (the batch runner executes into a temporary folder and shows the run's own folder).
+    (the batch runner executes into a temporary folder and shows the run's own folder), and in
+    papermill's metadata, whose ``input_path`` becomes ``shown_notebook`` when given.
     """
     import papermill as pm_
 
@@ -83,7 +84,7 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
         )
     finally:
         if shown_out_dir is not None and executed.is_file():
-            _show_out_dir(executed, str(out), shown_out_dir)
+            _show_out_dir(executed, str(out), shown_out_dir, shown_notebook)
         if html and executed.is_file():
             try:
                 export_html(executed)
@@ -92,18 +93,28 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
     return executed
 
 
-def _show_out_dir(executed: Path, actual: str, shown: str) -> None:
-    """Write ``shown`` for ``actual`` in the injected parameters cell of ``executed``."""
+def _show_out_dir(executed: Path, actual: str, shown: str, notebook_shown: str | None = None) -> None:
+    """Write ``shown`` for ``actual`` in the injected parameters cell and papermill's metadata.
+
+    The executed notebook is a committed record: it must name the run's folder as the results
+    show it (relative, see :func:`_shown_path`), not the machine's temporary folder, and the
+    source notebook as ``notebook_shown`` (relative to the project root).
+    """
     import nbformat
 
     nb = nbformat.read(executed, as_version=4)
-    changed = False
     for cell in nb.cells:
         if "injected-parameters" in cell.get("metadata", {}).get("tags", []) and actual in cell.source:
             cell.source = cell.source.replace(actual, shown)
-            changed = True
-    if changed:
-        nbformat.write(nb, executed)
+    meta = nb.metadata.get("papermill")
+    if isinstance(meta, dict):
+        if notebook_shown is not None:
+            meta["input_path"] = notebook_shown
+        meta["output_path"] = f"{shown}/{executed.name}"
+        par = meta.get("parameters")
+        if isinstance(par, dict) and par.get("out_dir") == actual:
+            par["out_dir"] = shown
+    nbformat.write(nb, executed)
 
 
 # ------------------------------------------------------------------------------ run loop
@@ -132,12 +143,16 @@ def _output_files(folder: Path) -> dict:
 
 
 def _shown_path(final: Path, root: Path) -> str:
-    """``final`` relative to ``root`` when inside it (as results.json records it), else absolute."""
+    """How the records (results.json, the executed notebook) name a run folder or notebook.
+
+    Relative to the project ``root`` when inside it; otherwise ``<out>/<profile folder>/<run>``,
+    the run's place under the ``--out`` folder, so no machine path is recorded.
+    """
     final, root = Path(final).resolve(), Path(root).resolve()
     try:
         return final.relative_to(root).as_posix()
     except ValueError:
-        return str(final)
+        return f"<out>/{final.parent.name}/{final.name}"
 
 
 def _relocate_out_dir(results: Path, tmp: Path, final: Path, root: Path) -> None:
@@ -150,10 +165,7 @@ def _relocate_out_dir(results: Path, tmp: Path, final: Path, root: Path) -> None
         return
     par = doc.get("parameters")
     if isinstance(par, dict) and isinstance(par.get("out_dir"), str) and Path(par["out_dir"]) == tmp:
-        try:
-            par["out_dir"] = final.relative_to(root).as_posix()
-        except ValueError:
-            par["out_dir"] = str(final)
+        par["out_dir"] = _shown_path(final, root)
         results.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
 
 
@@ -214,7 +226,8 @@ def _execute_task(task: dict) -> dict:
         with _stderr_to(tmp / "kernel.log"):
             run_notebook(task["notebook"], tmp, task["params"], task.get("kernel_name", "python3"),
                          timeout=task.get("timeout"), cwd=task.get("cwd"),
-                         shown_out_dir=_shown_path(target, Path(task.get("cwd") or Path.cwd())))
+                         shown_out_dir=_shown_path(target, Path(task.get("cwd") or Path.cwd())),
+                         shown_notebook=_shown_path(Path(task["notebook"]), Path(task.get("cwd") or Path.cwd())))
         _relocate_out_dir(tmp / "results.json", tmp, target, Path(task.get("cwd") or Path.cwd()))
         if not (tmp / "results.json").is_file():
             raise RuntimeError("the notebook finished but wrote no results.json into out_dir")
@@ -233,7 +246,8 @@ def _execute_task(task: dict) -> dict:
     status = "failed" if error else "ok"
     manifest = {
         "run": name, "profile": task["profile"], "status": status, "hash": task["hash"],
-        "inputs": task["inputs"], "notebook": task["notebook"], "seconds": round(seconds, 3),
+        "inputs": task["inputs"], "notebook": _shown_path(Path(task["notebook"]), Path(task.get("cwd") or Path.cwd())),
+        "seconds": round(seconds, 3),
         "finished": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "python": sys.version.split()[0], "outputs": _output_files(tmp),
     }

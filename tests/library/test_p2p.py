@@ -197,3 +197,17 @@ def test_effective_dimension_and_auto_on_extended_embeddings(basis_0, basis_13, 
     assert calls == [1]
     Q, P = rng.normal(size=(50, 60)), rng.normal(size=(80, 60))  # isotropic: the products
     assert np.array_equal(nearest_neighbors(Q, P), _brute_force(Q, P)) and calls == [1]
+
+
+@pytest.mark.parametrize("method", ["std", "extended"])
+def test_from_fmap_on_sampled_vertices_is_the_full_map_sampled(basis_0, basis_13, method):
+    b1, b2 = basis_0.truncate(12), basis_13.truncate(16)
+    C = np.random.default_rng(2).normal(size=(16, 12))
+    full = from_fmap(C, b1, b2, method)  # (n2,)
+    ev = np.sort(np.random.default_rng(3).choice(b2.n, 300, replace=False))
+    np.testing.assert_array_equal(from_fmap(C, b1, b2, method, vertices=ev), full[ev])
+    assert from_fmap(C, b1, b2, method, vertices=ev[:0]).shape == (0,)
+    with pytest.raises(ValueError, match="vertices must lie"):
+        from_fmap(C, b1, b2, method, vertices=np.array([b2.n]))
+    with pytest.raises(ValueError, match="integer"):
+        from_fmap(C, b1, b2, method, vertices=ev.astype(float))

@@ -388,6 +388,33 @@ def test_executed_notebook_shows_its_figures_and_its_own_output_folder(project, 
     assert "<img" in (run / "executed.html").read_text()
 
 
+def test_records_of_a_run_outside_the_project_hold_no_machine_path(project, tmp_path_factory, capsys):
+    """--out outside the project: manifest, results.json and the executed notebook (its injected
+    cell and papermill's metadata) name the run as <out>/<profile>/<run> and the notebook relative
+    to the project, never the machine's folders."""
+    nb = nbformat.v4.new_notebook()
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    nb.cells = [nbformat.v4.new_code_cell('profile = "smoke"\nout_dir = "results/x"',
+                                          metadata={"tags": ["parameters"]}),
+                nbformat.v4.new_code_cell(FIGURE_BODY)]
+    nbformat.write(nb, str(project / "notebooks" / "tiny_fig.ipynb"))
+    write_registry(project, {"tiny_fig": ("notebooks/tiny_fig.ipynb", {})})
+    elsewhere = tmp_path_factory.mktemp("elsewhere")
+    out = elsewhere / "runs"
+    rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(out), "--only", "tiny_fig"], capsys)
+    run = out / "smoke" / "tiny_fig"
+    assert rc == 0, text
+    manifest = json.loads((run / "manifest.json").read_text())
+    assert manifest["notebook"] == "notebooks/tiny_fig.ipynb"
+    assert json.loads((run / "results.json").read_text())["parameters"]["out_dir"] == "<out>/smoke/tiny_fig"
+    meta = nbformat.read(str(run / "executed.ipynb"), as_version=4).metadata["papermill"]
+    assert meta["input_path"] == "notebooks/tiny_fig.ipynb"
+    assert meta["output_path"] == "<out>/smoke/tiny_fig/executed.ipynb"
+    for f in ("manifest.json", "results.json", "executed.ipynb"):
+        text = (run / f).read_text()
+        assert str(elsewhere) not in text and str(project) not in text, f
+
+
 def test_setup_matplotlib_outside_a_kernel_is_agg():
     code = ("from prodmaps.experiments.results import setup_matplotlib; import matplotlib; "
             "setup_matplotlib(); print(matplotlib.get_backend())")
