@@ -124,20 +124,27 @@ class DistanceRows:
         self.max_rows = max(1, int(max_bytes // (8 * self.n)))
         self._solver = _HeatSolver(mesh) if method == "heat" else None
         self._slot = np.full(self.n, -1, dtype=np.int64)  # (n,) row of each kept source, -1 if none
-        self._data = np.empty((0, self.n))  # (kept, n)
+        self._data = np.empty((0, self.n))  # (capacity, n); rows [0, _count) are kept
+        self._count = 0
         self.n_solved = 0
 
     def __call__(self, sources) -> np.ndarray:
         src = _check_sources(self.mesh, sources)
         need = np.unique(src[self._slot[src] < 0])
         if need.size:
-            if self._data.shape[0] + need.size > self.max_rows:  # start over
+            if self._count + need.size > self.max_rows:  # start over
                 self._slot[:] = -1
-                self._data = np.empty((0, self.n))
+                self._count = 0
                 need = np.unique(src)
             new = self._solver(need) if self._solver is not None else distances(self.mesh, need, self.method)
-            self._slot[need] = self._data.shape[0] + np.arange(need.size)
-            self._data = np.concatenate([self._data, new]) if self._data.size else new
+            end = self._count + need.size
+            if end > self._data.shape[0]:  # grow geometrically: kept rows are copied O(log) times, not per call
+                grown = np.empty((min(max(end, 2 * self._data.shape[0]), max(self.max_rows, end)), self.n))
+                grown[: self._count] = self._data[: self._count]
+                self._data = grown
+            self._data[self._count : end] = new
+            self._slot[need] = self._count + np.arange(need.size)
+            self._count = end
             self.n_solved += int(need.size)
         return self._data[self._slot[src]]
 

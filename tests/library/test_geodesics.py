@@ -193,6 +193,13 @@ def test_distance_rows_reuse_solves_and_keep_the_numbers(sphere3, method):
     np.testing.assert_array_equal(shared, geo.map_error(sphere3, p2p, truth, method=method))
     small = geo.DistanceRows(sphere3, method, max_bytes=8 * sphere3.n_vertices * 4)  # keeps 4 rows
     np.testing.assert_array_equal(small(np.arange(10)), geo.distances(sphere3, np.arange(10), method=method))
+    # rows arriving a few at a time (the storage grows, then starts over at the bound)
+    grow = geo.DistanceRows(sphere3, method, max_bytes=8 * sphere3.n_vertices * 9)  # keeps 9 rows
+    ref = geo.distances(sphere3, np.arange(14), method=method)
+    for i0 in range(0, 14, 2):
+        np.testing.assert_array_equal(grow(np.arange(i0, i0 + 2)), ref[i0 : i0 + 2])
+        np.testing.assert_array_equal(grow(np.arange(i0 + 2)[-3:]), ref[: i0 + 2][-3:])
+        assert grow._data.shape[0] <= 9
     with pytest.raises(ValueError, match="another mesh"):
         geo.map_error(icosphere(2), p2p[:5] % 162, truth[:5] % 162, rows=rows)
     other = "graph" if method == "heat" else "heat"
