@@ -152,6 +152,7 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
                 ext1 = product_basis(b1, order=2, pairs=s.pairs_convention)
                 ext2 = product_basis(b2, order=2, pairs=s.pairs_convention)
                 Ct = extend_fmap(C, b1, b2, order=2, pairs=s.pairs_convention)  # (K2, K1)
+                coefs = {}  # method -> (K1, m): evaluated together below, one pass over each extended basis
                 for m in prod_methods:
                     if m == "p2p":
                         continue
@@ -169,8 +170,14 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
                                                                 else {"normalization": s.normalization}))
                     else:
                         op = _operator(ext1, m, s)
-                    a = op.coefficients(F)  # (K1, m)
-                    outputs[m] = (ext1.evaluate(a), ext2.evaluate(Ct @ a))
+                    coefs[m] = op.coefficients(F)  # (K1, m)
+                    outputs[m] = None  # keeps the methods' order
+                if coefs:
+                    a = np.concatenate(list(coefs.values()), axis=1)  # (K1, m·methods)
+                    fa, ft = ext1.evaluate(a), ext2.evaluate(Ct @ a)  # (n1, ·), (n2, ·)
+                    for j, m in enumerate(coefs):
+                        sl = slice(j * F.shape[1], (j + 1) * F.shape[1])
+                        outputs[m] = (fa[:, sl], ft[:, sl])
                 if "B" in prod_methods:
                     ranks[(kM, kN)].append(int(_operator(ext1, "B", s).rank))
             for m, (fa, ft) in outputs.items():
