@@ -106,6 +106,11 @@ def _show_out_dir(executed: Path, actual: str, shown: str, notebook_shown: str |
     for cell in nb.cells:
         if "injected-parameters" in cell.get("metadata", {}).get("tags", []) and actual in cell.source:
             cell.source = cell.source.replace(actual, shown)
+        for i, out in enumerate(cell.get("outputs", [])):  # e.g. a printed or returned path of out_dir
+            text = json.dumps(out)
+            if actual in text:
+                cell.outputs[i] = nbformat.from_dict(json.loads(text.replace(json.dumps(actual)[1:-1],
+                                                                             json.dumps(shown)[1:-1])))
     meta = nb.metadata.get("papermill")
     if isinstance(meta, dict):
         if notebook_shown is not None:

@@ -396,7 +396,8 @@ def test_records_of_a_run_outside_the_project_hold_no_machine_path(project, tmp_
     nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
     nb.cells = [nbformat.v4.new_code_cell('profile = "smoke"\nout_dir = "results/x"',
                                           metadata={"tags": ["parameters"]}),
-                nbformat.v4.new_code_cell(FIGURE_BODY)]
+                nbformat.v4.new_code_cell(FIGURE_BODY),
+                nbformat.v4.new_code_cell("print(out_dir)\nimport pathlib; pathlib.Path(out_dir) / 'results.json'")]
     nbformat.write(nb, str(project / "notebooks" / "tiny_fig.ipynb"))
     write_registry(project, {"tiny_fig": ("notebooks/tiny_fig.ipynb", {})})
     elsewhere = tmp_path_factory.mktemp("elsewhere")
@@ -410,9 +411,11 @@ def test_records_of_a_run_outside_the_project_hold_no_machine_path(project, tmp_
     meta = nbformat.read(str(run / "executed.ipynb"), as_version=4).metadata["papermill"]
     assert meta["input_path"] == "notebooks/tiny_fig.ipynb"
     assert meta["output_path"] == "<out>/smoke/tiny_fig/executed.ipynb"
-    for f in ("manifest.json", "results.json", "executed.ipynb"):
+    for f in ("manifest.json", "results.json", "executed.ipynb", "executed.html"):
         text = (run / f).read_text()
         assert str(elsewhere) not in text and str(project) not in text, f
+    last = nbformat.read(str(run / "executed.ipynb"), as_version=4).cells[-1].outputs
+    assert last[0]["text"].strip() == "<out>/smoke/tiny_fig"  # the printed folder, shown as recorded
 
 
 def test_setup_matplotlib_outside_a_kernel_is_agg():
