@@ -173,7 +173,10 @@ def test_demo_descriptors_layout(demo):
     energies, sigma = pm.descriptors.wks_energies(b1.truncate(60), E)
     np.testing.assert_allclose(d1[:, :E], pm.descriptors.wks(b1.truncate(60), energies, sigma), rtol=1e-12)
     sub, _ = fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=E, subsample_step=5, k_descr=60)
-    assert np.array_equal(sub, d1[:, ::5])
+    # the kept columns only are computed (one product whose rounding depends on how many columns
+    # the BLAS kernel sees): the same columns to rounding, not bit for bit
+    assert sub.shape == d1[:, ::5].shape
+    np.testing.assert_allclose(sub, d1[:, ::5], rtol=1e-12, atol=1e-14 * np.abs(d1).max())
     with pytest.raises(ValueError, match="empty energy range"):
         fmaps.no17_demo_descriptors(b1, b2, lm, n_descr=12, k_descr=60)
 
