@@ -12,7 +12,8 @@ Bases
   projection ``Φᵀ A f`` uses it.
 * ``W`` is the positive semi-definite cotangent stiffness; eigenpairs solve ``W φ = λ A φ``,
   ascending, ``λ0 = 0``. Signs are deterministic: the entry of largest magnitude of every
-  non-constant column is positive.
+  non-constant column is positive; entries within 1e-6 (relative) of it count as tied, and the
+  tied entry of smallest index is the positive one (mirror-symmetric shapes; :func:`prodmaps.basis.fix_signs`).
 
 What ``k`` counts
 -----------------

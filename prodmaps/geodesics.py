@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from .mesh import Mesh
+from .mesh import Mesh, check_vertex_indices
 
 __all__ = ["distances", "DistanceRows", "all_pairs", "map_error", "error_curve", "cache_dir", "mesh_key"]
 
@@ -63,14 +63,7 @@ def _check_sources(mesh: Mesh, sources) -> np.ndarray:
     src = np.atleast_1d(np.asarray(sources))
     if src.ndim != 1:
         raise ValueError(f"sources must be a vertex index or a 1-D array of indices; got shape {src.shape}")
-    if src.size and not np.issubdtype(src.dtype, np.integer):
-        raise ValueError(f"sources must be integer vertex indices; got dtype {src.dtype}")
-    src = src.astype(np.int64)
-    if src.size and (src.min() < 0 or src.max() >= mesh.n_vertices):
-        raise ValueError(
-            f"source indices out of range [0, {mesh.n_vertices}): min {int(src.min())}, max {int(src.max())}"
-        )
-    return src
+    return check_vertex_indices(src, mesh.n_vertices, "source")
 
 
 def _edge_graph(mesh: Mesh) -> sp.csr_matrix:
@@ -139,7 +132,7 @@ class DistanceRows:
             new = self._solver(need) if self._solver is not None else distances(self.mesh, need, self.method)
             end = self._count + need.size
             if end > self._data.shape[0]:  # grow geometrically: kept rows are copied O(log) times, not per call
-                grown = np.empty((min(max(end, 2 * self._data.shape[0]), max(self.max_rows, end)), self.n))
+                grown = np.empty((max(end, min(2 * self._data.shape[0], self.max_rows)), self.n))
                 grown[: self._count] = self._data[: self._count]
                 self._data = grown
             self._data[self._count : end] = new

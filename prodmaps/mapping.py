@@ -22,6 +22,7 @@ import scipy.sparse as sp
 
 from .approx import check_functions
 from .basis import Basis
+from .mesh import check_vertex_indices
 from .products import _n_orderings, multi_indices, product_basis
 
 __all__ = ["fmap_from_p2p", "extend_fmap", "transfer", "check_fmap", "check_p2p"]
@@ -33,11 +34,7 @@ def check_p2p(p2p_21, n1: int, n2: int) -> np.ndarray:
     if p.shape != (n2,):
         raise ValueError(f"p2p_21 must have shape (n2,) = ({n2},): one vertex of shape 1 per "
                          f"vertex of shape 2; got {p.shape}")
-    if not np.issubdtype(p.dtype, np.integer):
-        raise ValueError(f"p2p_21 must contain integer vertex indices, got dtype {p.dtype}")
-    if p.size and (p.min() < 0 or p.max() >= n1):
-        raise ValueError(f"p2p_21 indices must be in [0, {n1}); got range [{p.min()}, {p.max()}]")
-    return p.astype(np.int64)
+    return check_vertex_indices(p, n1, "p2p_21")
 
 
 def check_fmap(C_12, basis_1: Basis, basis_2: Basis, allow_truncation: bool = False) -> np.ndarray:

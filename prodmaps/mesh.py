@@ -33,6 +33,7 @@ __all__ = [
     "face_areas",
     "face_normals",
     "vertex_normals",
+    "check_vertex_indices",
     "edges",
     "boundary_edges",
     "largest_component",
@@ -90,6 +91,20 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
         np.add.at(vn, faces[:, c], fn)
     norm = np.linalg.norm(vn, axis=1, keepdims=True)
     return vn / np.where(norm > 0, norm, 1.0)
+
+
+def check_vertex_indices(idx, n: int, name: str = "indices") -> np.ndarray:
+    """``idx`` (any shape) as int64, after checking it holds integer vertex indices in ``[0, n)``.
+
+    The one check behind point maps (:func:`prodmaps.mapping.check_p2p`), geodesic sources and
+    sampled vertices; an empty array passes whatever its dtype.
+    """
+    p = np.asarray(idx)
+    if p.size and not np.issubdtype(p.dtype, np.integer):
+        raise ValueError(f"{name} must contain integer vertex indices, got dtype {p.dtype}")
+    if p.size and (p.min() < 0 or p.max() >= n):
+        raise ValueError(f"{name} indices out of range: they must be in [0, {n}), got [{p.min()}, {p.max()}]")
+    return p.astype(np.int64)
 
 
 def edges(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

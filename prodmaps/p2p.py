@@ -47,6 +47,7 @@ from __future__ import annotations
 import numpy as np
 
 from .basis import Basis
+from .mesh import check_vertex_indices
 
 __all__ = ["nearest_neighbors", "effective_dimension", "from_fmap", "heat_square_coefficients", "extended_embeddings"]
 
@@ -305,13 +306,9 @@ def from_fmap(
     C = _check_inputs(C_12, basis_1, basis_2)
     k2, k1 = C.shape
     if vertices is not None:
-        vertices = np.asarray(vertices)
-        if vertices.ndim != 1 or not np.issubdtype(vertices.dtype, np.integer):
-            raise ValueError(
-                f"vertices must be a 1D integer array of shape-2 vertices, got {vertices.dtype} {vertices.shape}"
-            )
-        if vertices.size and (vertices.min() < 0 or vertices.max() >= basis_2.n):
-            raise ValueError(f"vertices must lie in [0, n2 = {basis_2.n})")
+        if np.ndim(vertices) != 1:
+            raise ValueError(f"vertices must be a 1D array of shape-2 vertices, got shape {np.shape(vertices)}")
+        vertices = check_vertex_indices(vertices, basis_2.n, "vertices")
     if method == "std":
         if params:
             raise TypeError(f"method='std' takes no extra parameters, got {sorted(params)}")

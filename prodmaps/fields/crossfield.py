@@ -41,6 +41,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..mapping import check_p2p
 from ..mesh import Mesh
 from .frames import Frames, angle_defect, as_frames, dual_edges, halfedges, mesh_frames, transport_angles, wrap_angle
 
@@ -333,11 +334,7 @@ def pushforward_field(fr1: Frames, z1: np.ndarray, fr2: Frames, p2p_21: np.ndarr
     N = _check_N(N)
     fr1, fr2 = as_frames(fr1), as_frames(fr2)
     z1 = _check_field(z1, fr1, "z1")
-    p = np.asarray(p2p_21, dtype=np.int64)
-    if p.shape != (fr2.n_vertices,):
-        raise ValueError(f"p2p_21 must have shape (n2,) = ({fr2.n_vertices},); got {p.shape}")
-    if p.min() < 0 or p.max() >= fr1.n_vertices:
-        raise ValueError(f"p2p_21 indices must be in [0, {fr1.n_vertices})")
+    p = check_p2p(p2p_21, fr1.n_vertices, fr2.n_vertices)
     tri = p[fr2.faces]  # (m2, 3) vertices of shape 1
     P = fr1.vertices[tri]  # (m2, 3, 3)
     dbl = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)

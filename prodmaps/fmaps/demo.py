@@ -11,6 +11,7 @@ import numpy as np
 from ..basis import Basis
 from ..cache import Cache
 from ..descriptors.spectral import wks_energies_from_evals, wks_weights
+from ..mesh import check_vertex_indices
 
 __all__ = ["no17_demo_descriptors"]
 
@@ -32,7 +33,6 @@ def _shape_descriptors(basis: Basis, lms: np.ndarray, k: int, n_descr: int, step
     Phi, ev = basis.vecs[:, :k], basis.evals[:k]
     energies, sigma = wks_energies_from_evals(ev, n_descr)
     w = wks_weights(ev, energies, sigma, scaled=scaled)  # (n_descr, k)
-    n_descr = w.shape[0]
     # column j of [WKS (n_descr), maps (q·n_descr, landmark-major)] is kept when j % step == 0;
     # only the kept wave-kernel maps are computed, by one product Φ (w_e ⊙ φ(l))ᵀ
     cols = [((Phi**2) @ w.T)[:, ::step]]  # (n, ceil(n_descr / step))
@@ -95,7 +95,6 @@ def no17_demo_descriptors(
     out = []
     for basis, lms, kd in ((basis_1, l1, ks[0]), (basis_2, l2, ks[1])):
         k = basis.k if kd is None else min(int(kd), basis.k)
-        if lms.size and (lms.min() < 0 or lms.max() >= basis.n):
-            raise ValueError(f"landmark indices must be in [0, {basis.n})")
+        lms = check_vertex_indices(lms, basis.n, "landmark")
         out.append(_shape_descriptors(basis, lms, k, n_descr, subsample_step, scaled))
     return out[0], out[1]
