@@ -147,17 +147,18 @@ def _output_files(folder: Path) -> dict:
     }
 
 
-def _shown_path(final: Path, root: Path) -> str:
-    """How the records (results.json, the executed notebook) name a run folder or notebook.
+def _shown_path(final: Path, root: Path, outside: str | None = "<out>") -> str:
+    """How the records (manifest, results.json, the executed notebook) name a run folder or notebook.
 
-    Relative to the project ``root`` when inside it; otherwise ``<out>/<profile folder>/<run>``,
-    the run's place under the ``--out`` folder, so no machine path is recorded.
+    Relative to the project ``root`` when inside it; otherwise, for a run folder
+    (``outside="<out>"``), ``<out>/<profile folder>/<run>``, its place under the ``--out`` folder,
+    and for a file (``outside=None``) its name: no machine path is recorded.
     """
     final, root = Path(final).resolve(), Path(root).resolve()
     try:
         return final.relative_to(root).as_posix()
     except ValueError:
-        return f"<out>/{final.parent.name}/{final.name}"
+        return final.name if outside is None else f"{outside}/{final.parent.name}/{final.name}"
 
 
 def _relocate_out_dir(results: Path, tmp: Path, final: Path, root: Path) -> None:
@@ -225,15 +226,16 @@ def _execute_task(task: dict) -> dict:
     for stale in target.parent.glob(f".{name}.tmp-*"):  # left by an interrupted invocation
         shutil.rmtree(stale, ignore_errors=True)
     tmp = mkdtemp_beside(target, name)
+    root = Path(task.get("cwd") or Path.cwd())  # the project root (the notebooks' working directory)
+    shown_notebook = _shown_path(Path(task["notebook"]), root, outside=None)
     t0 = time.perf_counter()
     error = ""
     try:
         with _stderr_to(tmp / "kernel.log"):
             run_notebook(task["notebook"], tmp, task["params"], task.get("kernel_name", "python3"),
                          timeout=task.get("timeout"), cwd=task.get("cwd"),
-                         shown_out_dir=_shown_path(target, Path(task.get("cwd") or Path.cwd())),
-                         shown_notebook=_shown_path(Path(task["notebook"]), Path(task.get("cwd") or Path.cwd())))
-        _relocate_out_dir(tmp / "results.json", tmp, target, Path(task.get("cwd") or Path.cwd()))
+                         shown_out_dir=_shown_path(target, root), shown_notebook=shown_notebook)
+        _relocate_out_dir(tmp / "results.json", tmp, target, root)
         if not (tmp / "results.json").is_file():
             raise RuntimeError("the notebook finished but wrote no results.json into out_dir")
     except BaseException as exc:  # failure isolation: record everything, never raise
@@ -251,8 +253,7 @@ def _execute_task(task: dict) -> dict:
     status = "failed" if error else "ok"
     manifest = {
         "run": name, "profile": task["profile"], "status": status, "hash": task["hash"],
-        "inputs": task["inputs"], "notebook": _shown_path(Path(task["notebook"]), Path(task.get("cwd") or Path.cwd())),
-        "seconds": round(seconds, 3),
+        "inputs": task["inputs"], "notebook": shown_notebook, "seconds": round(seconds, 3),
         "finished": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "python": sys.version.split()[0], "outputs": _output_files(tmp),
     }
