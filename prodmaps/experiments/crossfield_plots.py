@@ -15,7 +15,7 @@ from ..fields.crossfield import field_vectors, singularities
 from ..fields.frames import tangent_frames
 
 __all__ = ["VIEWS", "plot_cross_field", "plot_quad_texture", "render_quad_texture", "figure14_figure", "joint_figure",
-           "pairs_figure", "plot_quad_mesh", "quad_figure"]
+           "pairs_figure", "quads_pairs_figure", "plot_quad_mesh", "quad_figure"]
 
 VIEWS = {
     "front": ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)),
@@ -203,19 +203,49 @@ def pairs_figure(per_pair: dict, ks, kinds, baselines=("independent", "copy"), m
     return fig
 
 
-def plot_quad_mesh(V, F, Vq, Q, *, ax=None, view="front", title=None):
-    """A quad mesh ``(Vq, Q)`` drawn over its (grey) surface ``(V, F)``: front-facing quads as
-    outlined polygons (painter's order), orthographic ``view``."""
+def quads_pairs_figure(per_pair: dict, ks, kinds=("std", "ext", "default"), baselines=("independent", "pushforward"),
+                       measures=("irregular_match_fraction", "irregular_low_match_fraction")):
+    """Per-pair strip charts of quad-mesh measures (default: the fractions of irregular vertices paired
+    through the ground truth, all and at low-curvature places), one row per measure and one column
+    per k, for every design; the baselines as marks."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(measures), len(ks), figsize=(3.6 * len(ks), 2.8 * len(measures)), squeeze=False,
+                             sharey="row")
+    names = list(per_pair)
+    x = np.arange(len(names))
+    for row, measure in zip(axes, measures):
+        for a, k in zip(row, ks):
+            for j, kd in enumerate(kinds):
+                v = [per_pair[n]["quads"][f"k{k}"][kd][measure] for n in names]
+                a.plot(x + 0.1 * (j - len(kinds) / 2), [np.nan if t is None else t for t in v], "o", ms=4, label=kd)
+            for b, mk in zip(baselines, ("k_", "kx")):
+                v = [per_pair[n]["quads"]["baselines"][b][measure] for n in names]
+                a.plot(x, [np.nan if t is None else t for t in v], mk, ms=9, label=b)
+            a.set_xticks(x, [n.replace("anny_", "").replace("tr_reg_", "") for n in names], rotation=60, fontsize=6)
+            a.set_title(f"quad meshes, k = {k}", fontsize=9)
+        row[0].set_ylabel(measure.replace("irregular_", "").replace("_", " "), fontsize=8)
+    axes[0, -1].legend(fontsize=6)
+    fig.tight_layout()
+    return fig
+
+
+def plot_quad_mesh(V, F, Vq, Q, polygons=(), *, ax=None, view="front", title=None, irregular=None):
+    """A polygon mesh drawn over its surface ``(V, F)``: quads ``Q`` ``(q, 4)`` light blue over the
+    surface shaded orange, so the regions the other ``polygons`` close (holes next to singularities,
+    often large and far from planar) show as orange surface; front-facing quads in painter's order
+    (orthographic ``view``); ``irregular`` vertex ids of ``Vq`` as red dots."""
     import matplotlib.pyplot as plt
     from matplotlib.collections import PolyCollection
 
     if ax is None:
         _, ax = plt.subplots(figsize=(3, 6))
-    _shaded_mesh(ax, V, F, view)
-    Q = np.asarray(Q, dtype=np.int64)
+    hole = np.array([1.0, 0.62, 0.3])
+    _shaded_mesh(ax, V, F, view, facecolors=np.tile(hole, (len(F), 1)) if len(polygons) else None)
+    Q = np.asarray(Q, dtype=np.int64).reshape(-1, 4)
+    d, up, right = _camera(view)
+    P = np.stack([Vq @ right, Vq @ up], axis=1)
     if Q.size:
-        d, up, right = _camera(view)
-        P = np.stack([Vq @ right, Vq @ up], axis=1)
         C = Vq[Q]  # (q, 4, 3)
         nrm = np.cross(C[:, 2] - C[:, 0], C[:, 3] - C[:, 1])
         front = nrm @ d > 0
@@ -223,24 +253,54 @@ def plot_quad_mesh(V, F, Vq, Q, *, ax=None, view="front", title=None):
         order = order[front[order]]
         ax.add_collection(PolyCollection(P[Q[order]], facecolors=(0.85, 0.9, 1.0), edgecolors=(0.1, 0.2, 0.5),
                                          linewidths=0.3))
+    if irregular is not None and len(irregular):
+        irr = np.asarray(irregular, dtype=np.int64)
+        _, vis = _visible_points(Vq[irr], V, F, view)
+        ax.plot(P[irr[vis], 0], P[irr[vis], 1], "o", ms=1.8, color=(0.8, 0.0, 0.0))
     if title:
         ax.set_title(title, fontsize=8)
     return ax
 
 
-def quad_figure(mesh_1, mesh_2, quad_meshes: dict, stats: dict, names, *, titles=None, suptitle=None):
-    """Quad meshes of source (top) and target (bottom), one column per design, with their counts."""
+def _visible_points(X, V, F, view):
+    """``(depth, visible)`` of points ``X`` on the surface ``(V, F)``: not behind a front face."""
+    d, up, right = _camera(view)
+    P = np.stack([V @ right, V @ up], axis=1)
+    Px = np.stack([X @ right, X @ up], axis=1)
+    cell = 0.02 * np.ptp(P, axis=0).max()
+    ij = np.floor((P - P.min(0)) / cell).astype(np.int64)
+    key = ij[:, 0] * (ij[:, 1].max() + 2) + ij[:, 1]
+    best = np.full(int(key.max()) + 1, -np.inf)
+    np.maximum.at(best, key, V @ d)
+    ijx = np.clip(np.floor((Px - P.min(0)) / cell).astype(np.int64), 0, ij.max(0))
+    kx = ijx[:, 0] * (ij[:, 1].max() + 2) + ijx[:, 1]
+    depth = X @ d
+    return depth, depth >= best[kx] - 2 * cell
+
+
+def quad_figure(mesh_1, mesh_2, quad_meshes: dict, stats: dict, names, *, titles=None, suptitle=None,
+                matched=None):
+    """Quad meshes of source (top) and target (bottom), one column per design, with their counts.
+
+    ``quad_meshes[name]`` is ``((V, Q, polygons, irregular) source, (...) target)`` as returned by
+    :func:`prodmaps.experiments.crossfields.quad_meshes_pair`; ``stats[name]`` its ``"stats"``
+    (``{"source", "target", "irregular_matched", ...}``). Quads light blue, other polygons orange,
+    irregular vertices red.
+    """
     import matplotlib.pyplot as plt
 
     names = [n for n in names if n in quad_meshes]
     fig, axes = plt.subplots(2, len(names), figsize=(2.4 * len(names), 7.0), squeeze=False)
     for c, name in enumerate(names):
         for r, (mesh, side) in enumerate(((mesh_1, "source"), (mesh_2, "target"))):
-            Vq, Q = quad_meshes[name][r]
+            Vq, Q, polys, irr = quad_meshes[name][r]
             st = stats[name][side]
             t = ((titles or {}).get(name, name) + "\n") if r == 0 else ""
-            plot_quad_mesh(mesh.vertices, mesh.faces, Vq, Q, ax=axes[r, c],
-                           title=t + f"{st['n_quads']} quads, {st['n_irregular']} irregular")
+            extra = (f"\n{stats[name]['irregular_matched']} irregular matched" if r == 1
+                     and "irregular_matched" in stats[name] else "")
+            plot_quad_mesh(mesh.vertices, mesh.faces, Vq, Q, polys, ax=axes[r, c], irregular=irr,
+                           title=t + f"{st['n_quads']} quads + {st['n_polygons']} polygons, "
+                                     f"{st['n_irregular']} irregular" + extra)
     if suptitle:
         fig.suptitle(suptitle, fontsize=9)
     fig.tight_layout(rect=(0, 0, 1, 0.97) if suptitle else None)

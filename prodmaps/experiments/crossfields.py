@@ -50,7 +50,8 @@ from ..mesh import Mesh, edges
 
 __all__ = ["figure14_experiment", "figure14_study", "dataset_pair", "summary_rows", "match_singularities",
            "graph_distances", "surface_ground_truth", "low_curvature_vertices", "pair_measures",
-           "figure14_joint_pair", "summarize_pairs", "figure14_joint_study", "quad_meshes_pair", "study_lines", "PAIRS",
+           "figure14_joint_pair", "summarize_pairs", "summarize_quads", "figure14_joint_study", "quad_meshes_pair",
+           "study_lines", "PAIRS",
            "DEFAULTS", "JOINT_DEFAULTS", "JOINT_KINDS", "BASELINES"]
 
 DEFAULTS = {
@@ -279,8 +280,9 @@ JOINT_DEFAULTS = {
     "sing_quantile": 0.8,  # singularities are compared at vertices below this quantile of |Gaussian curvature|
     "sing_radius": 0.05,  # matching radius of singularities / sqrt(area_2)
     "regular_radius": 3.0,  # faces within this many mean edge lengths of a singularity are excluded
-    "quad_size": 0.02,  # target quad edge / sqrt(area) of the quad meshes (0: no quad meshes)
-    "quad_kinds": ("std", "ext", "default"),  # designs (at the first k) quadrangulated, plus "independent"
+    "quad_size": 0.03,  # target quad edge / sqrt(area) of the quad meshes (0: no quad meshes)
+    "quad_kinds": ("std", "ext", "default"),  # designs quadrangulated at every k, plus the baselines
+    # "independent" and "pushforward"
 }
 JOINT_KINDS = ("std", "ext", "default", "p2p")
 BASELINES = ("independent", "copy", "pushforward")
@@ -397,40 +399,77 @@ def pair_measures(fr1, fr2, mesh_1, mesh_2, z1, z2, gt, g1, g2, *, params=None) 
 
 
 def quad_meshes_pair(mesh_1: Mesh, mesh_2: Mesh, z1, z2, gt: dict, size: float) -> dict:
-    """Quad meshes of both shapes from their cross fields (partial extraction, see
-    :mod:`prodmaps.fields.quadmesh`) and how their irregular vertices correspond.
+    """Quad meshes of both shapes from their cross fields (:mod:`prodmaps.fields.quadmesh`: an
+    integer-grid parametrisation, its quads and one polygon per hole) and how their irregular
+    vertices correspond through the ground truth.
 
     ``size`` is the quad edge over ``sqrt(area)`` (of each shape). Returns ``{"stats": {"source",
-    "target" (quad_mesh_stats without the vertex list, plus the parametrisation's flipped faces and
-    integer error), "irregular_matched": irregular vertices of the source's quad mesh whose
-    ground-truth image lies within 2 quad sizes of an irregular vertex of the target's,
-    "irregular_matched_of": the source's irregular count}, "meshes": ((V, Q) source, (V, Q) target)}``.
+    "target": quad_mesh_stats without the vertex list, plus the parametrisation's flipped faces,
+    the field's singularities and ``polygons_near_singularities`` (non-quad faces with a corner
+    within 2 quad sizes of a field singularity)}, "irregular_matched": irregular vertices of the
+    two meshes paired one to one (same valence, optimal assignment) with the source's ground-truth
+    image within 2 quad sizes of the target's, "irregular_matched_of": the source's irregular
+    count, "irregular_target": the target's, "irregular_match_fraction": matched over the mean of
+    the two counts, and the same restricted to irregular vertices at low-curvature places of the
+    target (:func:`low_curvature_vertices`, the source's through the ground truth):
+    "irregular_low_matched", "irregular_low_source", "irregular_low_target",
+    "irregular_low_match_fraction"}, "meshes": ((V, Q, polygons, irregular) source, (...) target)}``.
+    The low-curvature fraction is the discriminating one: most irregular vertices of a human sit at
+    the singularity clusters that face, hands and feet force on every field.
     """
     from scipy.spatial import cKDTree
 
-    from ..fields.quadmesh import lattice_quads, quad_mesh_stats, seamless_parametrization
+    from ..fields.quadmesh import extract_quads, quad_mesh_stats, seamless_parametrization
 
-    stats, meshes = {}, []
+    stats, meshes, valences = {}, [], []
     for name, m, z in (("source", mesh_1, z1), ("target", mesh_2, z2)):
         h = size * np.sqrt(m.area)
         par = seamless_parametrization(m, z, h)
-        q = lattice_quads(par)
-        st = quad_mesh_stats(q["V"], q["Q"])
+        q = extract_quads(par)
+        st = quad_mesh_stats(q["V"], q["Q"], q["polygons"])
         irr = st.pop("irregular")
+        near = 0
+        if q["polygons"] and par["singular"].size:
+            d, _ = cKDTree(m.vertices[par["singular"]]).query(q["V"])
+            near = int(sum(d[p].min() <= 2 * h for p in q["polygons"]))
         st.update(n_flipped=par["n_flipped"], integer_error=par["integer_error"], h=float(h),
-                  n_field_singularities=int(par["singular"].size))
+                  n_field_singularities=int(par["singular"].size), polygons_near_singularities=near)
         stats[name] = st
-        meshes.append((q["V"], q["Q"], q["V"][irr]))
-    # irregular vertices of the source carried to the target: nearest source vertex, p2p_12, then 3D
-    (_, _, I1), (_, _, I2) = meshes
-    n_match = 0
-    if len(I1) and len(I2):
-        v1 = cKDTree(mesh_1.vertices).query(I1)[1]
-        img = mesh_2.vertices[gt["p2p_12"][v1]]
-        d, _ = cKDTree(I2).query(img)
-        n_match = int(np.sum(d < 2 * stats["target"]["h"]))
-    return {"stats": {**stats, "irregular_matched": n_match, "irregular_matched_of": int(len(I1))},
-            "meshes": tuple((V, Q) for V, Q, _ in meshes)}
+        meshes.append((q["V"], q["Q"], q["polygons"], irr))
+        E = np.concatenate([np.stack([f, np.roll(f, -1, axis=1)], axis=2).reshape(-1, 2)
+                            for f in [q["Q"]] + [np.asarray(p)[None] for p in q["polygons"]] if f.size])
+        val = np.bincount(np.unique(np.sort(E, axis=1), axis=0).ravel(), minlength=q["V"].shape[0])
+        valences.append(val[irr])
+    # irregular vertices of the source carried to the target (nearest source vertex, p2p_12), then
+    # paired one to one with the target's of the same valence within 2 quad sizes: all of them, and
+    # those at low-curvature places of the target (where the map, not the geometry, places them)
+    (V1, _, _, I1), (V2, _, _, I2) = meshes
+    tree2 = cKDTree(mesh_2.vertices)
+    img = mesh_2.vertices[gt["p2p_12"][cKDTree(mesh_1.vertices).query(V1[I1])[1]]] if len(I1) else np.zeros((0, 3))
+    low = low_curvature_vertices(mesh_2, JOINT_DEFAULTS["sing_quantile"])
+    low_1 = low[tree2.query(img)[1]] if len(I1) else np.zeros(0, bool)
+    low_2 = low[tree2.query(V2[I2])[1]] if len(I2) else np.zeros(0, bool)
+    radius = 2 * stats["target"]["h"]
+
+    def paired(a, b):
+        if not (a.any() and b.any()):
+            return 0
+        D = np.linalg.norm(img[a][:, None, :] - V2[I2[b]][None, :, :], axis=2)  # (a, b)
+        big = 1e6 * (radius + D.max())
+        cost = np.where((D <= radius) & (valences[0][a][:, None] == valences[1][b][None, :]), D, big)
+        r, c = linear_sum_assignment(cost)
+        return int(np.sum(cost[r, c] < big))
+
+    every_1, every_2 = np.ones(len(I1), bool), np.ones(len(I2), bool)
+    n_match, n_low = paired(every_1, every_2), paired(low_1, low_2)
+    denom, denom_low = 0.5 * (len(I1) + len(I2)), 0.5 * (low_1.sum() + low_2.sum())
+    return {"stats": {**stats, "irregular_matched": n_match, "irregular_matched_of": int(len(I1)),
+                      "irregular_target": int(len(I2)),
+                      "irregular_match_fraction": float(n_match / denom) if denom else float("nan"),
+                      "irregular_low_matched": n_low, "irregular_low_source": int(low_1.sum()),
+                      "irregular_low_target": int(low_2.sum()),
+                      "irregular_low_match_fraction": float(n_low / denom_low) if denom_low else float("nan")},
+            "meshes": tuple(meshes)}
 
 
 def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT_KINDS, params=None,
@@ -477,8 +516,8 @@ def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT
                        "cg_iterations": inf["cg_iterations"]}
             if keep_fields:
                 fields[(int(k), kd)] = (z1, z2)
-            if k == ks[0] and kd in P["quad_kinds"]:
-                quad_fields[kd] = (z1, z2)
+            if kd in P["quad_kinds"]:
+                quad_fields[(f"k{k}", kd)] = (z1, z2)
         out[f"k{k}"] = row
     # baselines: no map
     b1, b2 = B1.truncate(2), B2.truncate(2)
@@ -495,12 +534,14 @@ def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT
     fields["pushforward"] = (z1, zp)
     out["baselines"] = base
     if P["quad_size"] > 0:
-        quad_fields["independent"] = fields["independent"]
+        quad_fields[("baselines", "independent")] = fields["independent"]
+        quad_fields[("baselines", "pushforward")] = fields["pushforward"]
         qs, qm = {}, {}
-        for name, (a, b) in quad_fields.items():
+        for (group, name), (a, b) in quad_fields.items():
             r = quad_meshes_pair(mesh_1, mesh_2, a, b, gt, P["quad_size"])
-            qs[name], qm[name] = r["stats"], r["meshes"]
-        out["quads"] = {"k": int(ks[0]), **qs}
+            qs.setdefault(group, {})[name] = _finite_or_none(r["stats"])
+            qm[(group, name)] = r["meshes"]
+        out["quads"] = {"size": P["quad_size"], **qs}
         if keep_fields:
             fields["quad_meshes"] = qm
     out["seconds"] = time.perf_counter() - t0
@@ -538,6 +579,54 @@ def summarize_pairs(per_pair: dict, ks, kinds=JOINT_KINDS, measure: str = "angle
     return out
 
 
+def summarize_quads(per_pair: dict) -> dict:
+    """Across pairs, per group (``"k<k>"`` or ``"baselines"``) and design: mean, sd, min and max of
+    the irregular-vertex match fractions (all, and at low-curvature places: ``..._low_...``), the
+    quad count and quad fraction (source and target meshes pooled), the totals of open and
+    non-manifold edges; ``n_better`` / ``n_better_low``: pairs on which an extended design pairs
+    more irregular vertices than ``"std"`` at the same k; ``cells`` / ``cells_low``:
+    ``{design: {"<pair>|<group>": fraction}}`` for the ledger, ``pooled`` / ``pooled_low`` over them."""
+    groups, cells, cells_low = {}, {}, {}
+    first = next(iter(per_pair.values()))["quads"]
+    F, FL = "irregular_match_fraction", "irregular_low_match_fraction"
+    for grp, row in first.items():
+        if grp == "size":
+            continue
+        groups[grp] = {}
+        for name in row:
+            qs = [p["quads"][grp][name] for p in per_pair.values()]
+            frac = np.array([np.nan if q[F] is None else q[F] for q in qs], dtype=float)
+            frac_low = np.array([np.nan if q.get(FL) is None else q[FL] for q in qs], dtype=float)
+            nq = np.array([q[s]["n_quads"] for q in qs for s in ("source", "target")], dtype=float)
+            qf = np.array([q[s]["quad_fraction"] for q in qs for s in ("source", "target")], dtype=float)
+            r = {F: _stats(frac), FL: _stats(frac_low), "n_quads": _stats(nq), "quad_fraction": _stats(qf),
+                 "n_boundary_edges_total": int(sum(q[s]["n_boundary_edges"] for q in qs for s in ("source", "target"))),
+                 "n_nonmanifold_edges_total": int(sum(q[s]["n_nonmanifold_edges"] for q in qs
+                                                      for s in ("source", "target")))}
+            if grp != "baselines" and name != "std" and "std" in row:
+                for key, v, out in ((F, frac, "n_better"), (FL, frac_low, "n_better_low")):
+                    s_ = np.array([p["quads"][grp]["std"][key] for p in per_pair.values()], dtype=float)
+                    r[out] = int(np.sum(v > s_))
+                r["n_pairs"] = int(frac.size)
+            groups[grp][name] = r
+            for pn, a, b in zip(per_pair, frac, frac_low):
+                cells.setdefault(name, {})[f"{pn}|{grp}"] = float(a)
+                cells_low.setdefault(name, {})[f"{pn}|{grp}"] = float(b)
+    pooled = {n: _stats(np.array(list(c.values()))) for n, c in cells.items()}
+    pooled_low = {n: _stats(np.array(list(c.values()))) for n, c in cells_low.items()}
+    return {"size": first["size"], "groups": groups, "cells": cells, "pooled": pooled, "cells_low": cells_low,
+            "pooled_low": pooled_low}
+
+
+def _stats(v: np.ndarray) -> dict:
+    """Mean, sd, min, max over the finite values (None when there are none)."""
+    v = np.asarray(v, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return {"mean": None, "std": None, "min": None, "max": None}
+    return {"mean": float(np.mean(v)), "std": float(np.std(v)), "min": float(np.min(v)), "max": float(np.max(v))}
+
+
 def figure14_joint_study(dataset: str, pairs, ks, *, params=None, shown: int = 0, verbose: bool = True) -> dict:
     """:func:`figure14_joint_pair` on every pair ``(id_1, id_2)`` of ``dataset`` and every k.
 
@@ -560,6 +649,8 @@ def figure14_joint_study(dataset: str, pairs, ks, *, params=None, shown: int = 0
                 f"{kd} {r[k0][kd]['angle_regular_deg']:.2f}°" for kd in JOINT_KINDS)
                 + f", independent {r['baselines']['independent']['angle_regular_deg']:.2f}°")
     summary = {m: summarize_pairs(per, ks, measure=m) for m in ("angle_regular_deg", "angle_mean_deg", "sing_recall")}
+    if all("quads" in p for p in per.values()):
+        summary["quads"] = summarize_quads(per)
     return {"pairs": per, "summary": summary, "shown": shown_out, "kinds": list(JOINT_KINDS)}
 
 
@@ -595,10 +686,17 @@ def study_lines(study: dict, ks) -> list[str]:
         lines.append(f"  {name} " + ", ".join(
             f"{n} ({m['angle_regular_deg']:.2f}, {m['align_2_deg']:.2f}, {m['sing_recall']:.2f})"
             for n, m in p["baselines"].items()))
-    lines.append("quad meshes per pair (quads source/target, open edges of the target, matched irregular vertices):")
-    for name, p in study["pairs"].items():
-        if "quads" in p:
-            lines.append(f"  {name} " + ", ".join(
-                f"{n} {q['source']['n_quads']}/{q['target']['n_quads']}, {q['target']['n_boundary_edges']}, "
-                f"{q['irregular_matched']}/{q['irregular_matched_of']}" for n, q in p["quads"].items() if n != "k"))
+    Q = study["summary"].get("quads")
+    if Q:
+        lines.append("quad meshes over all pairs (mean ± sd): fraction of irregular vertices paired through the "
+                     "ground truth (all / at low-curvature places), quads per mesh, quad fraction of the faces, "
+                     "open edges (0: watertight)")
+        for grp, row in Q["groups"].items():
+            lines.append(f"  {grp}: " + "; ".join(
+                f"{n} {r['irregular_match_fraction']['mean']:.2f} ± {r['irregular_match_fraction']['std']:.2f} / "
+                f"{r['irregular_low_match_fraction']['mean']:.2f} ± {r['irregular_low_match_fraction']['std']:.2f}"
+                + (f" (beats std on {r['n_better_low']}/{r['n_pairs']})" if "n_better_low" in r else "")
+                + f", {r['n_quads']['mean']:.0f} quads, {r['quad_fraction']['mean']:.3f}, "
+                  f"{r['n_boundary_edges_total']} open"
+                for n, r in row.items()))
     return lines

@@ -76,7 +76,7 @@ from .operators import (
     reduced_derivation,
     span_projector,
 )
-from .quadmesh import lattice_quads, quad_mesh_stats, seamless_parametrization
+from .quadmesh import extract_quads, quad_mesh_stats, seamless_parametrization
 from .stripes import layout_consistency, quad_texture, stripe_patterns
 
 __all__ = [
@@ -90,5 +90,5 @@ __all__ = [
     "derivation_in", "field_action", "powered_gradients", "commutator_energy",
     "ConsistencyProblem", "consistency_problem", "design_consistent_field", "design_joint",
     "stripe_patterns", "quad_texture", "layout_consistency",
-    "seamless_parametrization", "lattice_quads", "quad_mesh_stats",
+    "seamless_parametrization", "extract_quads", "quad_mesh_stats",
 ]

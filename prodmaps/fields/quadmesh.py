@@ -1,28 +1,44 @@
-"""Quad meshes from a cross field: a seamless parametrisation and its integer lattice (partial).
+"""Quad meshes from a cross field: an integer-grid parametrisation and its quads.
 
-Pipeline (on libigl's building blocks and a scipy least-squares solve):
+Pipeline (libigl's building blocks, scipy solves, everything else vectorised numpy):
 
-1. the four directions of the cross in every face (``d_0``, ``d_1 = d_0`` rotated by 90°), combed
-   with ``igl.comb_cross_field`` and their integer mismatch across every edge
-   (``igl.cross_field_mismatch``, a multiple of 90°);
-2. a cut graph through the singularities (``igl.cut_mesh_from_singularities``) and the cut mesh
-   (``igl.cut_mesh``, disk-like: the seam vertices are duplicated);
-3. :func:`seamless_parametrization`: ``(u, v)`` per cut-mesh vertex minimising
-   ``Σ_f A_f (|∇u - d_0/h|² + |∇v - d_1/h|²)`` (``h`` the target quad size) subject to the
-   transition across every seam edge, ``p_g = R^{-r} p_f + t`` with ``R`` the rotation by 90°
-   and ``r`` the mismatch (soft constraints of weight ``weight``, one sparse normal-equation
-   solve). With ``integer=True`` the translations ``t`` of the first solve are rounded to
-   integers and the singular vertices to integer points, and the problem is solved again with
-   those as constraints: then the integer grid lines match across the seams;
-4. :func:`lattice_quads` — **partial extraction**: the integer points of the parametrisation
-   (one 3D point per lattice point, the seam copies merged) and the quads of four lattice
-   neighbours ``(i, j), (i+1, j), (i+1, j+1), (i, j+1)`` found *in the same chart*. Quads that
-   straddle a seam are not traced (that needs walking the grid lines across the transitions), so
-   the result has holes along the seams and near the singularities: it is not watertight.
-   :func:`quad_mesh_stats` reports the quad count, valences, irregular vertices and boundary edges.
+1. **Comb and cut.** The four directions of the cross in every face (``d_0``, ``d_1 = d_0``
+   rotated by 90°) are combed with ``igl.comb_cross_field``; their integer mismatch across every
+   edge (``igl.cross_field_mismatch``, a multiple of 90°) is zero except on a cut graph through
+   the singularities (``igl.cut_mesh_from_singularities``); ``igl.cut_mesh`` duplicates the seam
+   vertices (one copy per side).
+2. **Seamless parametrisation** (:func:`seamless_parametrization`): ``(u, v)`` per cut-mesh vertex
+   minimising ``Σ_f A_f (|∇u - d_0/h|² + |∇v - d_1/h|²)`` (``h`` the quad edge length) with the
+   transition ``p_g = R^{-r} p_f + t`` across every seam edge (``R`` the rotation by 90°, ``r`` the
+   mismatch, ``t`` constant along a seam *chain*, a path of the cut graph between two *nodes*:
+   singular vertices and branch or end points of the cut graph).
+3. **Integer rounding** (``integer=True``, after a first solve with free translations): the
+   chains form a tree whose vertices are the nodes. Walking it from the leaves to a singular root,
+   each node's copies are put at integer points, the first one rounded and the others following
+   through the translations of its child chains (already integers); the translation of the chain
+   to the node's parent is then read off (an integer again). So every translation is an integer,
+   every node but the root sits at an integer point, and no two roundings contradict each other
+   (rounding every chain's translation on its own does, around branch points of the cut). The
+   final solve has these as hard constraints: the seam copies are eliminated
+   (``p_other = R p_ref + t``), the nodes fixed.
+   This is a simplified mixed-integer quadrangulation ([BZK09]'s MIQ rounds greedily with
+   re-solves and keeps singularities apart); singularities closer than ``h`` fold the
+   parametrisation locally (``n_flipped``).
+4. **Extraction** (:func:`extract_quads`): the integer iso-lines cut the surface into cells
+   (a cell is a connected piece of the surface mapped into one unit square ``[i, i+1]×[j, j+1]``,
+   followed across triangles and seams through the transitions). A cell whose four corners are
+   four distinct integer points is a quad. Cells that are not (around a singularity that is not
+   at an integer point, in folded regions) and quads that would make an edge non-manifold leave
+   holes, and every hole is closed by one polygon along its boundary. The result is a watertight
+   polygon mesh (on a closed input) that is all quads away from singularities and folds.
+   :func:`quad_mesh_stats` reports quads, other polygons, valences, irregular vertices and open
+   or non-manifold edges.
 
-Conventions: faces ``(m, 3)`` of a closed manifold mesh; ``z`` a unit 4-power field per face
-(:mod:`prodmaps.fields.crossfield`).
+Conventions: faces ``(m, 3)`` of a closed, oriented manifold mesh; ``z`` a unit 4-power field per
+face (:mod:`prodmaps.fields.crossfield`); ``(u, v)`` counter-clockwise with the face orientation,
+so quads come out counter-clockwise seen from outside.
+
+[BZK09] Bommes, Zimmer, Kobbelt. Mixed-integer quadrangulation. SIGGRAPH 2009.
 """
 
 from __future__ import annotations
@@ -30,17 +46,28 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from ..mesh import Mesh
 from .crossfield import field_vectors
 from .frames import mesh_frames
 
-__all__ = ["seamless_parametrization", "lattice_quads", "quad_mesh_stats"]
+__all__ = ["seamless_parametrization", "extract_quads", "quad_mesh_stats"]
 
+# rotation by k·90° counter-clockwise, k = 0..3
 _ROT = np.array([[[1, 0], [0, 1]], [[0, -1], [1, 0]], [[-1, 0], [0, -1]], [[0, 1], [-1, 0]]], dtype=np.float64)
+_CORNERS = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.int64)  # unit-square corners, ccw
+
+
+def _components(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Connected-component labels ``(n,)`` of the graph with edges ``a[i] - b[i]``."""
+    G = sp.csr_matrix((np.ones(a.size), (a, b)), shape=(n, n))
+    return connected_components(G, directed=False)[1]
 
 
 def _seam_edges(F, cuts, mismatch):
+    """Seam edges once each: ``(f, e, g, eg, r)``, face ``f``'s edge ``e`` (corners ``e, e+1``) is
+    face ``g``'s edge ``eg``; ``r`` the mismatch ``(mod 4)`` seen from ``f``."""
     import igl
 
     TT, TTi = igl.triangle_triangle_adjacency(np.ascontiguousarray(F, dtype=np.int64))
@@ -50,16 +77,216 @@ def _seam_edges(F, cuts, mismatch):
     return fs[keep], es[keep], g[keep], eg[keep], np.asarray(mismatch)[fs[keep], es[keep]] % 4
 
 
+class _Seams:
+    """The cut graph's chains, their sides and nodes (see the module doc, steps 2-3).
+
+    Per seam edge ``e``: its mesh end vertices ``x[e], y[e]``, the cut copies of those ends on the
+    ``f`` side and the ``g`` side, the rotation index ``rot[e]`` (``p_g = R^rot p_f + t``), its
+    chain ``chain[e]`` and whether its ``f`` side is the chain's reference side (``fwd[e]``). Per
+    chain ``c``: ``rot_c[c]`` from the reference side to the other side.
+    """
+
+    def __init__(self, F, Fc, I, fs, es, g, eg, r, singular):
+        n = int(F.max()) + 1 if F.size else 0
+        nc = int(I.size)
+        ne = fs.size
+        self.ne, self.nc = ne, nc
+        self.x, self.y = F[fs, es], F[fs, (es + 1) % 3]
+        self.xf, self.yf = Fc[fs, es], Fc[fs, (es + 1) % 3]
+        self.xg, self.yg = Fc[g, (eg + 1) % 3], Fc[g, eg]
+        self.rot = (-r) % 4
+        deg = np.bincount(np.concatenate([self.x, self.y]), minlength=n)
+        node = (deg > 0) & (deg != 2)
+        node[np.asarray(singular, dtype=np.int64)] = True
+        while True:
+            # chains: seam edges linked through shared non-node vertices (edge ids, then vertex ids + ne)
+            ends = np.concatenate([self.x, self.y])
+            eid = np.concatenate([np.arange(ne), np.arange(ne)])
+            link = ~node[ends]
+            lab = _components(ne + n, eid[link], ne + ends[link])[:ne]
+            _, chain = np.unique(lab, return_inverse=True)
+            nch = int(chain.max()) + 1 if ne else 0
+            # a closed loop of regular vertices has no node: make its first vertex one
+            has_node = np.zeros(nch, bool)
+            np.logical_or.at(has_node, chain, node[self.x] | node[self.y])
+            if has_node.all():
+                break
+            lonely = np.flatnonzero(~has_node[chain])
+            first = np.unique(chain[lonely], return_index=True)[1]
+            node[self.x[lonely[first]]] = True
+        self.node, self.chain, self.n_chains = node, chain.ravel(), nch
+        # sides: the f-side and g-side copies of a chain, linked through copies of regular vertices
+        sx = np.concatenate([self.xf, self.xg])  # side-edge s = e (f side) or ne + e (g side)
+        sy = np.concatenate([self.yf, self.yg])
+        sid = np.arange(2 * ne)
+        a, b = [], []
+        for cp, v in ((sx, np.concatenate([self.x, self.x])), (sy, np.concatenate([self.y, self.y]))):
+            keep = ~node[v]
+            a.append(sid[keep])
+            b.append(2 * ne + cp[keep])
+        side = _components(2 * ne + nc, np.concatenate(a), np.concatenate(b))[:2 * ne]
+        ref = np.full(nch, np.iinfo(np.int64).max)
+        np.minimum.at(ref, self.chain, np.minimum(side[:ne], side[ne:]))
+        self.fwd = side[:ne] == ref[self.chain]
+        self.rot_c = np.zeros(nch, np.int64)
+        self.rot_c[self.chain[self.fwd]] = self.rot[self.fwd]
+        self.rot_c[self.chain[~self.fwd]] = (-self.rot[~self.fwd]) % 4
+        # the reference-side and other-side copies of every seam end, in the chain's orientation
+        self.ref_x = np.where(self.fwd, self.xf, self.xg)
+        self.oth_x = np.where(self.fwd, self.xg, self.xf)
+        self.ref_y = np.where(self.fwd, self.yf, self.yg)
+        self.oth_y = np.where(self.fwd, self.yg, self.yf)
+
+    def relations(self):
+        """Every seam end once per chain: ``(mesh vertex, ref copy, other copy, chain)`` (deduplicated)."""
+        v = np.concatenate([self.x, self.y])
+        a = np.concatenate([self.ref_x, self.ref_y])
+        b = np.concatenate([self.oth_x, self.oth_y])
+        c = np.concatenate([self.chain, self.chain])
+        _, idx = np.unique(np.stack([a, b, c], axis=1), axis=0, return_index=True)
+        return v[idx], a[idx], b[idx], c[idx]
+
+    def round_nodes(self, uv: np.ndarray, I: np.ndarray, resolve=None, batches: int = 1):
+        """Integer chain translations and singular nodes at integer points (module doc, step 3).
+
+        ``uv`` is the continuous solution; with ``resolve`` (a callable taking the constraints so far
+        and returning an updated continuous ``uv``) the nodes are rounded in ``batches`` groups of
+        heights in the chain tree (leaves first), re-solving in between.
+
+        Returns ``(fixed, rel, t, off)``: ``fixed`` ``{copy: (2,) position}`` (the copies of the
+        singular nodes), ``rel`` a list of ``(copy, start, k, tau)`` with ``p(copy) = R^k p(start) + tau``
+        (the other copies of a regular node, free with its ``start`` copy), ``t`` ``(n_chains, 2)``
+        the integer translations and ``off`` the largest distance of a fixed non-root copy from the
+        integers.
+        """
+        nch = self.n_chains
+        v, a, b, c = self.relations()
+        at_node = self.node[v]
+        nv, na, nb, ncn = v[at_node], a[at_node], b[at_node], c[at_node]
+        nodes = np.unique(nv)
+        # chain tree: chain c joins its two end nodes
+        ends = np.full((nch, 2), -1)
+        o = np.lexsort((nv, ncn))
+        cc, vv = ncn[o], nv[o]
+        first = np.r_[True, cc[1:] != cc[:-1]]
+        ends[cc[first], 0] = vv[first]
+        last = np.r_[cc[1:] != cc[:-1], True]
+        ends[cc[last], 1] = vv[last]
+        pos = np.searchsorted(nodes, ends)
+        T = sp.csr_matrix((np.ones(nch), (pos[:, 0], pos[:, 1])), shape=(nodes.size, nodes.size))
+        deg = np.bincount(pos.ravel(), minlength=nodes.size)
+        comp = connected_components(T, directed=False)[1]
+        singular = self._singular[nodes]
+        # one root per component: a singular leaf if any (its copy closes the cycle exactly)
+        order, parent = [], np.full(nodes.size, -9999)
+        for k in np.unique(comp):
+            members = np.flatnonzero(comp == k)
+            cand = members[(deg[members] == 1) & singular[members]]
+            root = int(cand[0] if cand.size else members[0])
+            o_k, p_k = breadth_first_order(T, root, directed=False, return_predecessors=True)
+            order.append(o_k)
+            parent[o_k] = p_k[o_k]
+        order = np.concatenate(order) if order else np.zeros(0, np.int64)
+        height = np.zeros(nodes.size, np.int64)
+        for q in order[::-1]:  # children before parents
+            if parent[q] >= 0:
+                height[parent[q]] = max(height[parent[q]], height[q] + 1)
+        pair_chain = {}
+        for ch in range(nch):
+            pair_chain[(int(pos[ch, 0]), int(pos[ch, 1]))] = ch
+            pair_chain[(int(pos[ch, 1]), int(pos[ch, 0]))] = ch
+        by_node = np.searchsorted(nodes, nv)
+        rel_order = np.argsort(by_node, kind="stable")
+        starts = np.searchsorted(by_node[rel_order], np.arange(nodes.size + 1))
+        copies_order = np.argsort(I, kind="stable")
+        c_lo = np.searchsorted(I[copies_order], nodes, side="left")
+        c_hi = np.searchsorted(I[copies_order], nodes, side="right")
+        t = np.full((nch, 2), np.nan)
+        fixed, rels = {}, []
+        off = 0.0
+        proc = order[np.argsort(height[order], kind="stable")]  # by height, leaves first
+        cuts = np.searchsorted(height[proc], np.quantile(height[proc], np.arange(1, batches) / batches)
+                               if proc.size else [], side="right") if batches > 1 else []
+        groups = np.split(proc, np.unique(cuts)) if len(cuts) else [proc]
+        # a short loop over the cut graph's nodes (hundreds), never over faces or vertices
+        for gi, group in enumerate(groups):
+            if gi > 0 and resolve is not None and group.size:
+                uv = resolve(fixed, rels, t)
+            for q in group:
+                rel = rel_order[starts[q]:starts[q + 1]]
+                copies = copies_order[c_lo[q]:c_hi[q]]
+                par_chain = pair_chain.get((int(q), int(parent[q]))) if parent[q] >= 0 else None
+                known = [i for i in rel if ncn[i] != par_chain]
+                is_root = parent[q] < 0
+                # every copy as R^k p(s) + tau from one start copy s, through the known chains
+                s0 = int(copies[0])
+                sym = {s0: (0, np.zeros(2))}
+                stack = [s0]
+                while stack:
+                    u_ = stack.pop()
+                    ku, tu = sym[u_]
+                    for i in known:
+                        r_, ti = self.rot_c[ncn[i]], t[ncn[i]]
+                        if na[i] == u_ and nb[i] not in sym:
+                            sym[nb[i]] = ((ku + r_) % 4, _ROT[r_] @ tu + ti)
+                            stack.append(nb[i])
+                        elif nb[i] == u_ and na[i] not in sym:
+                            sym[na[i]] = ((ku - r_) % 4, _ROT[(-r_) % 4] @ (tu - ti))
+                            stack.append(na[i])
+                if singular[q]:
+                    if is_root and len(copies) == 1 and known:
+                        i = known[0]
+                        p0 = np.linalg.solve(np.eye(2) - _ROT[self.rot_c[ncn[i]]], t[ncn[i]])
+                    else:
+                        p0 = np.round(uv[s0])
+                    for cp, (kc, tc) in sym.items():
+                        fixed[cp] = _ROT[kc] @ p0 + tc
+                        if not is_root:
+                            off = max(off, float(np.abs(fixed[cp] - np.round(fixed[cp])).max()))
+                else:
+                    p0 = uv[s0]
+                    rels += [(cp, s0, kc, tc) for cp, (kc, tc) in sym.items() if cp != s0]
+                if par_chain is not None:
+                    i = next(i for i in rel if ncn[i] == par_chain)
+                    (ka, ta), (kb, tb) = sym[na[i]], sym[nb[i]]
+                    R = _ROT[self.rot_c[par_chain]]
+                    tt = (_ROT[kb] - R @ _ROT[ka]) @ p0 + tb - R @ ta
+                    t[par_chain] = np.round(tt)
+                    off = max(off, float(np.abs(tt - np.round(tt)).max()))
+        return fixed, rels, t, off
+
+
+def _gradient_system(Vc, Fc, P1, P2, h):
+    """``(A (6m, 2nc), b (6m,))`` with ``||A uv - b||²`` the field-alignment energy (area-weighted)."""
+    import igl
+
+    G = igl.grad(Vc, Fc).tocsr()  # (3m, nc): x, y, z blocks
+    w = np.sqrt(0.5 * igl.doublearea(Vc, Fc).ravel())
+    Wg = sp.diags(np.tile(w, 3)) @ G
+    A = sp.block_diag([Wg, Wg]).tocsr()
+    b = np.concatenate([np.tile(w, 3) * P1.T.ravel() / h, np.tile(w, 3) * P2.T.ravel() / h])
+    return A, b
+
+
+def _solve_normal(A, b):
+    M = (A.T @ A).tocsc()
+    return spla.splu(M, permc_spec="COLAMD").solve(A.T @ b)
+
+
 def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bool = True,
-                             weight: float = 1e3) -> dict:
+                             weight: float = 1e3, batches: int = 4) -> dict:
     """Seamless ``(u, v)`` parametrisation of a closed mesh along the cross field ``z`` (module doc).
 
-    ``h`` is the target quad edge length (mesh units). Returns a dict with ``uv`` ``(nc, 2)``,
-    the cut mesh ``Vc`` ``(nc, 3)``, ``Fc`` ``(m, 3)`` (same face order as the mesh), ``I``
-    ``(nc,)`` (the mesh vertex of each cut vertex), ``singular`` (mesh vertex ids), ``n_seam_edges``,
-    ``n_flipped`` (faces with a negative ``uv`` area), ``transition_error`` (largest violation of a
-    seam transition) and ``integer_error`` (largest distance of a translation or singular point
-    from the integers; ~0 when ``integer``).
+    ``h`` is the target quad edge length (mesh units); ``weight`` that of the soft transition
+    constraints of the first (continuous) solve. With ``integer`` (default) the translations are
+    integers, the nodes of the cut graph at integer points and the transitions exact (hard
+    constraints). Returns a dict with ``uv`` ``(nc, 2)``, the cut mesh ``Vc`` ``(nc, 3)``, ``Fc``
+    ``(m, 3)`` (same face order as the mesh), ``I`` ``(nc,)`` (the mesh vertex of each cut
+    vertex), ``singular`` (mesh vertex ids), ``n_seam_edges``, ``n_chains``, ``n_flipped`` (faces
+    with a non-positive ``uv`` area), ``transition_error`` (largest violation of a seam transition),
+    ``integer_error`` (largest distance of a translation or a node from the integers, the root's
+    position excepted), ``rot`` and ``trans`` (per face and local edge: the transition to the
+    neighbour's chart, ``p_g = R^rot p_f + trans``; identity off the seams) and ``h``.
     """
     import igl
 
@@ -67,185 +294,434 @@ def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bo
     F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
     if not (np.isfinite(h) and h > 0):
         raise ValueError(f"h (quad size) must be > 0, got {h!r}")
+    z = np.asarray(z)
+    if z.shape != (F.shape[0],):
+        raise ValueError(f"z must hold one value per face, shape ({F.shape[0]},); got {z.shape}")
     fr = mesh_frames(mesh)
-    d = field_vectors(np.asarray(z), fr, 4)
+    d = field_vectors(z, fr, 4)
     P1, P2 = igl.comb_cross_field(V, F, np.ascontiguousarray(d[:, 0]), np.ascontiguousarray(d[:, 1]))
     mm = igl.cross_field_mismatch(V, F, P1, P2, True)
     is_sing, _ = igl.find_cross_field_singularities(V, F, mm)
+    sing = np.flatnonzero(np.asarray(is_sing).ravel())
     cuts = igl.cut_mesh_from_singularities(V, F, mm)
     Vc, Fc, I = igl.cut_mesh(V, F, cuts)
+    I = np.asarray(I, dtype=np.int64).ravel()
     m, nc = F.shape[0], Vc.shape[0]
-    G = igl.grad(Vc, Fc).tocsr()  # (3m, nc): x, y, z blocks
-    w = np.sqrt(0.5 * igl.doublearea(Vc, Fc).ravel())
-    Z = sp.csr_matrix((m, nc))
-    blocks, rhs = [], []
-    for c in range(3):
-        Gc = sp.diags(w) @ G[c * m:(c + 1) * m]
-        blocks += [sp.hstack([Gc, Z]), sp.hstack([Z, Gc])]
-        rhs += [w * P1[:, c] / h, w * P2[:, c] / h]
+    A, b = _gradient_system(Vc, Fc, P1, P2, h)
     fs, es, g, eg, r = _seam_edges(F, cuts, mm)
-    R = _ROT[(-r) % 4]  # (ne, 2, 2)
-    # the two ends of each seam edge: corner e, e+1 of f are corners eg+1, eg of g
-    ends = [(Fc[fs, es], Fc[g, (eg + 1) % 3]), (Fc[fs, (es + 1) % 3], Fc[g, eg])]
     ne = fs.size
+    S = _Seams(F, Fc, I, fs, es, g, eg, r, sing) if ne else None
+    if S is not None:
+        S._singular = np.zeros(V.shape[0], bool)
+        S._singular[sing] = True
 
-    def transition_rows():
-        """Rows of ``p_g(x) - R p_f(x)`` (2 per end and edge) as a sparse matrix ``(4 ne, 2 nc)``."""
+    # first solve: continuous, the transitions as soft constraints with free translations per edge
+    def transition_rows(rot, a_f, a_g, b_f, b_g):
+        """Rows of ``(p_g(x) - R p_f(x)) - (p_g(y) - R p_f(y))`` ``(2 ne, 2 nc)``."""
+        R = _ROT[rot]
         rr, cc, vv = [], [], []
-        for k, (xf, xg) in enumerate(ends):
-            for i in range(2):
-                row = np.arange(ne) + (2 * k + i) * ne
+        for i in range(2):
+            row = np.arange(ne) + i * ne
+            for cp, sgn in ((a_g, 1.0), (b_g, -1.0)):
                 rr.append(row)
-                cc.append(xg + i * nc)
-                vv.append(np.ones(ne))
-                for j in range(2):
+                cc.append(cp + i * nc)
+                vv.append(np.full(ne, sgn))
+            for j in range(2):
+                for cp, sgn in ((a_f, -1.0), (b_f, 1.0)):
                     rr.append(row)
-                    cc.append(xf + j * nc)
-                    vv.append(-R[:, i, j])
-        return sp.csr_matrix((np.concatenate(vv), (np.concatenate(rr), np.concatenate(cc))), shape=(4 * ne, 2 * nc))
+                    cc.append(cp + j * nc)
+                    vv.append(sgn * R[:, i, j])
+        return sp.csr_matrix((np.concatenate(vv), (np.concatenate(rr), np.concatenate(cc))), shape=(2 * ne, 2 * nc))
 
-    T = transition_rows()
-    # first solve: the translation of each seam edge free (difference of its two ends' rows)
-    D = (T[:2 * ne] - T[2 * ne:]) if ne else sp.csr_matrix((0, 2 * nc))
     pin = sp.csr_matrix(([1.0, 1.0], ([0, 1], [0, nc])), shape=(2, 2 * nc))
-
-    def solve(A, b):
-        return spla.spsolve((A.T @ A).tocsc(), A.T @ b)
-
-    A0 = sp.vstack(blocks + [weight * D, weight * pin]).tocsr()
-    x = solve(A0, np.concatenate(rhs + [np.zeros(D.shape[0]), np.zeros(2)]))
-    sing = np.flatnonzero(np.asarray(is_sing).ravel())
-    t = (T[:2 * ne] @ x) if ne else np.zeros(0)  # (2 ne,) translations read at the first end
-    int_err = 0.0
-    if integer:
-        # singular vertices at integer points first (one cut copy each), translations still free
-        first = np.full(V.shape[0], -1)
-        first[I[::-1]] = np.arange(nc)[::-1]
-        sc = first[sing]
-        S = sp.csr_matrix((np.ones(2 * sc.size), (np.arange(2 * sc.size), np.concatenate([sc, sc + nc]))),
-                          shape=(2 * sc.size, 2 * nc))
-        s_target = np.round(np.concatenate([x[sc], x[sc + nc]]))
-        p0 = np.round(x[[0, nc]])
-        A1 = sp.vstack(blocks + [weight * D, weight * S, weight * pin]).tocsr()
-        x = solve(A1, np.concatenate(rhs + [np.zeros(D.shape[0]), weight * s_target, weight * p0]))
-        # then the translations rounded to integers and imposed
-        tr = np.round(T[:2 * ne] @ x) if ne else np.zeros(0)
-        A2 = sp.vstack(blocks + [weight * T, weight * S, weight * pin]).tocsr()
-        x = solve(A2, np.concatenate(rhs + [weight * np.concatenate([tr, tr]), weight * s_target, weight * p0]))
-        t = T @ x
-        int_err = float(max(np.abs(t - np.concatenate([tr, tr])).max(initial=0.0),
-                            np.abs(S @ x - s_target).max(initial=0.0)))
-        trans_err = float(np.abs(t[:2 * ne] - t[2 * ne:]).max(initial=0.0))
+    if ne:
+        D = transition_rows(S.rot, S.xf, S.xg, S.yf, S.yg)
+        A0 = sp.vstack([A, weight * D, weight * pin]).tocsr()
+        b0 = np.concatenate([b, np.zeros(2 * ne + 2)])
     else:
-        trans_err = float(np.abs(D @ x).max(initial=0.0))
-        int_err = float(np.abs(t - np.round(t)).max(initial=0.0))
+        A0, b0 = sp.vstack([A, pin]).tocsr(), np.concatenate([b, np.zeros(2)])
+    x = _solve_normal(A0, b0)
     uv = np.stack([x[:nc], x[nc:]], axis=1)
+    int_err = float("nan")
+    n_chains = S.n_chains if S is not None else 0
+    if ne:
+        Rm = _ROT[S.rot]
+        t_edge = uv[S.xg] - np.einsum("eij,ej->ei", Rm, uv[S.xf])
+    if integer and ne:
+        def soft_rows(fixed, rels, t):
+            """Rows pulling the continuous solve towards the constraints decided so far."""
+            rr, cc, vv, rhs = [], [], [], []
+            row = 0
+            for cp, p in fixed.items():
+                for i in range(2):
+                    rr.append(row), cc.append(cp + i * nc), vv.append(1.0), rhs.append(p[i])
+                    row += 1
+            known = np.flatnonzero(np.isfinite(t[:, 0]))
+            v_, a_, b_, c_ = S.relations()
+            sel = np.isin(c_, known)
+            trip = [(b_[j], a_[j], S.rot_c[c_[j]], t[c_[j]]) for j in np.flatnonzero(sel)]
+            for cp, st, k, tau in list(rels) + trip:
+                Rk = _ROT[k]
+                for i in range(2):
+                    rr += [row, row, row]
+                    cc += [cp + i * nc, st, st + nc]
+                    vv += [1.0, -Rk[i, 0], -Rk[i, 1]]
+                    rhs.append(tau[i])
+                    row += 1
+            M = sp.csr_matrix((vv, (rr, cc)), shape=(row, 2 * nc))
+            return M, np.asarray(rhs)
+
+        def resolve(fixed, rels, t):
+            M, r_ = soft_rows(fixed, rels, t)
+            xx = _solve_normal(sp.vstack([A0, weight * M]).tocsr(), np.concatenate([b0, weight * r_]))
+            return np.stack([xx[:nc], xx[nc:]], axis=1)
+
+        fixed_d, node_rels, t_c, int_err = S.round_nodes(uv, I, resolve=resolve, batches=batches)
+        # hard constraints: singular node copies fixed; every other copy of a seam vertex eliminated
+        # through its chain (regular vertices) or its node's chains (regular nodes)
+        v, a_ref, b_oth, c = S.relations()
+        reg = ~S.node[v]
+        elim_c = np.concatenate([b_oth[reg], np.array([r[0] for r in node_rels], dtype=np.int64)])
+        elim_ref = np.concatenate([a_ref[reg], np.array([r[1] for r in node_rels], dtype=np.int64)])
+        elim_k = np.concatenate([S.rot_c[c[reg]], np.array([r[2] for r in node_rels], dtype=np.int64)])
+        elim_t = np.concatenate([t_c[c[reg]], np.array([r[3] for r in node_rels]).reshape(-1, 2)])
+        fixed = np.zeros(nc, bool)
+        Pfix = np.zeros((nc, 2))
+        if fixed_d:
+            fc = np.fromiter(fixed_d.keys(), dtype=np.int64)
+            fixed[fc] = True
+            Pfix[fc] = np.array(list(fixed_d.values()))
+        elim = np.zeros(nc, bool)
+        elim[elim_c] = True
+        free = ~fixed & ~elim
+        idx = np.full(nc, -1)
+        idx[free] = np.arange(free.sum())
+        nf = int(free.sum())
+        if np.any(idx[elim_ref] < 0):
+            raise RuntimeError("a seam copy is related to a fixed or eliminated copy; the cut graph is not a tree")
+        rows, cols, vals = [np.flatnonzero(free), nc + np.flatnonzero(free)], [idx[free], nf + idx[free]], \
+            [np.ones(nf), np.ones(nf)]
+        Ro = _ROT[elim_k]
+        for i in range(2):
+            for j in range(2):
+                rows.append(i * nc + elim_c)
+                cols.append(j * nf + idx[elim_ref])
+                vals.append(Ro[:, i, j])
+        Smat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                             shape=(2 * nc, 2 * nf))
+        s0 = np.zeros(2 * nc)
+        s0[np.flatnonzero(fixed)] = Pfix[fixed, 0]
+        s0[nc + np.flatnonzero(fixed)] = Pfix[fixed, 1]
+        s0[elim_c] = elim_t[:, 0]
+        s0[nc + elim_c] = elim_t[:, 1]
+        AS = (A @ Smat).tocsr()
+        if not fixed.any():
+            AS = sp.vstack([AS, pin @ Smat]).tocsr()
+            y = _solve_normal(AS, np.concatenate([b - A @ s0, np.zeros(2)]))
+        else:
+            y = _solve_normal(AS, b - A @ s0)
+        xx = Smat @ y + s0
+        uv = np.stack([xx[:nc], xx[nc:]], axis=1)
+        t_edge = uv[S.xg] - np.einsum("eij,ej->ei", Rm, uv[S.xf])
+        t_end = uv[S.yg] - np.einsum("eij,ej->ei", Rm, uv[S.yf])
+        trans_err = float(np.abs(t_edge - t_end).max(initial=0.0))
+        int_err = float(max(int_err, np.abs(t_edge - np.round(t_edge)).max(initial=0.0)))
+        t_edge = np.round(t_edge)
+    elif ne:
+        t_end = uv[S.yg] - np.einsum("eij,ej->ei", Rm, uv[S.yf])
+        trans_err = float(np.abs(t_edge - t_end).max(initial=0.0))
+        int_err = float(np.abs(t_edge - np.round(t_edge)).max(initial=0.0))
+    else:
+        trans_err, int_err = 0.0, 0.0
     U = uv[Fc]
     det = (U[:, 1, 0] - U[:, 0, 0]) * (U[:, 2, 1] - U[:, 0, 1]) - (U[:, 1, 1] - U[:, 0, 1]) * (U[:, 2, 0] - U[:, 0, 0])
-    if ne:  # the distinct seam transitions p_g = R p_f + t (rounded t when integer)
-        tt = np.stack([t[:ne], t[ne:2 * ne]], axis=1)
-        keyt = np.concatenate([((-r) % 4)[:, None].astype(float), np.round(tt, 6)], axis=1)
-        _, idx = np.unique(keyt, axis=0, return_index=True)
-        trans_R, trans_t = R[idx], np.round(tt[idx]) if integer else tt[idx]
-    else:
-        trans_R, trans_t = np.zeros((0, 2, 2)), np.zeros((0, 2))
-    return {"uv": uv, "Vc": Vc, "Fc": Fc, "I": np.asarray(I), "singular": sing, "n_seam_edges": int(ne),
-            "transitions_R": trans_R, "transitions_t": trans_t,
-            "n_flipped": int(np.sum(det <= 0)), "transition_error": trans_err, "integer_error": int_err, "h": h}
+    # per face and local edge: the transition into the neighbour's chart (identity off the seams)
+    rot = np.zeros((m, 3), np.int64)
+    trans = np.zeros((m, 3, 2))
+    if ne:
+        rot[fs, es] = S.rot
+        trans[fs, es] = t_edge
+        rot[g, eg] = (-S.rot) % 4
+        trans[g, eg] = -np.einsum("eij,ej->ei", _ROT[(-S.rot) % 4], t_edge)
+    return {"uv": uv, "Vc": Vc, "Fc": Fc, "I": I, "F": F, "singular": sing, "n_seam_edges": int(ne),
+            "n_chains": int(n_chains), "n_flipped": int(np.sum(det <= 0)), "transition_error": trans_err,
+            "integer_error": int_err, "rot": rot, "trans": trans, "h": float(h)}
 
 
-def lattice_quads(param: dict, *, merge_tol: float = 1e-6) -> dict:
-    """Partial quad extraction from a :func:`seamless_parametrization` (see the module doc).
-
-    Lattice points: every integer ``(i, j)`` inside the ``uv`` image of a non-flipped cut face,
-    placed in 3D by the barycentric coordinates; copies closer than ``merge_tol·h`` (seam copies,
-    points on shared edges) are merged. Quads: four lattice points ``(i, j) … (i, j+1)`` of one
-    chart whose 3D corners are within ``3 h`` of each other. Returns ``{"V" (p, 3), "Q" (q, 4)}``
-    (counter-clockwise in ``uv``).
-    """
-    uv, Vc, Fc, h = param["uv"], param["Vc"], param["Fc"], param["h"]
-    U = uv[Fc]  # (m, 3, 2)
-    lo, hi = np.ceil(U.min(axis=1)).astype(np.int64), np.floor(U.max(axis=1)).astype(np.int64)
+# ============================================================================ extraction
+def _enumerate_boxes(lo: np.ndarray, hi: np.ndarray):
+    """All integer points of the boxes ``[lo_f, hi_f]`` (inclusive, ``(m, 2)``): ``(f, ij)``."""
     span = np.maximum(hi - lo + 1, 0)
     cnt = span[:, 0] * span[:, 1]
-    f = np.repeat(np.arange(Fc.shape[0]), cnt)
+    f = np.repeat(np.arange(lo.shape[0]), cnt)
     off = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-    ij = lo[f] + np.stack([off % np.maximum(span[f, 0], 1), off // np.maximum(span[f, 0], 1)], axis=1)
-    a, b, c = U[f, 0], U[f, 1], U[f, 2]
-    e1, e2, p = b - a, c - a, ij - a
+    w = np.maximum(span[f, 0], 1)
+    return f, lo[f] + np.stack([off % w, off // w], axis=1)
+
+
+class _Keys:
+    """Lookup of integer triples ``(f, i, j)`` by a sorted int64 key."""
+
+    def __init__(self, f, ij, base, W, H):
+        self.base, self.W, self.H = base, W, H
+        self.k = self.key(f, ij)
+        self.order = np.argsort(self.k, kind="stable")
+        self.sorted = self.k[self.order]
+
+    def key(self, f, ij):
+        i, j = ij[:, 0] - self.base[0], ij[:, 1] - self.base[1]
+        ok = (i >= 0) & (i < self.W) & (j >= 0) & (j < self.H)
+        return np.where(ok, (f.astype(np.int64) * self.W + i) * self.H + j, -1)
+
+    def find(self, f, ij):
+        """Index of each ``(f, ij)`` among the stored ones, or -1."""
+        q = self.key(f, ij)
+        if self.sorted.size == 0:
+            return np.full(q.size, -1)
+        p = np.minimum(np.searchsorted(self.sorted, q), self.sorted.size - 1)
+        return np.where((self.sorted[p] == q) & (q >= 0), self.order[p], -1)
+
+
+def _apply(rot, t, p):
+    """``R^rot p + t`` row-wise (``rot (k,)``, ``t, p (k, 2)``)."""
+    return np.einsum("kij,kj->ki", _ROT[rot % 4], p) + t
+
+
+def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
+    """Quads of a :func:`seamless_parametrization` and the polygons closing its holes (module doc).
+
+    ``eps`` (in ``uv`` units) is the tolerance under which a cell touching a triangle or an edge
+    only along a line or at a point does not count as crossing it, and a point on a triangle's
+    edge counts as on it. Returns a dict:
+
+    * ``V`` ``(p, 3)`` the integer points on the surface, ``location`` ``(p,)`` their face and
+      ``bary`` ``(p, 3)`` barycentric coordinates in it (mesh faces, for carrying points by a map);
+    * ``Q`` ``(q, 4)`` quads, counter-clockwise seen from outside;
+    * ``polygons`` (list of int arrays) the faces that close the holes, each counter-clockwise;
+    * ``n_cells`` (cells of the iso-line partition), ``n_inconsistent`` (cells not a unit square:
+      singular or folded), ``n_dropped`` (quads removed to keep every edge manifold).
+    """
+    uv, Fc, F, rot, trans = param["uv"], param["Fc"], param["F"], param["rot"], param["trans"]
+    Vc = param["Vc"]
+    m = Fc.shape[0]
+    U = uv[Fc]  # (m, 3, 2)
+    e1, e2 = U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]
     det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    ok = det > 0
-    l1 = np.where(ok, (p[:, 0] * e2[:, 1] - p[:, 1] * e2[:, 0]) / np.where(ok, det, 1), -1)
-    l2 = np.where(ok, (e1[:, 0] * p[:, 1] - e1[:, 1] * p[:, 0]) / np.where(ok, det, 1), -1)
-    eps = 1e-9
-    inside = ok & (l1 >= -eps) & (l2 >= -eps) & (l1 + l2 <= 1 + eps)
-    f, ij, l1, l2 = f[inside], ij[inside], l1[inside], l2[inside]
-    X = (1 - l1 - l2)[:, None] * Vc[Fc[f, 0]] + l1[:, None] * Vc[Fc[f, 1]] + l2[:, None] * Vc[Fc[f, 2]]
-    # merge copies by 3D position
-    key = np.round(X / (merge_tol * h)).astype(np.int64)
-    _, pid, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
-    inv = inv.ravel()
-    Vq = X[pid]
-    # quads within a chart: look up (i+1, j), (i+1, j+1), (i, j+1) by uv key and check 3D proximity
-    base = ij.min(axis=0)
-    W = int(ij[:, 0].max() - base[0] + 2)
-    k = (ij[:, 1] - base[1]) * W + (ij[:, 0] - base[0])
-    order = np.argsort(k, kind="stable")
-    ks = k[order]
-    # the seam transitions (both ways): a grid neighbour across a seam is R q + t in the other chart
-    trans = [(np.eye(2), np.zeros(2))]
-    for Rm, tv in zip(param.get("transitions_R", []), param.get("transitions_t", [])):
-        trans += [(Rm, tv), (Rm.T, -Rm.T @ tv)]
+    ok = det > eps * eps
+    base = np.floor(uv.min(axis=0)).astype(np.int64) - 2
+    W, H = (np.ceil(uv.max(axis=0)).astype(np.int64) - base + 3).tolist()
 
-    def find(qij):
-        """Index of a lattice point at ``qij`` (per row, in the row's chart) near ``X``, or -1."""
-        out = np.full(qij.shape[0], -1)
-        for Rm, tv in trans:
-            todo = out < 0
-            if not todo.any():
-                break
-            qq = np.rint(qij[todo] @ Rm.T + tv).astype(np.int64)
-            q = (qq[:, 1] - base[1]) * W + (qq[:, 0] - base[0])
-            inb = (qq[:, 0] >= base[0]) & (qq[:, 0] < base[0] + W - 1) & (qq[:, 1] >= base[1])
-            pos = np.minimum(np.searchsorted(ks, q), ks.size - 1)
-            hit = inb & (ks[pos] == q)
-            j = np.where(hit, order[pos], -1)
-            near = hit & (np.linalg.norm(X[np.maximum(j, 0)] - X[todo], axis=1) < 3 * h)
-            sub = out[todo]
-            sub[near] = j[near]
-            out[todo] = sub
-        return out
+    # -- cells: unit squares with a positive-area overlap with a (non-folded) triangle (separating axes)
+    lo = np.floor(U.min(axis=1)).astype(np.int64)
+    hi = np.ceil(U.max(axis=1)).astype(np.int64) - 1
+    lo[~ok], hi[~ok] = 0, -1
+    cf, cij = _enumerate_boxes(lo, hi)
+    Uc = U[cf]  # (c, 3, 2)
+    keep = (Uc[:, :, 0].max(1) > cij[:, 0] + eps) & (Uc[:, :, 0].min(1) < cij[:, 0] + 1 - eps) & \
+           (Uc[:, :, 1].max(1) > cij[:, 1] + eps) & (Uc[:, :, 1].min(1) < cij[:, 1] + 1 - eps)
+    sq = cij[:, None, :] + _CORNERS[None]  # (c, 4, 2)
+    for k in range(3):
+        a, b = Uc[:, k], Uc[:, (k + 1) % 3]
+        nrm = np.stack([b[:, 1] - a[:, 1], a[:, 0] - b[:, 0]], axis=1)
+        nrm /= np.linalg.norm(nrm, axis=1, keepdims=True) + 1e-300
+        pt = np.einsum("cvd,cd->cv", Uc, nrm)
+        ps = np.einsum("cvd,cd->cv", sq, nrm)
+        keep &= (pt.max(1) > ps.min(1) + eps) & (ps.max(1) > pt.min(1) + eps)
+    cf, cij = cf[keep], cij[keep]
+    cells = _Keys(cf, cij, base, W, H)
+    nfr = cf.size
 
-    corners = [find(ij + np.array(dv)) for dv in ((1, 0), (1, 1), (0, 1))]
-    c1, c2, c3 = corners
-    okq = (c1 >= 0) & (c2 >= 0) & (c3 >= 0)
-    Q = np.stack([inv[okq.nonzero()[0]], inv[c1[okq]], inv[c2[okq]], inv[c3[okq]]], axis=1)
-    Q = Q[np.all(np.diff(np.sort(Q, axis=1), axis=1) > 0, axis=1)]  # four distinct corners
-    Q = np.unique(Q[np.lexsort(np.sort(Q, axis=1).T[::-1])], axis=0) if Q.size else Q
-    if Q.size:  # one copy of each quad (the same quad found from two copies of a corner)
-        _, first = np.unique(np.sort(Q, axis=1), axis=0, return_index=True)
-        Q = Q[np.sort(first)]
-    return {"V": Vq, "Q": Q.astype(np.int64)}
+    # -- cells across every edge (once): cells crossed by the open edge, in the neighbour's chart
+    import igl
+
+    TT, _ = igl.triangle_triangle_adjacency(np.ascontiguousarray(F, dtype=np.int64))
+    ef, ee = np.nonzero((TT > np.arange(m)[:, None]))
+    eg = TT[ef, ee]
+    both = ok[ef] & ok[eg]
+    ef, ee, eg = ef[both], ee[both], eg[both]
+    A, B = U[ef, ee], U[ef, (ee + 1) % 3]
+    lo_e = np.floor(np.minimum(A, B)).astype(np.int64)
+    hi_e = np.ceil(np.maximum(A, B)).astype(np.int64) - 1
+    sf, sij = _enumerate_boxes(lo_e, hi_e)
+    a, b = A[sf], B[sf]
+    cross = (np.maximum(a[:, 0], b[:, 0]) > sij[:, 0] + eps) & (np.minimum(a[:, 0], b[:, 0]) < sij[:, 0] + 1 - eps) & \
+            (np.maximum(a[:, 1], b[:, 1]) > sij[:, 1] + eps) & (np.minimum(a[:, 1], b[:, 1]) < sij[:, 1] + 1 - eps)
+    nrm = np.stack([b[:, 1] - a[:, 1], a[:, 0] - b[:, 0]], axis=1)
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True) + 1e-300
+    ps = np.einsum("cvd,cd->cv", sij[:, None, :] + _CORNERS[None], nrm)
+    pa = np.einsum("cd,cd->c", a, nrm)
+    cross &= (ps.min(1) < pa - eps) & (ps.max(1) > pa + eps)
+    sf, sij = sf[cross], sij[cross]
+    f_, g_, e_ = ef[sf], eg[sf], ee[sf]
+    r_, t_ = rot[f_, e_], trans[f_, e_]
+    gij = np.floor(_apply(r_, t_, sij + 0.5)).astype(np.int64)
+    ia, ib = cells.find(f_, sij), cells.find(g_, gij)
+    good = (ia >= 0) & (ib >= 0)
+    ia, ib, r_, t_ = ia[good], ib[good], r_[good], t_[good]
+    n_cls, cls = connected_components(sp.csr_matrix((np.ones(ia.size), (ia, ib)), shape=(nfr, nfr)), directed=False)
+
+    # -- chart of every cell fragment relative to its class's first fragment: p_root = R^k p + tau
+    kk = np.full(nfr, -1)
+    tau = np.zeros((nfr, 2))
+    roots = np.unique(cls, return_index=True)[1]
+    kk[roots] = 0
+    # both directions of every link: chart_b = R^r chart_a + t  and  chart_a = R^-r chart_b - R^-r t
+    la = np.concatenate([ia, ib])
+    lb = np.concatenate([ib, ia])
+    lr = np.concatenate([r_, (-r_) % 4])
+    lt = np.concatenate([t_, -_apply((-r_) % 4, np.zeros_like(t_), t_)])
+    for _ in range(nfr):
+        step = (kk[la] >= 0) & (kk[lb] < 0)
+        if not step.any():
+            break
+        a_, b_ = la[step], lb[step]
+        a_, first = np.unique(b_, return_index=True)[0], np.unique(b_, return_index=True)[1]
+        src = la[step][first]
+        k_new = (kk[src] - lr[step][first]) % 4
+        kk[a_] = k_new
+        tau[a_] = tau[src] - _apply(k_new, np.zeros((a_.size, 2)), lt[step][first])
+    root_cell = np.floor(_apply(kk, tau, cij + 0.5)).astype(np.int64)
+    # a class is a proper cell when all its fragments name the same unit square of the root chart
+    ref_cell = root_cell[roots][cls]
+    bad_cls = np.zeros(n_cls, bool)
+    bad_cls[cls[np.any(root_cell != ref_cell, axis=1)]] = True
+
+    # -- integer points of the closed (non-folded) triangles, merged across edges into point ids
+    plo = np.ceil(U.min(axis=1) - eps).astype(np.int64)
+    phi = np.floor(U.max(axis=1) + eps).astype(np.int64)
+    plo[~ok], phi[~ok] = 0, -1
+    pf_, pij = _enumerate_boxes(plo, phi)
+    d = pij - U[pf_, 0]
+    l1 = (d[:, 0] * e2[pf_, 1] - d[:, 1] * e2[pf_, 0]) / det[pf_]
+    l2 = (e1[pf_, 0] * d[:, 1] - e1[pf_, 1] * d[:, 0]) / det[pf_]
+    lam = np.stack([1 - l1 - l2, l1, l2], axis=1)
+    tol = eps / np.sqrt(np.abs(det[pf_]))[:, None]  # barycentric tolerance for eps in uv
+    inside = np.all(lam >= -tol, axis=1)
+    pf_, pij, lam, tol = pf_[inside], pij[inside], lam[inside], tol[inside]
+    pts = _Keys(pf_, pij, base, W, H)
+    npi = pf_.size
+    la_, lb_ = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
+    for k in range(3):  # on the edge opposite corner k: local edge (k+1) % 3
+        on = np.flatnonzero(lam[:, k] <= tol[:, 0])
+        e = (k + 1) % 3
+        g = TT[pf_[on], e]
+        on, g = on[g >= 0], g[g >= 0]
+        q = np.rint(_apply(rot[pf_[on], e], trans[pf_[on], e], pij[on])).astype(np.int64)
+        j = pts.find(g, q)
+        la_.append(on[j >= 0])
+        lb_.append(j[j >= 0])
+    la_, lb_ = np.concatenate(la_), np.concatenate(lb_)
+    n_pts, pid = connected_components(sp.csr_matrix((np.ones(la_.size), (la_, lb_)), shape=(npi, npi)), directed=False)
+    first = np.unique(pid, return_index=True)[1]
+    lam_c = np.clip(lam[first], 0.0, None)
+    lam_c /= lam_c.sum(axis=1, keepdims=True)
+    Xp = np.einsum("pk,pkd->pd", lam_c, Vc[Fc[pf_[first]]])
+
+    # -- corners of every cell fragment (those in its closed triangle), by slot of the root square
+    fr_idx = np.repeat(np.arange(nfr), 4)
+    corner = (cij[:, None, :] + _CORNERS[None]).reshape(-1, 2)
+    j = pts.find(cf[fr_idx], corner)
+    has = j >= 0
+    fr_idx, corner, j = fr_idx[has], corner[has], j[has]
+    rc = np.rint(_apply(kk[fr_idx], tau[fr_idx], corner.astype(float))).astype(np.int64) - ref_cell[fr_idx]
+    slot = np.full(rc.shape[0], -1)
+    for s, c in enumerate(_CORNERS):
+        slot[np.all(rc == c, axis=1)] = s
+    triples = np.unique(np.stack([cls[fr_idx], slot, pid[j]], axis=1), axis=0)
+    triples = triples[triples[:, 1] >= 0]
+    # a quad: a consistent class with exactly one point per slot, four slots, four distinct points
+    cs = triples[:, 0] * 4 + triples[:, 1]
+    cnt_slot = np.bincount(cs, minlength=4 * n_cls).reshape(n_cls, 4)
+    quad_cls = np.flatnonzero(np.all(cnt_slot == 1, axis=1) & ~bad_cls)
+    Qall = np.full((n_cls, 4), -1)
+    one = cnt_slot.ravel()[cs] == 1
+    Qall[triples[one, 0], triples[one, 1]] = triples[one, 2]
+    Q = Qall[quad_cls]
+    Q = Q[np.all(np.diff(np.sort(Q, axis=1), axis=1) > 0, axis=1)]
+
+    # -- keep every edge manifold: drop quads that reuse a directed edge or make an edge non-manifold
+    n_dropped = 0
+    while Q.size:
+        E = np.stack([Q, np.roll(Q, -1, axis=1)], axis=2).reshape(-1, 2)
+        key = E[:, 0] * n_pts + E[:, 1]
+        ukey = np.minimum(E[:, 0], E[:, 1]) * n_pts + np.maximum(E[:, 0], E[:, 1])
+        _, dinv, dcnt = np.unique(key, return_inverse=True, return_counts=True)
+        _, uinv, ucnt = np.unique(ukey, return_inverse=True, return_counts=True)
+        bad_e = (dcnt[dinv] > 1) | (ucnt[uinv] > 2)
+        bad_q = bad_e.reshape(-1, 4).any(axis=1)
+        if not bad_q.any():
+            break
+        n_dropped += int(bad_q.sum())
+        Q = Q[~bad_q]
+    polygons = _close_holes(Q, n_pts)
+    return {"V": Xp, "location": pf_[first], "bary": lam_c, "Q": Q.astype(np.int64), "polygons": polygons,
+            "n_cells": int(n_cls), "n_inconsistent": int(bad_cls.sum()), "n_dropped": n_dropped}
 
 
-def quad_mesh_stats(V: np.ndarray, Q: np.ndarray) -> dict:
-    """Counts of a quad mesh: quads, vertices used, boundary edges (0 = watertight), valence
-    histogram of the interior vertices and the irregular ones (interior valence != 4)."""
-    Q = np.asarray(Q, dtype=np.int64)
+def _close_holes(Q: np.ndarray, n: int) -> list:
+    """Polygons closing the holes of a quad set with manifold edges: every boundary loop, reversed.
+
+    At a vertex where several holes meet, incoming and outgoing boundary edges are paired in a
+    fixed order, so every boundary edge gets exactly one closing polygon.
+    """
     if Q.size == 0:
-        return {"n_quads": 0, "n_vertices": 0, "n_boundary_edges": 0, "n_irregular": 0, "valence": {},
-                "irregular": np.zeros(0, np.int64)}
+        return []
     E = np.stack([Q, np.roll(Q, -1, axis=1)], axis=2).reshape(-1, 2)
+    key = E[:, 0] * n + E[:, 1]
+    rev = E[:, 1] * n + E[:, 0]
+    bnd = E[~np.isin(rev, key)]
+    if bnd.size == 0:
+        return []
+    H = bnd[:, ::-1]  # hole half-edges a -> b, each hole traversed counter-clockwise from outside
+    # next half-edge: one starting where this one ends; pair in-edges and out-edges per vertex
+    o_out = np.lexsort((np.arange(H.shape[0]), H[:, 0]))
+    o_in = np.lexsort((np.arange(H.shape[0]), H[:, 1]))
+    nxt = np.empty(H.shape[0], np.int64)
+    nxt[o_in] = o_out  # the i-th in-edge at v continues with the i-th out-edge at v (same counts)
+    seen = np.zeros(H.shape[0], bool)
+    polys = []
+    for s in range(H.shape[0]):  # one pass over the boundary half-edges (a hole's length each)
+        if seen[s]:
+            continue
+        loop, e = [], s
+        while not seen[e]:
+            seen[e] = True
+            loop.append(H[e, 0])
+            e = nxt[e]
+        polys.append(np.array(loop, dtype=np.int64))
+    return polys
+
+
+def quad_mesh_stats(V: np.ndarray, Q: np.ndarray, polygons=()) -> dict:
+    """Counts of a polygon mesh of quads ``Q`` ``(q, 4)`` and other ``polygons`` (list of index arrays).
+
+    ``n_quads``, ``n_polygons`` (the non-quad faces) and ``polygon_sizes`` (histogram),
+    ``quad_fraction`` (quads over faces), ``n_vertices`` (used), ``n_boundary_edges`` (0: watertight),
+    ``n_nonmanifold_edges`` (edges of more than two faces), the valence histogram of the interior
+    vertices, ``n_irregular`` (interior valence != 4) and the list ``irregular``.
+    """
+    Q = np.asarray(Q, dtype=np.int64).reshape(-1, 4)
+    faces = [Q] + [np.asarray(p, dtype=np.int64)[None] for p in polygons]
+    if sum(f.size for f in faces) == 0:
+        return {"n_quads": 0, "n_polygons": 0, "polygon_sizes": {}, "quad_fraction": 0.0, "n_vertices": 0,
+                "n_boundary_edges": 0, "n_nonmanifold_edges": 0, "n_irregular": 0, "valence": {},
+                "irregular": np.zeros(0, np.int64)}
+    E = np.concatenate([np.stack([f, np.roll(f, -1, axis=1)], axis=2).reshape(-1, 2) for f in faces if f.size])
     Es = np.sort(E, axis=1)
     uniq, cnt = np.unique(Es, axis=0, return_counts=True)
     bnd = uniq[cnt == 1]
-    used = np.unique(Q)
-    val = np.bincount(uniq.ravel(), minlength=int(Q.max()) + 1)
+    used = np.unique(np.concatenate([f.ravel() for f in faces]))
+    val = np.bincount(uniq.ravel(), minlength=int(used.max()) + 1)
     on_bnd = np.zeros(val.size, bool)
     on_bnd[bnd.ravel()] = True
     interior = used[~on_bnd[used]]
     irr = interior[val[interior] != 4]
     hist = {int(a): int(b) for a, b in zip(*np.unique(val[interior], return_counts=True))}
-    return {"n_quads": int(Q.shape[0]), "n_vertices": int(used.size), "n_boundary_edges": int(bnd.shape[0]),
+    sizes = np.array([len(p) for p in polygons], dtype=np.int64)
+    n_faces = Q.shape[0] + sizes.size
+    return {"n_quads": int(Q.shape[0]), "n_polygons": int(sizes.size),
+            "polygon_sizes": {int(a): int(b) for a, b in zip(*np.unique(sizes, return_counts=True))},
+            "quad_fraction": float(Q.shape[0] / n_faces) if n_faces else 0.0,
+            "n_vertices": int(used.size), "n_boundary_edges": int(bnd.shape[0]),
             "n_nonmanifold_edges": int(np.sum(cnt > 2)), "n_irregular": int(irr.size), "valence": hist,
             "irregular": irr}

@@ -78,13 +78,23 @@ def small_joint():
 def test_figure14_joint_pair_outputs(small_joint):
     m1, m2, r = small_joint
     assert set(r) == {"k3", "k4", "baselines", "quads", "seconds", "fields"}
-    assert r["quads"]["k"] == 3 and set(r["quads"]) == {"k", "std", "ext", "default", "independent"}
-    for n in ("std", "independent"):
-        st = r["quads"][n]
-        assert st["source"]["n_quads"] > 0 and st["target"]["n_quads"] > 0
-        assert 0 <= st["irregular_matched"] <= st["irregular_matched_of"] == st["source"]["n_irregular"]
-        V, Q = r["fields"]["quad_meshes"][n][1]
+    q = r["quads"]
+    assert set(q) == {"size", "k3", "k4", "baselines"} and q["size"] == cf.JOINT_DEFAULTS["quad_size"]
+    assert set(q["k3"]) == {"std", "ext", "default"} and set(q["baselines"]) == {"independent", "pushforward"}
+    for grp, n in (("k3", "std"), ("k4", "ext"), ("baselines", "independent"), ("baselines", "pushforward")):
+        st = q[grp][n]
+        for side in ("source", "target"):
+            assert st[side]["n_quads"] > 0 and st[side]["n_boundary_edges"] == 0  # watertight
+            assert st[side]["n_nonmanifold_edges"] == 0
+        assert 0 <= st["irregular_matched"] <= min(st["irregular_matched_of"], st["irregular_target"])
+        assert st["irregular_matched_of"] == st["source"]["n_irregular"]
+        V, Q, polys, irr = r["fields"]["quad_meshes"][(grp, n)][1]
         assert Q.shape == (st["target"]["n_quads"], 4) and Q.max() < V.shape[0]
+        assert len(polys) == st["target"]["n_polygons"] and len(irr) == st["target"]["n_irregular"]
+    # the push-forward baseline: the same field on both (identity map, one triangulation): the two
+    # quad meshes' irregular vertices correspond one to one
+    pfq = q["baselines"]["pushforward"]
+    assert pfq["irregular_match_fraction"] > 0.9
     assert set(r["k3"]) == set(cf.JOINT_KINDS) and set(r["baselines"]) == set(cf.BASELINES)
     assert r["baselines"]["pushforward"]["angle_mean_deg"] < 1e-9
     pf_ = r["baselines"]["pushforward"]
@@ -115,6 +125,24 @@ def test_summarize_pairs_counts_and_pools():
     assert s["k5"]["std"]["mean"] == pytest.approx(8 / 3) and s["k5"]["ext"]["max"] == 3.0
     assert s["cells"]["ext"] == {"a|k5": 1.0, "b|k5": 2.5, "c|k5": 3.0}
     assert s["pooled"]["default"]["n_cells"] == 3 and s["pooled"]["p2p"]["std"] == 0.0
+
+
+def test_summarize_quads_counts_and_pools():
+    def cell(f, n=100):
+        side = {"n_quads": n, "quad_fraction": 0.99, "n_boundary_edges": 0, "n_nonmanifold_edges": 0}
+        return {"irregular_match_fraction": f, "irregular_low_match_fraction": f / 2, "source": side, "target": side}
+
+    def pair(s, e, i):
+        return {"quads": {"size": 0.03, "k5": {"std": cell(s), "ext": cell(e)}, "baselines": {"independent": cell(i)}}}
+
+    per = {"a": pair(0.5, 0.6, 0.4), "b": pair(0.7, 0.6, 0.5)}
+    s = cf.summarize_quads(per)
+    g = s["groups"]
+    assert g["k5"]["ext"]["n_better"] == 1 and g["k5"]["ext"]["n_pairs"] == 2 and "n_better" not in g["k5"]["std"]
+    assert g["k5"]["std"]["irregular_match_fraction"]["mean"] == pytest.approx(0.6)
+    assert g["baselines"]["independent"]["n_quads"]["mean"] == 100 and g["k5"]["std"]["n_boundary_edges_total"] == 0
+    assert s["cells"]["ext"] == {"a|k5": 0.6, "b|k5": 0.6} and s["pooled"]["independent"]["max"] == 0.5
+    assert s["cells_low"]["std"] == {"a|k5": 0.25, "b|k5": 0.35} and g["k5"]["ext"]["n_better_low"] == 1
 
 
 def test_surface_ground_truth_of_a_remeshed_variant():
