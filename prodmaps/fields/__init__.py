@@ -15,9 +15,10 @@ subpackage implements the pieces on plain arrays:
   target field (or both) by linear least squares.
 * :mod:`.stripes` — two coupled stripe patterns per cross field [KCPS15], the quad texture and
   the layout-consistency score.
-* :mod:`.quadmesh` — a seamless integer parametrisation along a cross field (libigl's comb,
-  mismatch and cut, a scipy least-squares solve) and a partial extraction of its integer-lattice
-  quads (not watertight on meshes with many close singularities).
+* :mod:`.quadmesh` — an integer-grid parametrisation along a cross field (libigl's comb,
+  mismatch and cut, consistent rounding along the tree of cut chains, scipy solves) and its quad
+  mesh: the cells of the integer iso-lines, one polygon closing each hole next to a singularity
+  cluster (watertight on a closed input).
 
 What follows [ACBCO17] and what is this package's own is listed in the Figure 14 notebook
 (``notebooks/fig14_quad_transfer.ipynb``) and in :mod:`.consistency`'s module doc.
