@@ -2,7 +2,7 @@
 
 Usage::
 
-    python benchmarks/scale_1m.py [--levels 4] [--k 40] [--functions 100] [--skip-p2p]
+    python benchmarks/scale_1m.py [--levels 4] [--k 40] [--functions 100] [--jobs 2] [--p2p-sample 2000]
 
 Two poses of the embedded humans (``anny_000`` and ``anny_013``, one triangulation) are
 subdivided the same way (1-to-4 midpoint subdivision ``levels`` times: 5002 -> about 1.28M
@@ -10,12 +10,15 @@ vertices at 4 levels), so the pair keeps one triangulation and the identity grou
 (``p2p_21 = arange(n)``). Steps, each in this one process, with the wall time and the growth
 of the peak resident memory (``ru_maxrss``):
 
-* ``eigenbasis(k)`` on both shapes;
+* ``eigenbasis(k)`` on both shapes, in ``--jobs`` worker processes (:func:`prodmaps.basis.eigenbases`:
+  the sparse LU and its solves run on one core each; ``--jobs 1``: one after the other);
 * the ground-truth map ``C_12`` at ``k_M = 29`` / ``k_N = 39``; the default transfer
   ``pm.transfer(F, C, b1, b2, "prod")`` and Approach B (``rtol=1e-3``, ordered pairs) of
   ``functions`` functions (the coordinates and seeded random functions);
-* the standard point-map conversion ``pm.p2p.from_fmap(C, b1, b2, "std")`` (exact nearest
-  neighbours, 39 + 1 dimensions), with the share of vertices mapped to themselves.
+* the standard point-map conversion ``pm.p2p.from_fmap(C, b1, b2, "std", vertices=...)`` (exact
+  nearest neighbours, 39 + 1 dimensions) for ``--p2p-sample`` seeded target vertices against all
+  source vertices, with the share mapped to themselves and the time of all ``n`` extrapolated
+  (exact search: the cost is linear in the number of queries); ``--p2p-sample 0`` skips it.
 
 Prints one JSON line (the last line of stdout) and, for the extended point-map conversion, the
 FLOP count of its brute force and the machine's measured GEMM rate instead of running it.
@@ -34,6 +37,11 @@ import numpy as np
 
 def peak_gb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+
+
+def peak_children_gb() -> float:
+    """Peak resident memory of the largest finished worker process (the eigenbases' workers)."""
+    return resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 2**20
 
 
 def gemm_gflops(n: int = 2000, repeat: int = 3) -> float:
@@ -55,7 +63,8 @@ def main(argv=None) -> int:
     ap.add_argument("--levels", type=int, default=4)
     ap.add_argument("--k", type=int, default=40, help="eigenpairs per shape (constant included)")
     ap.add_argument("--functions", type=int, default=100)
-    ap.add_argument("--skip-p2p", action="store_true")
+    ap.add_argument("--jobs", type=int, default=2, help="worker processes of the two eigenbases (1: serial)")
+    ap.add_argument("--p2p-sample", type=int, default=2000, help="target vertices of the timed std conversion")
     args = ap.parse_args(argv)
     shapes = dataset_dir("anny_humans") / "shapes"
     steps, t_all = {}, time.perf_counter()
@@ -75,8 +84,7 @@ def main(argv=None) -> int:
     m1, m2 = step("subdivide", lambda: (pose("anny_000"), pose("anny_013")))
     assert np.array_equal(m1.faces, m2.faces)  # one triangulation: identity ground truth
     n = m1.n_vertices
-    b1 = step("eigenbasis_1", lambda: pm.eigenbasis(m1, args.k))
-    b2 = step("eigenbasis_2", lambda: pm.eigenbasis(m2, args.k))
+    b1, b2 = step("eigenbases", lambda: pm.basis.eigenbases([m1, m2], args.k, jobs=args.jobs))
     k1, k2 = min(30, args.k), min(40, args.k)
     c1, c2 = b1.truncate(k1), b2.truncate(k2)
     idn = np.arange(n)
@@ -90,12 +98,17 @@ def main(argv=None) -> int:
     G_b = step("transfer_approach_b", lambda: pm.transfer(F, C, fresh1, fresh2, "prod", rtol=1e-3, pairs="ordered"))
     err_b = pm.relative_error(G_b[:, :3], m2.vertices, c2.mass)
     del G_b
-    out = {"n": n, "k": args.k, "k_M": k1 - 1, "k_N": k2 - 1, "functions": args.functions, "steps": steps,
+    out = {"n": n, "k": args.k, "k_M": k1 - 1, "k_N": k2 - 1, "functions": args.functions, "jobs": args.jobs,
+           "steps": steps,
            "xyz_error_default": [round(float(e), 4) for e in err_def],
            "xyz_error_approach_b": [round(float(e), 4) for e in err_b]}
-    if not args.skip_p2p:
-        p2p = step("p2p_std", lambda: pm.p2p.from_fmap(C, c1, c2, "std"))
-        out["p2p_identity_share"] = float(np.mean(p2p == idn))
+    if args.p2p_sample:
+        ev = np.sort(rng.choice(n, min(args.p2p_sample, n), replace=False))
+        p2p = step("p2p_std_sample", lambda: pm.p2p.from_fmap(C, c1, c2, "std", vertices=ev))
+        out["p2p_sample"] = int(ev.size)
+        out["p2p_identity_share"] = float(np.mean(p2p == ev))
+        out["p2p_std_all_s_extrapolated"] = round(steps["p2p_std_sample"]["s"] * n / ev.size, 0)
+        out["p2p_std_flop"] = 2.0 * n * n * k2
     # the extended conversion: canonical dimension r ~ the product basis' retained singular values
     K2 = 1 + (k2 - 1) + (k2 - 1) * k2 // 2  # unique pairs of shape 2's extended basis
     r = min(K2, 800)
@@ -104,6 +117,11 @@ def main(argv=None) -> int:
         "hours_at_gemm_rate": round(2.0 * n * n * r / (gemm_gflops() * 1e9) / 3600, 1)}
     out["total_s"] = round(time.perf_counter() - t_all, 1)
     out["peak_gb"] = round(peak_gb(), 2)
+    # while the workers ran, the main process held the meshes only: the machine's peak is at most
+    # the main process's peak plus the workers' (each at most the largest one's)
+    out["peak_worker_gb"] = round(peak_children_gb(), 2)
+    bound = peak_gb() + args.jobs * peak_children_gb() if args.jobs > 1 else peak_gb()
+    out["peak_machine_gb_bound"] = round(bound, 2)
     print(json.dumps(out))
     return 0
 

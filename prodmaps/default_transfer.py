@@ -94,6 +94,10 @@ from .products import evaluate_products, product_basis
 __all__ = ["SafeTransfer", "safe_transfer", "isometry_defect", "DEFAULTS"]
 
 DEFAULTS = {"g0": 1.5, "p": 8, "l0": 0.5, "e0": 0.4, "floor": 1e-3, "h_min": 1e-4}
+# the product images are formed in one piece up to this size, else by blocks of rows (same
+# arithmetic per row; the block sums of the norms differ from one sum at rounding level)
+_SINGLE_BLOCK_BYTES = 512 << 20
+_BLOCK_ROWS = 1 << 16
 
 
 def _source_parts(basis_1: Basis):
@@ -189,19 +193,34 @@ class SafeTransfer:
         self.H, self.extended_basis = H, ext_u
         m2 = basis_2.mass
         Psi = basis_2.vecs @ C  # (n2, k1) transferred basis functions
-        Z = evaluate_products(Psi, ext_u.index)[:, k1:] - Psi @ H  # (n2, Kp) images of the Q columns (Lemma 2)
-        Y = Z @ V  # (n2, r) images y_i of the directions
         rho = np.sqrt(basis_2.area / basis_1.area)
         U, s, Vt = np.linalg.svd(C, full_matrices=False)
         rk = s > 1e-10 * s[0]
         Uc = U[:, rk]  # (k2, rank) orthonormal basis of range(C)
         Q2 = basis_2.vecs @ Uc  # (n2, rank) A2-orthonormal basis of range(Ψ)
-        T = Q2.T @ (m2[:, None] * Y)  # (rank, r) coordinates of Π y_i
-        raw = np.sqrt(np.einsum("ij,ij->j", Y, m2[:, None] * Y))  # (r,) ||y_i||_A2
+        n2, r = Psi.shape[0], V.shape[1]
+        # images y_i = (Z - Ψ H) v_i of the directions, Z the products of Ψ (Lemma 2), by blocks of
+        # rows when Z would be large (a million-vertex target): one (n2, r) array instead of several
+        step = n2 if n2 * H.shape[1] * 8 <= _SINGLE_BLOCK_BYTES else _BLOCK_ROWS
+        Y = np.empty((n2, r))  # (n2, r)
+        T = np.zeros((int(rk.sum()), r))  # (rank, r) coordinates of Π y_i
+        raw2 = np.zeros(r)  # ||y_i||²_A2
+        for a in range(0, n2, step):
+            b_ = slice(a, min(a + step, n2))
+            Yb = (evaluate_products(Psi[b_], ext_u.index)[:, k1:] - Psi[b_] @ H) @ V  # (rows, r)
+            MYb = m2[b_, None] * Yb
+            T += Q2[b_].T @ MYb
+            raw2 += np.einsum("ij,ij->j", Yb, MYb)
+            Y[b_] = Yb
+        raw = np.sqrt(raw2)  # (r,) ||y_i||_A2
         leak = np.minimum(np.linalg.norm(T, axis=0) / np.maximum(raw, np.finfo(float).tiny), 1.0)
-        Y = Y - Q2 @ T  # (n2, r) y'_i = (I - Π) y_i
         sigma = np.sqrt(lam)
-        gain = np.sqrt(np.einsum("ij,ij->j", Y, m2[:, None] * Y)) / (rho * sigma)
+        norm2 = np.zeros(r)
+        for a in range(0, n2, step):  # y'_i = (I - Π) y_i, in place, and its norm
+            b_ = slice(a, min(a + step, n2))
+            Y[b_] -= Q2[b_] @ T
+            norm2 += np.einsum("ij,ij->j", Y[b_], m2[b_, None] * Y[b_])
+        gain = np.sqrt(norm2) / (rho * sigma)
         delta = isometry_defect(C, rho**2)  # (k1,)
         pl = ext_u.index[k1:]  # (Kp, 2) the pair (l, m) of each product column
         err = np.sqrt(((V**2) * ((delta[pl[:, 0]] + delta[pl[:, 1]]) * gpp)[:, None]).sum(axis=0) / lam)  # (r,) ê_i
@@ -213,7 +232,7 @@ class SafeTransfer:
         keep = h >= h_min
         self.sigma, self.gain, self.leak, self.error, self.filter = sigma, gain, leak, err, h
         self._Psi = Psi
-        self._Y = np.ascontiguousarray(Y[:, keep])  # (n2, r_kept)
+        self._Y = Y if keep.all() else np.ascontiguousarray(Y[:, keep])  # (n2, r_kept)
         self._W = np.ascontiguousarray(V[:, keep] * (h[keep] / lam[keep]))  # (Kp, r_kept): filtered pseudo-inverse
         self._V = np.ascontiguousarray(V[:, keep])
         # the removed parts Π y_i = Φ2 Uc T_i = Φ2 C d_i with d_i = C⁺ Uc T_i = V_c Σ_c⁻¹ T_i (same SVD)

@@ -191,10 +191,8 @@ class _Seams:
         for q in order[::-1]:  # children before parents
             if parent[q] >= 0:
                 height[parent[q]] = max(height[parent[q]], height[q] + 1)
-        pair_chain = {}
-        for ch in range(nch):
-            pair_chain[(int(pos[ch, 0]), int(pos[ch, 1]))] = ch
-            pair_chain[(int(pos[ch, 1]), int(pos[ch, 0]))] = ch
+        pl = pos.tolist()
+        pair_chain = {**{(a, b): ch for ch, (a, b) in enumerate(pl)}, **{(b, a): ch for ch, (a, b) in enumerate(pl)}}
         by_node = np.searchsorted(nodes, nv)
         rel_order = np.argsort(by_node, kind="stable")
         starts = np.searchsorted(by_node[rel_order], np.arange(nodes.size + 1))
@@ -208,15 +206,18 @@ class _Seams:
         cuts = np.searchsorted(height[proc], np.quantile(height[proc], np.arange(1, batches) / batches)
                                if proc.size else [], side="right") if batches > 1 else []
         groups = np.split(proc, np.unique(cuts)) if len(cuts) else [proc]
-        # a short loop over the cut graph's nodes (hundreds), never over faces or vertices
+        # a short loop over the cut graph's nodes (hundreds), never over faces or vertices; plain
+        # Python lists and small arrays inside it
+        na_l, nb_l, ncn_l = na.tolist(), nb.tolist(), ncn.tolist()
+        rot_l = self.rot_c.tolist()
         for gi, group in enumerate(groups):
             if gi > 0 and resolve is not None and group.size:
                 uv = resolve(fixed, rels, t)
             for q in group:
-                rel = rel_order[starts[q]:starts[q + 1]]
+                rel = rel_order[starts[q]:starts[q + 1]].tolist()
                 copies = copies_order[c_lo[q]:c_hi[q]]
                 par_chain = pair_chain.get((int(q), int(parent[q]))) if parent[q] >= 0 else None
-                known = [i for i in rel if ncn[i] != par_chain]
+                known = [i for i in rel if ncn_l[i] != par_chain]
                 is_root = parent[q] < 0
                 # every copy as R^k p(s) + tau from one start copy s, through the known chains
                 s0 = int(copies[0])
@@ -226,17 +227,19 @@ class _Seams:
                     u_ = stack.pop()
                     ku, tu = sym[u_]
                     for i in known:
-                        r_, ti = self.rot_c[ncn[i]], t[ncn[i]]
-                        if na[i] == u_ and nb[i] not in sym:
-                            sym[nb[i]] = ((ku + r_) % 4, _ROT[r_] @ tu + ti)
-                            stack.append(nb[i])
-                        elif nb[i] == u_ and na[i] not in sym:
-                            sym[na[i]] = ((ku - r_) % 4, _ROT[(-r_) % 4] @ (tu - ti))
-                            stack.append(na[i])
+                        a_i, b_i, c_i = na_l[i], nb_l[i], ncn_l[i]
+                        if a_i == u_ and b_i not in sym:
+                            r_ = rot_l[c_i]
+                            sym[b_i] = ((ku + r_) % 4, _ROT[r_] @ tu + t[c_i])
+                            stack.append(b_i)
+                        elif b_i == u_ and a_i not in sym:
+                            r_ = rot_l[c_i]
+                            sym[a_i] = ((ku - r_) % 4, _ROT[(-r_) % 4] @ (tu - t[c_i]))
+                            stack.append(a_i)
                 if singular[q]:
                     if is_root and len(copies) == 1 and known:
                         i = known[0]
-                        p0 = np.linalg.solve(np.eye(2) - _ROT[self.rot_c[ncn[i]]], t[ncn[i]])
+                        p0 = np.linalg.solve(np.eye(2) - _ROT[rot_l[ncn_l[i]]], t[ncn_l[i]])
                     else:
                         p0 = np.round(uv[s0])
                     for cp, (kc, tc) in sym.items():
@@ -247,8 +250,8 @@ class _Seams:
                     p0 = uv[s0]
                     rels += [(cp, s0, kc, tc) for cp, (kc, tc) in sym.items() if cp != s0]
                 if par_chain is not None:
-                    i = next(i for i in rel if ncn[i] == par_chain)
-                    (ka, ta), (kb, tb) = sym[na[i]], sym[nb[i]]
+                    i = next(i for i in rel if ncn_l[i] == par_chain)
+                    (ka, ta), (kb, tb) = sym[na_l[i]], sym[nb_l[i]]
                     R = _ROT[self.rot_c[par_chain]]
                     tt = (_ROT[kb] - R @ _ROT[ka]) @ p0 + tb - R @ ta
                     t[par_chain] = np.round(tt)
@@ -349,27 +352,29 @@ def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bo
         t_edge = uv[S.xg] - np.einsum("eij,ej->ei", Rm, uv[S.xf])
     if integer and ne:
         def soft_rows(fixed, rels, t):
-            """Rows pulling the continuous solve towards the constraints decided so far."""
-            rr, cc, vv, rhs = [], [], [], []
-            row = 0
-            for cp, p in fixed.items():
-                for i in range(2):
-                    rr.append(row), cc.append(cp + i * nc), vv.append(1.0), rhs.append(p[i])
-                    row += 1
-            known = np.flatnonzero(np.isfinite(t[:, 0]))
+            """Rows ``(M, rhs)`` pulling the continuous solve towards the constraints decided so far."""
+            fc = np.fromiter(fixed.keys(), dtype=np.int64, count=len(fixed))
+            fp = np.array(list(fixed.values())).reshape(-1, 2)
+            known = np.isfinite(t[:, 0])
             v_, a_, b_, c_ = S.relations()
-            sel = np.isin(c_, known)
-            trip = [(b_[j], a_[j], S.rot_c[c_[j]], t[c_[j]]) for j in np.flatnonzero(sel)]
-            for cp, st, k, tau in list(rels) + trip:
-                Rk = _ROT[k]
-                for i in range(2):
-                    rr += [row, row, row]
-                    cc += [cp + i * nc, st, st + nc]
-                    vv += [1.0, -Rk[i, 0], -Rk[i, 1]]
-                    rhs.append(tau[i])
-                    row += 1
-            M = sp.csr_matrix((vv, (rr, cc)), shape=(row, 2 * nc))
-            return M, np.asarray(rhs)
+            sel = known[c_]
+            cp = np.concatenate([np.array([r[0] for r in rels], dtype=np.int64), b_[sel]])
+            st = np.concatenate([np.array([r[1] for r in rels], dtype=np.int64), a_[sel]])
+            kk = np.concatenate([np.array([r[2] for r in rels], dtype=np.int64), S.rot_c[c_[sel]]])
+            tau = np.concatenate([np.array([r[3] for r in rels]).reshape(-1, 2), t[c_[sel]]])
+            nf_, nr = fc.size, cp.size
+            Rk = _ROT[kk]  # (nr, 2, 2)
+            rows = [np.arange(2 * nf_)]
+            cols = [np.concatenate([fc, fc + nc])]
+            vals = [np.ones(2 * nf_)]
+            for i in range(2):  # p(cp) - R^k p(st) = tau, coordinate i
+                r0 = 2 * nf_ + i * nr + np.arange(nr)
+                rows += [r0, r0, r0]
+                cols += [cp + i * nc, st, st + nc]
+                vals += [np.ones(nr), -Rk[:, i, 0], -Rk[:, i, 1]]
+            M = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                              shape=(2 * nf_ + 2 * nr, 2 * nc))
+            return M, np.concatenate([fp[:, 0], fp[:, 1], tau[:, 0], tau[:, 1]])
 
         def resolve(fixed, rels, t):
             M, r_ = soft_rows(fixed, rels, t)

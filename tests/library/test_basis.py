@@ -174,3 +174,25 @@ def test_truncated_and_longer_eigenbases_agree_on_a_symmetric_shape():
 
     b4, b6 = pm.eigenbasis(ellipsoid(2), 4), pm.eigenbasis(ellipsoid(2), 6)
     np.testing.assert_allclose(b4.vecs, b6.vecs[:, :4], atol=1e-8)
+
+
+def test_eigenbases_in_worker_processes_equal_eigenbasis_bit_for_bit():
+    from prodmaps.basis import eigenbases
+    from prodmaps.mesh import ellipsoid
+
+    e = ellipsoid(4)  # 2562 vertices: the sparse (shift-invert Lanczos) route
+    meshes = [e, pm.Mesh(e.vertices * [1.0, 1.2, 0.9], e.faces, name="b")]
+    serial = [pm.eigenbasis(m, 12) for m in meshes]
+    for jobs in (1, 2):
+        got = eigenbases(meshes, 12, jobs=jobs)
+        for a, b in zip(got, serial):
+            np.testing.assert_array_equal(a.vecs, b.vecs)
+            np.testing.assert_array_equal(a.evals, b.evals)
+            np.testing.assert_array_equal(a.mass, b.mass)
+    assert got[1].name == "b"
+    with pytest.raises(ValueError, match="jobs"):
+        eigenbases(meshes, 12, jobs=0)
+    with pytest.raises(TypeError, match="Mesh"):
+        eigenbases([meshes[0].vertices], 12)
+    with pytest.raises(ValueError, match="out of range"):
+        eigenbases(meshes, 10_000, jobs=2)  # the worker's error reaches the caller

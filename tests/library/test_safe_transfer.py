@@ -110,3 +110,20 @@ def test_truncation_test_is_the_stated_wiener_factor_and_filters_lost_functions(
     assert with_e.error.max() > 5 * e0 and with_e.rank < without.rank
     with pytest.raises(ValueError, match="e0"):
         SafeTransfer(C, b1, b2, e0=-1.0)
+
+
+def test_blocks_of_rows_give_the_one_piece_result(setting, monkeypatch):
+    """A large target is processed by blocks of rows (one (n2, r) array, no temporaries of that
+    size): the same transfer to rounding, the same kept directions."""
+    import prodmaps.default_transfer as dt
+
+    b1, b2, C, F = setting
+    Cn = C + 0.01 * np.random.default_rng(0).standard_normal(C.shape)  # some directions filtered out
+    one = SafeTransfer(Cn, b1, b2)
+    monkeypatch.setattr(dt, "_SINGLE_BLOCK_BYTES", 1)
+    monkeypatch.setattr(dt, "_BLOCK_ROWS", 997)  # uneven blocks, the last one short
+    blk = SafeTransfer(Cn, b1, b2)
+    assert blk.rank == one.rank and 0 < one.rank < one.sigma.size
+    np.testing.assert_allclose(blk.gain, one.gain, rtol=1e-10)
+    np.testing.assert_allclose(blk.leak, one.leak, rtol=1e-10, atol=1e-14)
+    np.testing.assert_allclose(blk(F), one(F), rtol=1e-10, atol=1e-12 * np.abs(one(F)).max())
