@@ -118,16 +118,29 @@ def test_fig14_joint_cross_fields_well_formed(smoke_results):
                 assert x["n_sing_low_2"] < x["n_sing_2"]  # the comparison leaves the forced singularities out
                 assert x["consistency_energy"] < 1.0
         q = p["quads"]
-        assert q["k"] == 5 and {"std", "ext", "default", "independent"} <= set(q)
-        for n in ("std", "ext", "default", "independent"):
+        ks = [kk for kk in p if kk.startswith("k")]
+        assert set(q) == {"size"} | set(ks) | {"baselines"}
+        settings = [(k, n) for k in ks for n in ("std", "ext", "default")]
+        settings += [("baselines", "independent"), ("baselines", "pushforward")]
+        for grp, n in settings:
+            st = q[grp][n]
             for side in ("source", "target"):
-                assert q[n][side]["n_quads"] > 100 and q[n][side]["n_irregular"] <= q[n][side]["n_vertices"]
-            assert 0 <= q[n]["irregular_matched"] <= q[n]["irregular_matched_of"] == q[n]["source"]["n_irregular"]
+                x = st[side]
+                assert x["n_quads"] > 100 and x["n_irregular"] <= x["n_vertices"]
+                # watertight, manifold edges, all quads but the hole polygons next to singularity clusters
+                assert x["n_boundary_edges"] == 0 and x["n_nonmanifold_edges"] == 0
+                assert x["quad_fraction"] > 0.95 and x["polygons_near_singularities"] >= 0.8 * x["n_polygons"]
+            assert 0 <= st["irregular_matched"] <= min(st["irregular_matched_of"], st["irregular_target"])
+            assert st["irregular_matched_of"] == st["source"]["n_irregular"]
+            assert 0 <= st["irregular_low_matched"] <= min(st["irregular_low_source"], st["irregular_low_target"])
+    Q = cf["summary"]["quads"]
+    assert set(Q["cells_low"]["std"]) == {f"{n}|{k}" for n in cf["pairs"] for k in cf["pairs"][n] if k.startswith("k")}
+    assert all(r["n_boundary_edges_total"] == 0 for row in Q["groups"].values() for r in row.values())
     S = cf["summary"]["angle_regular_deg"]
     assert set(S["cells"]["std"]) == {f"{n}|{k}" for n in cf["pairs"] for k in cf["pairs"][n] if k.startswith("k")}
     assert S["k5"]["ext"]["n_pairs"] == len(cf["pairs"])
     assert (d / "fig14_cross_fields.png").is_file() and (d / "fig14_pairs.png").is_file()
-    assert (d / "fig14_quads.png").is_file()
+    assert (d / "fig14_quads.png").is_file() and (d / "fig14_quads_pairs.png").is_file()
 
 
 @pytest.mark.slow
