@@ -117,10 +117,12 @@ def main(argv=None) -> int:
         "hours_at_gemm_rate": round(2.0 * n * n * r / (gemm_gflops() * 1e9) / 3600, 1)}
     out["total_s"] = round(time.perf_counter() - t_all, 1)
     out["peak_gb"] = round(peak_gb(), 2)
-    # while the workers ran, the main process held the meshes only: the machine's peak is at most
-    # the main process's peak plus the workers' (each at most the largest one's)
+    # while the workers ran, the main process held the meshes only (its peak up to then): the
+    # machine's peak is at most the larger of the main process's overall peak and that plus the
+    # workers' (each at most the largest one's)
     out["peak_worker_gb"] = round(peak_children_gb(), 2)
-    bound = peak_gb() + args.jobs * peak_children_gb() if args.jobs > 1 else peak_gb()
+    during = steps["eigenbases"]["peak_gb"] + args.jobs * peak_children_gb()
+    bound = max(peak_gb(), during) if args.jobs > 1 else peak_gb()
     out["peak_machine_gb_bound"] = round(bound, 2)
     print(json.dumps(out))
     return 0
