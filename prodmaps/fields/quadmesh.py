@@ -88,6 +88,8 @@ class _Seams:
 
     def __init__(self, F, Fc, I, fs, es, g, eg, r, singular):
         n = int(F.max()) + 1 if F.size else 0
+        self._singular = np.zeros(n, bool)  # (n,) mesh vertices that are singular
+        self._singular[np.asarray(singular, dtype=np.int64)] = True
         nc = int(I.size)
         ne = fs.size
         self.ne, self.nc = ne, nc
@@ -314,9 +316,6 @@ def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bo
     fs, es, g, eg, r = _seam_edges(F, cuts, mm)
     ne = fs.size
     S = _Seams(F, Fc, I, fs, es, g, eg, r, sing) if ne else None
-    if S is not None:
-        S._singular = np.zeros(V.shape[0], bool)
-        S._singular[sing] = True
 
     # first solve: continuous, the transitions as soft constraints with free translations per edge
     def transition_rows(rot, a_f, a_g, b_f, b_g):
@@ -579,12 +578,11 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
         step = (kk[la] >= 0) & (kk[lb] < 0)
         if not step.any():
             break
-        a_, b_ = la[step], lb[step]
-        a_, first = np.unique(b_, return_index=True)[0], np.unique(b_, return_index=True)[1]
+        new, first = np.unique(lb[step], return_index=True)  # each newly reached fragment once
         src = la[step][first]
         k_new = (kk[src] - lr[step][first]) % 4
-        kk[a_] = k_new
-        tau[a_] = tau[src] - _apply(k_new, np.zeros((a_.size, 2)), lt[step][first])
+        kk[new] = k_new
+        tau[new] = tau[src] - _apply(k_new, np.zeros((new.size, 2)), lt[step][first])
     root_cell = np.floor(_apply(kk, tau, cij + 0.5)).astype(np.int64)
     # a class is a proper cell when all its fragments name the same unit square of the root chart
     ref_cell = root_cell[roots][cls]
