@@ -241,45 +241,35 @@ def plot_quad_mesh(V, F, Vq, Q, polygons=(), *, ax=None, view="front", title=Non
     if ax is None:
         _, ax = plt.subplots(figsize=(3, 6))
     hole = np.array([1.0, 0.62, 0.3])
-    _shaded_mesh(ax, V, F, view, facecolors=np.tile(hole, (len(F), 1)) if len(polygons) else None)
+    fr, _, _, front = _shaded_mesh(ax, V, F, view, facecolors=np.tile(hole, (len(F), 1)) if len(polygons) else None)
     Q = np.asarray(Q, dtype=np.int64).reshape(-1, 4)
     d, up, right = _camera(view)
     P = np.stack([Vq @ right, Vq @ up], axis=1)
     if Q.size:
         C = Vq[Q]  # (q, 4, 3)
         nrm = np.cross(C[:, 2] - C[:, 0], C[:, 3] - C[:, 1])
-        front = nrm @ d > 0
+        front_q = nrm @ d > 0
         order = np.argsort((Vq @ d)[Q].mean(1))
-        order = order[front[order]]
+        order = order[front_q[order]]
         ax.add_collection(PolyCollection(P[Q[order]], facecolors=(0.85, 0.9, 1.0), edgecolors=(0.1, 0.2, 0.5),
                                          linewidths=0.3))
     if irregular is not None and len(irregular):
+        # visible as plot_cross_field decides it: the nearest mesh vertex belongs to a visible face
+        from scipy.spatial import cKDTree
+
+        c3 = fr.centroids
+        vis = _visible_faces(np.stack([c3 @ right, c3 @ up], axis=1), c3 @ d, front, 2.0 * np.sqrt(fr.area.mean()))
+        on_vis = np.zeros(len(V), bool)
+        on_vis[np.asarray(F)[vis].ravel()] = True
         irr = np.asarray(irregular, dtype=np.int64)
-        _, vis = _visible_points(Vq[irr], V, F, view)
-        ax.plot(P[irr[vis], 0], P[irr[vis], 1], "o", ms=1.8, color=(0.8, 0.0, 0.0))
+        irr = irr[on_vis[cKDTree(V).query(Vq[irr])[1]]]
+        ax.plot(P[irr, 0], P[irr, 1], "o", ms=1.8, color=(0.8, 0.0, 0.0))
     if title:
         ax.set_title(title, fontsize=8)
     return ax
 
 
-def _visible_points(X, V, F, view):
-    """``(depth, visible)`` of points ``X`` on the surface ``(V, F)``: not behind a front face."""
-    d, up, right = _camera(view)
-    P = np.stack([V @ right, V @ up], axis=1)
-    Px = np.stack([X @ right, X @ up], axis=1)
-    cell = 0.02 * np.ptp(P, axis=0).max()
-    ij = np.floor((P - P.min(0)) / cell).astype(np.int64)
-    key = ij[:, 0] * (ij[:, 1].max() + 2) + ij[:, 1]
-    best = np.full(int(key.max()) + 1, -np.inf)
-    np.maximum.at(best, key, V @ d)
-    ijx = np.clip(np.floor((Px - P.min(0)) / cell).astype(np.int64), 0, ij.max(0))
-    kx = ijx[:, 0] * (ij[:, 1].max() + 2) + ijx[:, 1]
-    depth = X @ d
-    return depth, depth >= best[kx] - 2 * cell
-
-
-def quad_figure(mesh_1, mesh_2, quad_meshes: dict, stats: dict, names, *, titles=None, suptitle=None,
-                matched=None):
+def quad_figure(mesh_1, mesh_2, quad_meshes: dict, stats: dict, names, *, titles=None, suptitle=None):
     """Quad meshes of source (top) and target (bottom), one column per design, with their counts.
 
     ``quad_meshes[name]`` is ``((V, Q, polygons, irregular) source, (...) target)`` as returned by

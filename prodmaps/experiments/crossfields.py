@@ -51,6 +51,7 @@ from ..mesh import Mesh, edges
 __all__ = ["figure14_experiment", "figure14_study", "dataset_pair", "summary_rows", "match_singularities",
            "graph_distances", "surface_ground_truth", "low_curvature_vertices", "pair_measures",
            "figure14_joint_pair", "summarize_pairs", "summarize_quads", "figure14_joint_study", "quad_meshes_pair",
+           "quad_mesh_of",
            "study_lines", "PAIRS",
            "DEFAULTS", "JOINT_DEFAULTS", "JOINT_KINDS", "BASELINES"]
 
@@ -398,7 +399,31 @@ def pair_measures(fr1, fr2, mesh_1, mesh_2, z1, z2, gt, g1, g2, *, params=None) 
     return out
 
 
-def quad_meshes_pair(mesh_1: Mesh, mesh_2: Mesh, z1, z2, gt: dict, size: float) -> dict:
+def quad_mesh_of(mesh: Mesh, z, size: float):
+    """Quad mesh of one shape from its cross field ``z`` at quad edge ``size·sqrt(area)``
+    (:mod:`prodmaps.fields.quadmesh`): ``(stats, (V, Q, polygons, irregular), irregular valences)``,
+    the stats being :func:`~prodmaps.fields.quadmesh.quad_mesh_stats`' without the vertex lists plus
+    the parametrisation's flipped faces, integer error, ``h``, the field's singularities and
+    ``polygons_near_singularities`` (non-quad faces with a corner within 2 quad sizes of one)."""
+    from scipy.spatial import cKDTree
+
+    from ..fields.quadmesh import extract_quads, quad_mesh_stats, seamless_parametrization
+
+    h = size * np.sqrt(mesh.area)
+    par = seamless_parametrization(mesh, z, h)
+    q = extract_quads(par)
+    st = quad_mesh_stats(q["V"], q["Q"], q["polygons"])
+    irr, val = st.pop("irregular"), st.pop("irregular_valence")
+    near = 0
+    if q["polygons"] and par["singular"].size:
+        d, _ = cKDTree(mesh.vertices[par["singular"]]).query(q["V"])
+        near = int(sum(d[p].min() <= 2 * h for p in q["polygons"]))
+    st.update(n_flipped=par["n_flipped"], integer_error=par["integer_error"], h=float(h),
+              n_field_singularities=int(par["singular"].size), polygons_near_singularities=near)
+    return st, (q["V"], q["Q"], q["polygons"], irr), val
+
+
+def quad_meshes_pair(mesh_1: Mesh, mesh_2: Mesh, z1, z2, gt: dict, size: float, *, sides=None) -> dict:
     """Quad meshes of both shapes from their cross fields (:mod:`prodmaps.fields.quadmesh`: an
     integer-grid parametrisation, its quads and one polygon per hole) and how their irregular
     vertices correspond through the ground truth.
@@ -415,35 +440,19 @@ def quad_meshes_pair(mesh_1: Mesh, mesh_2: Mesh, z1, z2, gt: dict, size: float) 
     "irregular_low_matched", "irregular_low_source", "irregular_low_target",
     "irregular_low_match_fraction"}, "meshes": ((V, Q, polygons, irregular) source, (...) target)}``.
     The low-curvature fraction is the discriminating one: most irregular vertices of a human sit at
-    the singularity clusters that face, hands and feet force on every field.
+    the singularity clusters that face, hands and feet force on every field. ``sides``: the two
+    :func:`quad_mesh_of` results when already computed (then ``z1``, ``z2`` are not used).
     """
     from scipy.spatial import cKDTree
 
-    from ..fields.quadmesh import extract_quads, quad_mesh_stats, seamless_parametrization
-
-    stats, meshes, valences = {}, [], []
-    for name, m, z in (("source", mesh_1, z1), ("target", mesh_2, z2)):
-        h = size * np.sqrt(m.area)
-        par = seamless_parametrization(m, z, h)
-        q = extract_quads(par)
-        st = quad_mesh_stats(q["V"], q["Q"], q["polygons"])
-        irr = st.pop("irregular")
-        near = 0
-        if q["polygons"] and par["singular"].size:
-            d, _ = cKDTree(m.vertices[par["singular"]]).query(q["V"])
-            near = int(sum(d[p].min() <= 2 * h for p in q["polygons"]))
-        st.update(n_flipped=par["n_flipped"], integer_error=par["integer_error"], h=float(h),
-                  n_field_singularities=int(par["singular"].size), polygons_near_singularities=near)
-        stats[name] = st
-        meshes.append((q["V"], q["Q"], q["polygons"], irr))
-        E = np.concatenate([np.stack([f, np.roll(f, -1, axis=1)], axis=2).reshape(-1, 2)
-                            for f in [q["Q"]] + [np.asarray(p)[None] for p in q["polygons"]] if f.size])
-        val = np.bincount(np.unique(np.sort(E, axis=1), axis=0).ravel(), minlength=q["V"].shape[0])
-        valences.append(val[irr])
+    if sides is None:
+        sides = (quad_mesh_of(mesh_1, z1, size), quad_mesh_of(mesh_2, z2, size))
+    (st1, mesh_q1, val1), (st2, mesh_q2, val2) = sides
+    stats, valences = {"source": st1, "target": st2}, (val1, val2)
+    (V1, _, _, I1), (V2, _, _, I2) = mesh_q1, mesh_q2
     # irregular vertices of the source carried to the target (nearest source vertex, p2p_12), then
     # paired one to one with the target's of the same valence within 2 quad sizes: all of them, and
     # those at low-curvature places of the target (where the map, not the geometry, places them)
-    (V1, _, _, I1), (V2, _, _, I2) = meshes
     tree2 = cKDTree(mesh_2.vertices)
     img = mesh_2.vertices[gt["p2p_12"][cKDTree(mesh_1.vertices).query(V1[I1])[1]]] if len(I1) else np.zeros((0, 3))
     low = low_curvature_vertices(mesh_2, JOINT_DEFAULTS["sing_quantile"])
@@ -469,7 +478,7 @@ def quad_meshes_pair(mesh_1: Mesh, mesh_2: Mesh, z1, z2, gt: dict, size: float) 
                       "irregular_low_matched": n_low, "irregular_low_source": int(low_1.sum()),
                       "irregular_low_target": int(low_2.sum()),
                       "irregular_low_match_fraction": float(n_low / denom_low) if denom_low else float("nan")},
-            "meshes": tuple(meshes)}
+            "meshes": (mesh_q1, mesh_q2)}
 
 
 def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT_KINDS, params=None,
@@ -536,9 +545,16 @@ def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT
     if P["quad_size"] > 0:
         quad_fields[("baselines", "independent")] = fields["independent"]
         quad_fields[("baselines", "pushforward")] = fields["pushforward"]
-        qs, qm = {}, {}
+        qs, qm, side = {}, {}, {}
+
+        def quad_side(i, mesh, z):  # a field shared by two settings (the baselines' source) once
+            if (i, id(z)) not in side:
+                side[(i, id(z))] = quad_mesh_of(mesh, z, P["quad_size"])
+            return side[(i, id(z))]
+
         for (group, name), (a, b) in quad_fields.items():
-            r = quad_meshes_pair(mesh_1, mesh_2, a, b, gt, P["quad_size"])
+            r = quad_meshes_pair(mesh_1, mesh_2, a, b, gt, P["quad_size"],
+                                 sides=(quad_side(0, mesh_1, a), quad_side(1, mesh_2, b)))
             qs.setdefault(group, {})[name] = _finite_or_none(r["stats"])
             qm[(group, name)] = r["meshes"]
         out["quads"] = {"size": P["quad_size"], **qs}

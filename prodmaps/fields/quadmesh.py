@@ -65,12 +65,10 @@ def _components(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return connected_components(G, directed=False)[1]
 
 
-def _seam_edges(F, cuts, mismatch):
+def _seam_edges(TT, TTi, cuts, mismatch):
     """Seam edges once each: ``(f, e, g, eg, r)``, face ``f``'s edge ``e`` (corners ``e, e+1``) is
-    face ``g``'s edge ``eg``; ``r`` the mismatch ``(mod 4)`` seen from ``f``."""
-    import igl
-
-    TT, TTi = igl.triangle_triangle_adjacency(np.ascontiguousarray(F, dtype=np.int64))
+    face ``g``'s edge ``eg`` (``TT``, ``TTi``: igl's triangle-triangle adjacency); ``r`` the
+    mismatch ``(mod 4)`` seen from ``f``."""
     fs, es = np.nonzero(cuts)
     g, eg = TT[fs, es], TTi[fs, es]
     keep = (g >= 0) & (fs < g)
@@ -99,7 +97,7 @@ class _Seams:
         self.rot = (-r) % 4
         deg = np.bincount(np.concatenate([self.x, self.y]), minlength=n)
         node = (deg > 0) & (deg != 2)
-        node[np.asarray(singular, dtype=np.int64)] = True
+        node |= self._singular
         while True:
             # chains: seam edges linked through shared non-node vertices (edge ids, then vertex ids + ne)
             ends = np.concatenate([self.x, self.y])
@@ -214,7 +212,7 @@ class _Seams:
         rot_l = self.rot_c.tolist()
         for gi, group in enumerate(groups):
             if gi > 0 and resolve is not None and group.size:
-                uv = resolve(fixed, rels, t)
+                uv = resolve(fixed, _relation_arrays(rels), t)
             for q in group:
                 rel = rel_order[starts[q]:starts[q + 1]].tolist()
                 copies = copies_order[c_lo[q]:c_hi[q]]
@@ -250,7 +248,7 @@ class _Seams:
                             off = max(off, float(np.abs(fixed[cp] - np.round(fixed[cp])).max()))
                 else:
                     p0 = uv[s0]
-                    rels += [(cp, s0, kc, tc) for cp, (kc, tc) in sym.items() if cp != s0]
+                    rels += [(cp, s0, kc, *tc) for cp, (kc, tc) in sym.items() if cp != s0]
                 if par_chain is not None:
                     i = next(i for i in rel if ncn_l[i] == par_chain)
                     (ka, ta), (kb, tb) = sym[na_l[i]], sym[nb_l[i]]
@@ -258,7 +256,27 @@ class _Seams:
                     tt = (_ROT[kb] - R @ _ROT[ka]) @ p0 + tb - R @ ta
                     t[par_chain] = np.round(tt)
                     off = max(off, float(np.abs(tt - np.round(tt)).max()))
-        return fixed, rels, t, off
+        return fixed, _relation_arrays(rels), t, off
+
+    def chain_relations(self, t: np.ndarray, chains: np.ndarray, *, at_nodes: bool = True):
+        """``(copy, start, k, tau)`` arrays of the seam ends on ``chains`` (a mask over chains, their
+        translations ``t`` known), ``p(other) = R^rot_c p(ref) + t_c``; only those at regular
+        vertices unless ``at_nodes``."""
+        v, a, b, c = self.relations()
+        sel = chains[c] if at_nodes else chains[c] & ~self.node[v]
+        return b[sel], a[sel], self.rot_c[c[sel]], t[c[sel]]
+
+
+def _relation_arrays(rels):
+    """A list of ``(copy, start, k, tau_u, tau_v)`` as arrays ``(copy, start, k, tau (r, 2))``."""
+    R = np.array(rels, dtype=np.float64).reshape(-1, 5)
+    i = R[:, :3].astype(np.int64)
+    return i[:, 0], i[:, 1], i[:, 2], R[:, 3:]
+
+
+def _concat_relations(*parts):
+    """Concatenate ``(copy, start, k, tau)`` tuples of arrays."""
+    return tuple(np.concatenate(x) for x in zip(*parts))
 
 
 def _gradient_system(Vc, Fc, P1, P2, h):
@@ -313,7 +331,8 @@ def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bo
     I = np.asarray(I, dtype=np.int64).ravel()
     m, nc = F.shape[0], Vc.shape[0]
     A, b = _gradient_system(Vc, Fc, P1, P2, h)
-    fs, es, g, eg, r = _seam_edges(F, cuts, mm)
+    TT, TTi = igl.triangle_triangle_adjacency(F)
+    fs, es, g, eg, r = _seam_edges(TT, TTi, cuts, mm)
     ne = fs.size
     S = _Seams(F, Fc, I, fs, es, g, eg, r, sing) if ne else None
 
@@ -354,13 +373,7 @@ def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bo
             """Rows ``(M, rhs)`` pulling the continuous solve towards the constraints decided so far."""
             fc = np.fromiter(fixed.keys(), dtype=np.int64, count=len(fixed))
             fp = np.array(list(fixed.values())).reshape(-1, 2)
-            known = np.isfinite(t[:, 0])
-            v_, a_, b_, c_ = S.relations()
-            sel = known[c_]
-            cp = np.concatenate([np.array([r[0] for r in rels], dtype=np.int64), b_[sel]])
-            st = np.concatenate([np.array([r[1] for r in rels], dtype=np.int64), a_[sel]])
-            kk = np.concatenate([np.array([r[2] for r in rels], dtype=np.int64), S.rot_c[c_[sel]]])
-            tau = np.concatenate([np.array([r[3] for r in rels]).reshape(-1, 2), t[c_[sel]]])
+            cp, st, kk, tau = _concat_relations(rels, S.chain_relations(t, np.isfinite(t[:, 0])))
             nf_, nr = fc.size, cp.size
             Rk = _ROT[kk]  # (nr, 2, 2)
             rows = [np.arange(2 * nf_)]
@@ -383,12 +396,8 @@ def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bo
         fixed_d, node_rels, t_c, int_err = S.round_nodes(uv, I, resolve=resolve, batches=batches)
         # hard constraints: singular node copies fixed; every other copy of a seam vertex eliminated
         # through its chain (regular vertices) or its node's chains (regular nodes)
-        v, a_ref, b_oth, c = S.relations()
-        reg = ~S.node[v]
-        elim_c = np.concatenate([b_oth[reg], np.array([r[0] for r in node_rels], dtype=np.int64)])
-        elim_ref = np.concatenate([a_ref[reg], np.array([r[1] for r in node_rels], dtype=np.int64)])
-        elim_k = np.concatenate([S.rot_c[c[reg]], np.array([r[2] for r in node_rels], dtype=np.int64)])
-        elim_t = np.concatenate([t_c[c[reg]], np.array([r[3] for r in node_rels]).reshape(-1, 2)])
+        elim_c, elim_ref, elim_k, elim_t = _concat_relations(
+            S.chain_relations(t_c, np.ones(S.n_chains, bool), at_nodes=False), node_rels)
         fixed = np.zeros(nc, bool)
         Pfix = np.zeros((nc, 2))
         if fixed_d:
@@ -447,7 +456,7 @@ def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bo
         trans[fs, es] = t_edge
         rot[g, eg] = (-S.rot) % 4
         trans[g, eg] = -np.einsum("eij,ej->ei", _ROT[(-S.rot) % 4], t_edge)
-    return {"uv": uv, "Vc": Vc, "Fc": Fc, "I": I, "F": F, "singular": sing, "n_seam_edges": int(ne),
+    return {"uv": uv, "Vc": Vc, "Fc": Fc, "I": I, "F": F, "TT": TT, "singular": sing, "n_seam_edges": int(ne),
             "n_chains": int(n_chains), "n_flipped": int(np.sum(det <= 0)), "transition_error": trans_err,
             "integer_error": int_err, "rot": rot, "trans": trans, "h": float(h)}
 
@@ -505,7 +514,7 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
     * ``n_cells`` (cells of the iso-line partition), ``n_inconsistent`` (cells not a unit square:
       singular or folded), ``n_dropped`` (quads removed to keep every edge manifold).
     """
-    uv, Fc, F, rot, trans = param["uv"], param["Fc"], param["F"], param["rot"], param["trans"]
+    uv, Fc, rot, trans = param["uv"], param["Fc"], param["rot"], param["trans"]
     Vc = param["Vc"]
     m = Fc.shape[0]
     U = uv[Fc]  # (m, 3, 2)
@@ -536,9 +545,7 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
     nfr = cf.size
 
     # -- cells across every edge (once): cells crossed by the open edge, in the neighbour's chart
-    import igl
-
-    TT, _ = igl.triangle_triangle_adjacency(np.ascontiguousarray(F, dtype=np.int64))
+    TT = param["TT"]
     ef, ee = np.nonzero((TT > np.arange(m)[:, None]))
     eg = TT[ef, ee]
     both = ok[ef] & ok[eg]
@@ -701,14 +708,15 @@ def quad_mesh_stats(V: np.ndarray, Q: np.ndarray, polygons=()) -> dict:
     ``n_quads``, ``n_polygons`` (the non-quad faces) and ``polygon_sizes`` (histogram),
     ``quad_fraction`` (quads over faces), ``n_vertices`` (used), ``n_boundary_edges`` (0: watertight),
     ``n_nonmanifold_edges`` (edges of more than two faces), the valence histogram of the interior
-    vertices, ``n_irregular`` (interior valence != 4) and the list ``irregular``.
+    vertices, ``n_irregular`` (interior valence != 4), the list ``irregular`` and their valences
+    ``irregular_valence``.
     """
     Q = np.asarray(Q, dtype=np.int64).reshape(-1, 4)
     faces = [Q] + [np.asarray(p, dtype=np.int64)[None] for p in polygons]
     if sum(f.size for f in faces) == 0:
         return {"n_quads": 0, "n_polygons": 0, "polygon_sizes": {}, "quad_fraction": 0.0, "n_vertices": 0,
                 "n_boundary_edges": 0, "n_nonmanifold_edges": 0, "n_irregular": 0, "valence": {},
-                "irregular": np.zeros(0, np.int64)}
+                "irregular": np.zeros(0, np.int64), "irregular_valence": np.zeros(0, np.int64)}
     E = np.concatenate([np.stack([f, np.roll(f, -1, axis=1)], axis=2).reshape(-1, 2) for f in faces if f.size])
     Es = np.sort(E, axis=1)
     uniq, cnt = np.unique(Es, axis=0, return_counts=True)
@@ -727,4 +735,4 @@ def quad_mesh_stats(V: np.ndarray, Q: np.ndarray, polygons=()) -> dict:
             "quad_fraction": float(Q.shape[0] / n_faces) if n_faces else 0.0,
             "n_vertices": int(used.size), "n_boundary_edges": int(bnd.shape[0]),
             "n_nonmanifold_edges": int(np.sum(cnt > 2)), "n_irregular": int(irr.size), "valence": hist,
-            "irregular": irr}
+            "irregular": irr, "irregular_valence": val[irr]}
