@@ -56,7 +56,7 @@ def shift(W, M) -> float:
 
 
 def smallest_eigenpairs(W, M, k: int, *, operator=None, opinv=None, sigma: float | None = None,
-                        tol: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+                        tol: float = 0.0, weyl_area: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The ``k`` smallest eigenpairs of ``W φ = λ M φ``: ``(evals (k,) ascending, vecs (n, k))``.
 
     Parameters
@@ -70,6 +70,9 @@ def smallest_eigenpairs(W, M, k: int, *, operator=None, opinv=None, sigma: float
     sigma : shift-invert shift (default: the checked shift inside the spectrum, ``MID_SHIFT``,
         for a sparse ``W``; :func:`shift` of ``W`` and ``M`` otherwise and as the fallback).
     tol : ARPACK tolerance (0: machine precision).
+    weyl_area : the area of Weyl's law that places the first shift (default ``trace(M)``, right
+        for the Laplace–Beltrami operator; see the module doc). A wrong value costs time only:
+        the check then solves again around the safe shift.
 
     Eigenvectors are ``M``-orthonormal up to round-off and ``M``-normalised exactly; the
     solver route is chosen by ``DENSE_MAX_N`` / ``DENSE_FRACTION`` (module doc).
@@ -88,7 +91,10 @@ def smallest_eigenpairs(W, M, k: int, *, operator=None, opinv=None, sigma: float
         A = W.tocsc() if operator is None else operator
         evals = None
         if operator is None and sigma is None:  # first inside the wanted spectrum (module doc)
-            mid = MID_SHIFT * 4.0 * np.pi * k / float(Mm.diagonal().sum())
+            area = float(Mm.diagonal().sum()) if weyl_area is None else float(weyl_area)
+            if not (np.isfinite(area) and area > 0):
+                raise ValueError(f"weyl_area must be a positive number, got {weyl_area!r}")
+            mid = MID_SHIFT * 4.0 * np.pi * k / area
             evals, vecs = eigsh(A, k=k, M=Mm, sigma=mid, which="LM", v0=np.ones(n), tol=tol)
             if np.abs(evals - mid).max() < mid * (1.0 + 1e-6):  # maybe not the k smallest: redo safely
                 evals = None

@@ -239,6 +239,20 @@ def heat_square_coefficients(basis: Basis, t: float, n_eig: int, pairs: str = "u
     return out
 
 
+_HEAT_SQUARES_CACHE_BYTES = 2**28
+
+
+def _heat_squares_of_source(basis: Basis, t: float, n_eig: int, pairs: str) -> np.ndarray:
+    """:func:`heat_square_coefficients` of all vertices, kept in ``basis.cache`` up to 256 MB: ``t``
+    depends on the source basis only, so every map from the same source reuses them."""
+    from .products import n_columns
+
+    if basis.n * n_columns(basis.k - 1, 2, pairs) * 8 > _HEAT_SQUARES_CACHE_BYTES:
+        return heat_square_coefficients(basis, t, n_eig, pairs)
+    key = ("heat_square_coefficients", basis.k, float(t), int(n_eig), pairs)
+    return basis.cache.get(key, lambda: heat_square_coefficients(basis, t, n_eig, pairs))
+
+
 def extended_embeddings(
     C_12,
     basis_1: Basis,
@@ -273,7 +287,7 @@ def extended_embeddings(
     # t·a2/a1, and h_t² scales as 1/area², so the transferred kernels are brought to shape 2's scale by
     # (a1/a2)². Equal areas change nothing; scaling either mesh changes no point of the result.
     ratio = b2.area / b1.area
-    a1 = heat_square_coefficients(b1, t, n_eig, pairs)  # (n1, K1)
+    a1 = _heat_squares_of_source(b1, t, n_eig, pairs)  # (n1, K1)
     a2 = heat_square_coefficients(b2, t * ratio, n_eig, pairs)  # (n2, K2)
     Ct = pm.extend_fmap(C, b1, b2, order=2, pairs=pairs)  # (K2, K1)
     op = pm.product_basis(b2, order=2, pairs=pairs).operator("svd", rtol=rtol)

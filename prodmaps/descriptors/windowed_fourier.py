@@ -22,9 +22,12 @@ from .spectral import as_1d_finite
 __all__ = ["awft"]
 
 
-def _eigenpairs(W, A, k: int):
-    """First ``k`` eigenpairs of ``W φ = λ A φ``, eigenvalues clipped at 0 (signs irrelevant here)."""
-    evals, vecs = smallest_eigenpairs(W, A, k)
+def _eigenpairs(W, A, k: int, weyl_area: float | None = None):
+    """First ``k`` eigenpairs of ``W φ = λ A φ``, eigenvalues clipped at 0 (signs irrelevant here).
+
+    ``weyl_area``: the area of Weyl's law of the operator (:func:`prodmaps.eigensolver.smallest_eigenpairs`).
+    """
+    evals, vecs = smallest_eigenpairs(W, A, k, weyl_area=weyl_area)
     return np.maximum(evals, 0.0), vecs
 
 
@@ -95,12 +98,15 @@ def awft(
     area = mesh.area
     curv = principal_curvatures(mesh, smooth=curvature_smooth)
     ops = [anisotropic_laplacian(mesh, np.deg2rad(a), alpha, curvature=curv) for a in angles]
+    # Weyl's law of -div(D ∇·) counts with ∫ det(D)^(-1/2) dA: D has eigenvalues 1 and 1/(1+α)
+    weyl = [float(np.sum(op[1])) * np.sqrt(1.0 + alpha) for op in ops]
     if include_isotropic or "hks" in functions:
         W0, A0 = laplacian(mesh)
         if include_isotropic:
             ops.append((W0, A0))
+            weyl.append(None)
     A = ops[0][1] if ops else A0
-    eig = [_eigenpairs(W, A, int(k)) for W, _ in ops]
+    eig = [_eigenpairs(W, A, int(k), w) for (W, _), w in zip(ops, weyl)]
 
     fvals = []
     for name in functions:

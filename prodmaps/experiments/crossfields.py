@@ -643,21 +643,24 @@ def _stats(v: np.ndarray) -> dict:
     return {"mean": float(np.mean(v)), "std": float(np.std(v)), "min": float(np.min(v)), "max": float(np.max(v))}
 
 
-def figure14_joint_study(dataset: str, pairs, ks, *, params=None, shown: int = 0, verbose: bool = True) -> dict:
+def figure14_joint_study(dataset: str, pairs, ks, *, params=None, shown: int = 0, verbose: bool = True,
+                         workers: int | None = None) -> dict:
     """:func:`figure14_joint_pair` on every pair ``(id_1, id_2)`` of ``dataset`` and every k.
 
     Returns ``{"pairs": {"<id_1>-><id_2>": per-pair results}, "summary": {measure: summarize_pairs},
-    "shown": (mesh_1, mesh_2, fields) of pair number ``shown``, "kinds": ...}``.
+    "shown": (mesh_1, mesh_2, fields) of pair number ``shown``, "kinds": ...}``. ``workers``:
+    processes computing the pairs (:func:`prodmaps.experiments.parallel.map_tasks`; the same
+    numbers for any number).
     """
     from .. import datasets
+    from .parallel import map_tasks
 
+    pairs = [tuple(p) for p in pairs]
+    tasks = [(dataset, a, b, list(ks), params, i == shown) for i, (a, b) in enumerate(pairs)]
     per, shown_out = {}, None
-    for i, (a, b) in enumerate(pairs):
-        gt = surface_ground_truth(dataset, a, b)
-        m1, m2 = datasets.load_shape(dataset, a), datasets.load_shape(dataset, b)
-        r = figure14_joint_pair(m1, m2, gt, ks, params=params, keep_fields=(i == shown))
+    for i, ((a, b), r) in enumerate(zip(pairs, map_tasks(_joint_pair_task, tasks, workers=workers))):
         if i == shown:
-            shown_out = (m1, m2, r.pop("fields"))
+            shown_out = (datasets.load_shape(dataset, a), datasets.load_shape(dataset, b), r.pop("fields"))
         per[f"{a}->{b}"] = r
         if verbose:
             k0 = f"k{ks[0]}"
@@ -668,6 +671,15 @@ def figure14_joint_study(dataset: str, pairs, ks, *, params=None, shown: int = 0
     if all("quads" in p for p in per.values()):
         summary["quads"] = summarize_quads(per)
     return {"pairs": per, "summary": summary, "shown": shown_out, "kinds": list(JOINT_KINDS)}
+
+
+def _joint_pair_task(dataset: str, a: str, b: str, ks, params, keep_fields: bool) -> dict:
+    """:func:`figure14_joint_pair` of the pair ``a -> b`` of ``dataset`` (one task of the study)."""
+    from .. import datasets
+
+    gt = surface_ground_truth(dataset, a, b)
+    m1, m2 = datasets.load_shape(dataset, a), datasets.load_shape(dataset, b)
+    return figure14_joint_pair(m1, m2, gt, ks, params=params, keep_fields=keep_fields)
 
 
 PAIRS = {

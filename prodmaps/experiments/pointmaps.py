@@ -21,6 +21,7 @@ from ..mapping import fmap_from_p2p
 from ..p2p import from_fmap
 from .compare import count_outcomes
 from .maps import no17_demo_map
+from .parallel import default_workers, map_tasks, store_spec, worker_store
 from .store import ShapeStore
 
 __all__ = ["subject_pairs", "point_map_recovery", "CONVERSIONS"]
@@ -41,41 +42,41 @@ def subject_pairs(dataset: str, subject, n_pairs=None, seed: int = 0) -> list:
 
 def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int, maps=("gt", "no17"),
                        n_eval=None, no17_k_descr: int = 128, thresholds_max: float = 0.25, seed: int = 0,
-                       verbose: bool = True) -> dict:
-    """Run Figures 12/13 (module doc); returns ``{"results": ..., "timing": ...}``."""
+                       verbose: bool = True, workers: int | None = None) -> dict:
+    """Run Figures 12/13 (module doc); returns ``{"results": ..., "timing": ...}``.
+
+    ``workers``: processes computing the pairs (:func:`prodmaps.experiments.parallel.map_tasks`;
+    the pairs of one source shape go to one worker, which keeps its geodesic rows); the evaluated
+    vertices are drawn here in the pairs' order, so the numbers do not depend on ``workers``.
+    """
     bad = set(maps) - {"gt", "no17"}
     if bad:
         raise ValueError(f"maps must be a subset of ['gt', 'no17'], got {list(maps)}")
     rng = np.random.default_rng(seed)
     errs = {m: {c: [] for c in CONVERSIONS} for m in maps}  # per pair: (n_eval,) arrays
     per_pair, timing = [], {"std": 0.0, "extended": 0.0, "no17": 0.0}
-    for s1, s2 in pairs:
-        t0 = time.perf_counter()
-        b1, b2 = store.basis(s1, k_source), store.basis(s2, k_target)
-        gt = datasets.ground_truth(store.dataset, s1, s2)  # (n2,) target vertex -> source vertex
-        ev = np.arange(b2.n) if n_eval is None else np.sort(rng.choice(b2.n, int(n_eval), replace=False))
-        row, recovered = {"pair": f"{s1}->{s2}"}, {}
-        for m in maps:
-            if m == "gt":
-                C = fmap_from_p2p(gt, b1, b2)  # (k_target, k_source)
-            else:
-                t1 = time.perf_counter()
-                C = no17_demo_map(store, s1, s2, gt, k_source, k_target, k_descr=no17_k_descr)
-                timing["no17"] += time.perf_counter() - t1
-            for method in CONVERSIONS:
-                t1 = time.perf_counter()
-                recovered[m, method] = from_fmap(C, b1, b2, method, vertices=ev)  # (n_eval,) target -> source vertex
-                timing[method] += time.perf_counter() - t1
-        # all maps of the pair against the same truth: geodesics from the true images computed once
-        E = geodesics.map_error(store.mesh(s1), np.stack(list(recovered.values())), gt[ev],
-                               rows=store.distance_rows(s1))  # (maps, n_eval)
-        for (m, method), e in zip(recovered, E):
-            errs[m][method].append(e)
-            row[f"{m}_{method}"] = float(e.mean())
-        per_pair.append(row)
-        if verbose:
-            print(f"{row['pair']}: " + "  ".join(f"{k} {v:.4f}" for k, v in row.items() if k != "pair")
-                  + f"   [{time.perf_counter() - t0:.1f} s]")
+    groups: dict = {}  # source id -> [(pair index, target id, evaluated target vertices), ...]
+    for ip, (s1, s2) in enumerate(pairs):
+        n2 = store.mesh(s2).n_vertices
+        ev = np.arange(n2) if n_eval is None else np.sort(rng.choice(n2, int(n_eval), replace=False))
+        groups.setdefault(s1, []).append((ip, s2, ev))
+    workers = default_workers() if workers is None else workers
+    where = store if workers == 1 or len(groups) <= 1 else store_spec(store)  # workers rebuild the store
+    tasks = [(where, s1, group, k_target, k_source, tuple(maps), no17_k_descr) for s1, group in groups.items()]
+    done, nxt = {}, 0
+    for records in map_tasks(_recovery_pairs, tasks, workers=workers):
+        done.update(records)
+        while nxt in done:
+            row, E, t_pair, t_parts = done.pop(nxt)
+            for (m, method), e in E.items():
+                errs[m][method].append(e)
+            for key, v in t_parts.items():
+                timing[key] += v
+            per_pair.append(row)
+            if verbose:
+                print(f"{row['pair']}: " + "  ".join(f"{k} {v:.4f}" for k, v in row.items() if k != "pair")
+                      + f"   [{t_pair:.1f} s]")
+            nxt += 1
     thr = np.linspace(0.0, float(thresholds_max), 101)
     curves, means, wins = {}, {}, {}
     for m in maps:
@@ -96,3 +97,34 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
         "curves": {m: {"thresholds": thr, **curves[m]} for m in curves},
     }
     return {"results": results, "timing": timing}
+
+
+def _recovery_pairs(where, s1: str, group, k_target: int, k_source: int, maps, no17_k_descr: int) -> dict:
+    """The pairs of source ``s1``: ``{pair index: (row, {(map, conversion): errors (n_eval,)},
+    seconds, {"std"|"extended"|"no17": seconds})}``."""
+    store = where if isinstance(where, ShapeStore) else worker_store(where)
+    out = {}
+    for ip, s2, ev in group:
+        t0 = time.perf_counter()
+        timing = {"std": 0.0, "extended": 0.0, "no17": 0.0}
+        b1, b2 = store.basis(s1, k_source), store.basis(s2, k_target)
+        gt = datasets.ground_truth(store.dataset, s1, s2)  # (n2,) target vertex -> source vertex
+        row, recovered = {"pair": f"{s1}->{s2}"}, {}
+        for m in maps:
+            if m == "gt":
+                C = fmap_from_p2p(gt, b1, b2)  # (k_target, k_source)
+            else:
+                t1 = time.perf_counter()
+                C = no17_demo_map(store, s1, s2, gt, k_source, k_target, k_descr=no17_k_descr)
+                timing["no17"] += time.perf_counter() - t1
+            for method in CONVERSIONS:
+                t1 = time.perf_counter()
+                recovered[m, method] = from_fmap(C, b1, b2, method, vertices=ev)  # (n_eval,) target -> source vertex
+                timing[method] += time.perf_counter() - t1
+        # all maps of the pair against the same truth: geodesics from the true images computed once
+        E = geodesics.map_error(store.mesh(s1), np.stack(list(recovered.values())), gt[ev],
+                               rows=store.distance_rows(s1))  # (maps, n_eval)
+        for (m, method), e in zip(recovered, E):
+            row[f"{m}_{method}"] = float(e.mean())
+        out[ip] = (row, dict(zip(recovered, E)), time.perf_counter() - t0, timing)
+    return out

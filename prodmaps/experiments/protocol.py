@@ -34,6 +34,7 @@ from ..metrics import relative_error
 from ..products import product_basis
 from . import families as pfam
 from .maps import no17_demo_map
+from .parallel import default_workers, map_tasks, store_spec, worker_store
 from .store import ShapeStore
 
 __all__ = ["ProtocolSettings", "ProtocolResult", "run_protocol", "method_label", "family_means", "area_curves",
@@ -110,86 +111,130 @@ def _operator(ext1, method: str, s: ProtocolSettings):
 
 
 def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collect=None,
-                 progress: bool = True) -> ProtocolResult:
+                 progress: bool = True, workers: int | None = None) -> ProtocolResult:
     """Run the protocol on ``pairs`` (list of ``(source id, target id)``) of ``store.dataset``.
 
     ``collect(pair_index, size, F, G, cols, b1, b2, outputs)`` (optional) receives, for every
     pair and size, the functions and ``outputs[method] = (approximation (n1, m), transfer (n2, m))``
-    (e.g. for the area curves of Figure 8).
-    """
-    from .. import datasets
+    (e.g. for the area curves of Figure 8); it runs in this process, so the pairs are then
+    computed here one after the other.
 
+    ``workers``: processes computing the pairs (:func:`prodmaps.experiments.parallel.map_tasks`;
+    default ``$PRODMAPS_WORKERS`` or the CPUs). The pairs of one source shape go to one worker
+    (they share its descriptors and extended-basis operators); every pair is computed with one
+    BLAS thread, so the errors are the same for any number of workers.
+    """
     s = settings
     pairs = [tuple(p) for p in pairs]
-    prod_methods = [m for m in s.methods if m != "std"]
     errors = {z: {st: {m: [] for m in s.methods} for st in STAGES} for z in s.sizes}
     map_dev = {z: [] for z in s.sizes}
     ranks = {z: [] for z in s.sizes}
     gain_rtol = {z: [] for z in s.sizes}
     cols, seconds = None, []
+    groups: dict = {}  # source id -> [(pair index, target id), ...] in the pairs' order
     for ip, (sid1, sid2) in enumerate(pairs):
-        t0 = time.perf_counter()
-        gt = datasets.ground_truth(store.dataset, sid1, sid2)  # (n2,) target vertex -> source vertex
-        F, G, cols = store.family_functions(sid1, gt, ip, s.families, k_M=s.k_M_family, seed=s.seed)
-        for (kM, kN) in s.sizes:
-            b1, b2 = store.basis(sid1, kM + 1), store.basis(sid2, kN + 1)
-            C_gt = fmap_from_p2p(gt, b1, b2)  # (kN+1, kM+1)
-            if s.map_kind == "gt":
-                C = C_gt
-            elif s.map_kind == "perturbed":
-                C = perturbed_map(C_gt, s.noise, seed=(s.seed, ip, kM, kN))
-            else:
-                C = no17_demo_map(store, sid1, sid2, gt, kM + 1, kN + 1, k_descr=s.no17_k_descr)
-            map_dev[(kM, kN)].append(float(np.linalg.norm(C - C_gt) / np.linalg.norm(C_gt)))
-            err = errors[(kM, kN)]
-            a_std = b1.project(F)  # (kM+1, m)
-            outputs = {"std": (b1.vecs @ a_std, b2.vecs @ (C @ a_std))}
-            if "p2p" in prod_methods:
-                from ..p2p import from_fmap
-
-                outputs["p2p"] = (outputs["std"][0], F[from_fmap(C, b1, b2, "std")])  # (n2, m) pulled back
-            if [m for m in prod_methods if m != "p2p"]:
-                ext1 = product_basis(b1, order=2, pairs=s.pairs_convention)
-                ext2 = product_basis(b2, order=2, pairs=s.pairs_convention)
-                Ct = extend_fmap(C, b1, b2, order=2, pairs=s.pairs_convention)  # (K2, K1)
-                coefs = {}  # method -> (K1, m): evaluated together below, one pass over each extended basis
-                for m in prod_methods:
-                    if m == "p2p":
-                        continue
-                    if m == "default":
-                        from ..default_transfer import safe_operator
-
-                        op = safe_operator(C, b1, b2)
-                        outputs[m] = (op.approximate(F), op(F))
-                        continue
-                    if m == "B_gain":
-                        r_g = truncation.select_rtol(b1, method="gain", C_12=C, basis_2=b2, max_gain=s.max_gain,
-                                                     normalization=s.normalization)
-                        gain_rtol[(kM, kN)].append(r_g)
-                        op = ext1.operator("svd", rtol=r_g, **({} if s.normalization is None
-                                                                else {"normalization": s.normalization}))
-                    else:
-                        op = _operator(ext1, m, s)
-                    coefs[m] = op.coefficients(F)  # (K1, m)
-                    outputs[m] = None  # keeps the methods' order
-                if coefs:
-                    a = np.concatenate(list(coefs.values()), axis=1)  # (K1, m·methods)
-                    fa, ft = ext1.evaluate(a), ext2.evaluate(Ct @ a)  # (n1, ·), (n2, ·)
-                    for j, m in enumerate(coefs):
-                        sl = slice(j * F.shape[1], (j + 1) * F.shape[1])
-                        outputs[m] = (fa[:, sl], ft[:, sl])
-                if "B" in prod_methods:
-                    ranks[(kM, kN)].append(int(_operator(ext1, "B", s).rank))
-            for m, (fa, ft) in outputs.items():
-                err["approx"][m].append(relative_error(fa, F, b1.mass))
-                err["transfer"][m].append(relative_error(ft, G, b2.mass))
-            if collect is not None:
-                collect(ip, (kM, kN), F, G, cols, b1, b2, outputs)
-        seconds.append(time.perf_counter() - t0)
-        if progress:
-            print(f"pair {ip + 1:2d}/{len(pairs)} {sid1} -> {sid2}: {seconds[-1]:5.1f} s"
-                  + "".join(f"  [{kM}/{kN}] map dev {map_dev[(kM, kN)][-1]:.3f}" for kM, kN in s.sizes), flush=True)
+        groups.setdefault(sid1, []).append((ip, sid2))
+    workers = 1 if collect is not None else (default_workers() if workers is None else workers)
+    where = store if workers == 1 or len(groups) <= 1 else store_spec(store)  # workers rebuild the store
+    tasks = [(where, sid1, group, s, collect) for sid1, group in groups.items()]
+    done: dict = {}  # pair index -> record, until its turn to be reported
+    nxt = 0
+    for records in map_tasks(_protocol_pairs, tasks, workers=workers):
+        done.update(records)
+        while nxt in done:
+            rec = done.pop(nxt)
+            cols = rec["cols"]
+            for z, by in rec["sizes"].items():
+                map_dev[z].append(by["map_dev"])
+                if by["rank"] is not None:
+                    ranks[z].append(by["rank"])
+                if by["gain_rtol"] is not None:
+                    gain_rtol[z].append(by["gain_rtol"])
+                for st in STAGES:
+                    for m in s.methods:
+                        errors[z][st][m].append(by["errors"][st][m])
+            seconds.append(rec["seconds"])
+            if progress:
+                sid1, sid2 = pairs[nxt]
+                print(f"pair {nxt + 1:2d}/{len(pairs)} {sid1} -> {sid2}: {seconds[-1]:5.1f} s"
+                      + "".join(f"  [{kM}/{kN}] map dev {map_dev[(kM, kN)][-1]:.3f}" for kM, kN in s.sizes),
+                      flush=True)
+            nxt += 1
     return ProtocolResult(s, pairs, errors, cols, map_dev, ranks, gain_rtol, seconds)
+
+
+def _protocol_pairs(where, sid1: str, group, s: ProtocolSettings, collect) -> dict:
+    """The pairs ``(sid1, sid2)`` of ``group`` (``[(pair index, sid2), ...]``): ``{pair index: record}``."""
+    store = where if isinstance(where, ShapeStore) else worker_store(where)
+    return {ip: _protocol_pair(store, ip, sid1, sid2, s, collect) for ip, sid2 in group}
+
+
+def _protocol_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, s: ProtocolSettings, collect) -> dict:
+    """One pair at every size: ``{"cols", "seconds", "sizes": {(k_M, k_N): {"errors", "map_dev",
+    "rank", "gain_rtol"}}}`` with ``errors[stage][method]`` the ``(m,)`` per-column errors."""
+    from .. import datasets
+
+    t0 = time.perf_counter()
+    prod_methods = [m for m in s.methods if m != "std"]
+    gt = datasets.ground_truth(store.dataset, sid1, sid2)  # (n2,) target vertex -> source vertex
+    F, G, cols = store.family_functions(sid1, gt, ip, s.families, k_M=s.k_M_family, seed=s.seed)
+    sizes = {}
+    for (kM, kN) in s.sizes:
+        rec = {"errors": {st: {} for st in STAGES}, "rank": None, "gain_rtol": None}
+        b1, b2 = store.basis(sid1, kM + 1), store.basis(sid2, kN + 1)
+        C_gt = fmap_from_p2p(gt, b1, b2)  # (kN+1, kM+1)
+        if s.map_kind == "gt":
+            C = C_gt
+        elif s.map_kind == "perturbed":
+            C = perturbed_map(C_gt, s.noise, seed=(s.seed, ip, kM, kN))
+        else:
+            C = no17_demo_map(store, sid1, sid2, gt, kM + 1, kN + 1, k_descr=s.no17_k_descr)
+        rec["map_dev"] = float(np.linalg.norm(C - C_gt) / np.linalg.norm(C_gt))
+        a_std = b1.project(F)  # (kM+1, m)
+        outputs = {"std": (b1.vecs @ a_std, b2.vecs @ (C @ a_std))}
+        if "p2p" in prod_methods:
+            from ..p2p import from_fmap
+
+            outputs["p2p"] = (outputs["std"][0], F[from_fmap(C, b1, b2, "std")])  # (n2, m) pulled back
+        if [m for m in prod_methods if m != "p2p"]:
+            ext1 = product_basis(b1, order=2, pairs=s.pairs_convention)
+            ext2 = product_basis(b2, order=2, pairs=s.pairs_convention)
+            Ct = extend_fmap(C, b1, b2, order=2, pairs=s.pairs_convention)  # (K2, K1)
+            coefs = {}  # method -> (K1, m): evaluated together below, one pass over each extended basis
+            for m in prod_methods:
+                if m == "p2p":
+                    continue
+                if m == "default":
+                    from ..default_transfer import safe_operator
+
+                    op = safe_operator(C, b1, b2)
+                    outputs[m] = (op.approximate(F), op(F))
+                    continue
+                if m == "B_gain":
+                    r_g = truncation.select_rtol(b1, method="gain", C_12=C, basis_2=b2, max_gain=s.max_gain,
+                                                 normalization=s.normalization)
+                    rec["gain_rtol"] = r_g
+                    op = ext1.operator("svd", rtol=r_g, **({} if s.normalization is None
+                                                            else {"normalization": s.normalization}))
+                else:
+                    op = _operator(ext1, m, s)
+                coefs[m] = op.coefficients(F)  # (K1, m)
+                outputs[m] = None  # keeps the methods' order
+            if coefs:
+                a = np.concatenate(list(coefs.values()), axis=1)  # (K1, m·methods)
+                fa, ft = ext1.evaluate(a), ext2.evaluate(Ct @ a)  # (n1, ·), (n2, ·)
+                for j, m in enumerate(coefs):
+                    sl = slice(j * F.shape[1], (j + 1) * F.shape[1])
+                    outputs[m] = (fa[:, sl], ft[:, sl])
+            if "B" in prod_methods:
+                rec["rank"] = int(_operator(ext1, "B", s).rank)
+        for m, (fa, ft) in outputs.items():
+            rec["errors"]["approx"][m] = relative_error(fa, F, b1.mass)
+            rec["errors"]["transfer"][m] = relative_error(ft, G, b2.mass)
+        if collect is not None:
+            collect(ip, (kM, kN), F, G, cols, b1, b2, outputs)
+        sizes[(kM, kN)] = rec
+    return {"cols": cols, "seconds": time.perf_counter() - t0, "sizes": sizes}
 
 
 def perturbed_map(C_gt: np.ndarray, noise: float, seed) -> np.ndarray:

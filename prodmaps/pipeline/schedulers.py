@@ -14,11 +14,16 @@ __all__ = ["thread_env", "run_pool", "run_dask"]
 
 
 def thread_env(jobs: int) -> dict:
-    """With several notebooks at once, cap BLAS threads so they do not oversubscribe the CPUs."""
+    """With several notebooks at once, cap BLAS threads and the experiments' worker processes
+    (``PRODMAPS_WORKERS``, :mod:`prodmaps.experiments.parallel`; unless the user set it) so they
+    do not oversubscribe the CPUs."""
     if jobs <= 1:
         return {}
     n = str(max(1, (os.cpu_count() or 1) // jobs))
-    return {k: n for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    env = {k: n for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    if not os.environ.get("PRODMAPS_WORKERS"):
+        env["PRODMAPS_WORKERS"] = n
+    return env
 
 
 def run_pool(tasks: list[dict], jobs: int, execute, collect):

@@ -277,3 +277,30 @@ def test_awft_options_and_errors(anny):
         D.awft(anny, k=20, taus=(-0.1,), freqs0=(0,))
     with pytest.raises(ValueError, match="alpha"):
         pm.operators.anisotropic_laplacian(anny, 0.0, -1.0)
+
+
+def test_anisotropic_eigenpairs_first_shift_from_weyls_law_with_the_conductivity(anny, monkeypatch):
+    """AWFT's anisotropic operators have Weyl area sqrt(1 + α)·area: the shift placed with it is
+    accepted at once (one Lanczos run, not two) and gives the eigenpairs of the safe shift."""
+    import scipy.sparse.linalg as spla
+
+    from prodmaps.eigensolver import shift, smallest_eigenpairs
+    from prodmaps.operators import anisotropic_laplacian
+
+    alpha, k = 10.0, 60
+    W, A = anisotropic_laplacian(anny, 0.3, alpha)
+    calls = []
+    real = spla.eigsh
+    monkeypatch.setattr(spla, "eigsh", lambda *a, **kw: calls.append(kw["sigma"]) or real(*a, **kw))
+    ev, vecs = smallest_eigenpairs(W, A, k, weyl_area=float(A.sum()) * np.sqrt(1 + alpha))
+    assert len(calls) == 1 and calls[0] > 0
+    calls.clear()
+    ev_area, _ = smallest_eigenpairs(W, A, k)  # Weyl with the plain area: shift too high, solved twice
+    assert len(calls) == 2 and calls[1] < 0
+    ev_safe, vecs_safe = smallest_eigenpairs(W, A, k, sigma=shift(W, A))
+    np.testing.assert_allclose(ev, ev_safe, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(ev_area, ev_safe, rtol=1e-9, atol=1e-9)
+    gram = vecs.T @ (A[:, None] * vecs_safe)  # (k, k): same eigenspaces up to sign
+    np.testing.assert_allclose(np.abs(np.diag(gram))[:k - 5], 1.0, atol=1e-6)
+    with pytest.raises(ValueError, match="weyl_area"):
+        smallest_eigenpairs(W, A, k, weyl_area=-1.0)

@@ -1,0 +1,104 @@
+"""Independent tasks of the experiments (pairs of shapes) in worker processes.
+
+:func:`map_tasks` runs ``fn(*task)`` for every task and yields the results in the tasks' order,
+in ``workers`` processes (``spawn``: nothing of the caller's state is inherited but the
+environment). Every task runs with **one BLAS thread**, in the workers and in the serial path
+alike, so the numbers do not depend on the number of workers (a BLAS kernel may sum in another
+order with another thread count); the workers use the cores instead.
+
+The number of workers is ``workers`` if given, else ``$PRODMAPS_WORKERS``, else the number of
+CPUs this process may run on. ``prodmaps reproduce --jobs J`` sets ``PRODMAPS_WORKERS`` to
+``max(1, CPUs // J)`` for its notebooks (unless it is set), so ``J`` notebooks at a time do not
+start ``J x CPUs`` workers.
+
+Per-shape values are shared through the disk cache of :class:`prodmaps.experiments.store.ShapeStore`
+(workers rebuild the store from :func:`store_spec` and keep it for the tasks they run); group the
+tasks so that one task holds the pairs that share the expensive per-shape work (e.g. one source
+shape), so no two workers compute the same value at the same time.
+"""
+
+from __future__ import annotations
+
+import os
+
+__all__ = ["WORKERS_ENV", "default_workers", "map_tasks", "one_blas_thread", "store_spec", "worker_store"]
+
+WORKERS_ENV = "PRODMAPS_WORKERS"
+
+
+def default_workers() -> int:
+    """``$PRODMAPS_WORKERS`` if set (a positive integer), else the CPUs available to this process."""
+    env = os.environ.get(WORKERS_ENV, "").strip()
+    if env:
+        try:
+            n = int(env)
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise ValueError(f"{WORKERS_ENV} must be a positive integer, got {env!r}")
+        return n
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def one_blas_thread():
+    """Context manager limiting BLAS/LAPACK (and OpenMP) to one thread (``threadpoolctl``)."""
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1)
+
+
+def _init_worker():
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1)  # for the whole life of the worker
+
+
+def map_tasks(fn, tasks, *, workers: int | None = None):
+    """Yield ``fn(*task)`` for each task of ``tasks``, in order (see the module doc).
+
+    ``fn`` must be a module-level function and the tasks picklable when ``workers > 1``. Runs
+    in this process when ``workers`` is 1 or there is at most one task.
+    """
+    tasks = [tuple(t) for t in tasks]
+    workers = default_workers() if workers is None else workers
+    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
+        raise ValueError(f"workers must be a positive integer, got {workers!r}")
+    if workers == 1 or len(tasks) <= 1:
+        for t in tasks:
+            with one_blas_thread():
+                out = fn(*t)
+            yield out
+        return
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=mp.get_context("spawn"),
+                             initializer=_init_worker) as ex:
+        futures = [ex.submit(fn, *t) for t in tasks]
+        try:
+            for f in futures:
+                yield f.result()
+        finally:
+            for f in futures:
+                f.cancel()
+
+
+def store_spec(store) -> tuple:
+    """What a worker needs to rebuild ``store`` (a ShapeStore) with the same disk cache."""
+    return (store.dataset, store.n_eig, store.kind, store.disk.enabled, str(store.disk.folder))
+
+
+_STORES: dict = {}
+
+
+def worker_store(spec: tuple):
+    """The ShapeStore of ``spec`` in this process, built once and kept (its memory is reused)."""
+    if spec not in _STORES:
+        from .store import ShapeStore
+
+        dataset, n_eig, kind, enabled, folder = spec
+        _STORES[spec] = ShapeStore(dataset, n_eig, kind=kind, disk_cache=enabled, cache_folder=folder)
+    return _STORES[spec]

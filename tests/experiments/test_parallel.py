@@ -1,0 +1,91 @@
+"""Pairs in worker processes: the same numbers as one after the other, in the pairs' order."""
+
+import numpy as np
+import pytest
+
+from prodmaps.experiments import parallel
+from prodmaps.experiments.crossfields import figure14_joint_study
+from prodmaps.experiments.pointmaps import point_map_recovery
+from prodmaps.experiments.protocol import ProtocolSettings, run_protocol
+from prodmaps.experiments.store import ShapeStore
+from prodmaps.pipeline.schedulers import thread_env
+
+DS = "anny_humans"
+PAIRS = [("anny_000", "anny_003"), ("anny_003", "anny_000"), ("anny_000", "anny_009")]
+
+
+def _sq(x, y=1):
+    return x * x + y
+
+
+def test_map_tasks_keeps_the_order_in_workers_and_here():
+    tasks = [(i, 2 * i) for i in range(7)]
+    expected = [_sq(*t) for t in tasks]
+    assert list(parallel.map_tasks(_sq, tasks, workers=1)) == expected
+    assert list(parallel.map_tasks(_sq, tasks, workers=2)) == expected
+    assert list(parallel.map_tasks(_sq, [], workers=2)) == []
+    with pytest.raises(ValueError, match="positive integer"):
+        list(parallel.map_tasks(_sq, tasks, workers=0))
+
+
+def test_default_workers_reads_the_environment(monkeypatch):
+    monkeypatch.setenv(parallel.WORKERS_ENV, "3")
+    assert parallel.default_workers() == 3
+    monkeypatch.setenv(parallel.WORKERS_ENV, "none")
+    with pytest.raises(ValueError, match="PRODMAPS_WORKERS"):
+        parallel.default_workers()
+    monkeypatch.delenv(parallel.WORKERS_ENV)
+    assert parallel.default_workers() >= 1
+
+
+def test_several_notebooks_at_once_share_the_cpus_among_their_workers(monkeypatch):
+    monkeypatch.delenv(parallel.WORKERS_ENV, raising=False)
+    monkeypatch.setattr("os.cpu_count", lambda: 8)
+    assert thread_env(1) == {} and thread_env(4)["PRODMAPS_WORKERS"] == "2"
+    monkeypatch.setenv(parallel.WORKERS_ENV, "5")  # the user's choice stays
+    assert "PRODMAPS_WORKERS" not in thread_env(4)
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    return ShapeStore(DS, 40, cache_folder=tmp_path_factory.mktemp("cache"))
+
+
+def test_protocol_errors_do_not_depend_on_the_number_of_workers(store):
+    s = ProtocolSettings(sizes=[(9, 9), (19, 29)], methods=["std", "l2", "B", "default"],
+                         families=["XYZ", "Indicator", "HKS"])
+    one = run_protocol(store, PAIRS, s, progress=False, workers=1)
+    two = run_protocol(store, PAIRS, s, progress=False, workers=2)
+    assert one.pairs == two.pairs == PAIRS and one.cols == two.cols
+    for z in s.sizes:
+        assert one.map_deviation[z] == two.map_deviation[z] and one.ranks[z] == two.ranks[z]
+        assert len(one.ranks[z]) == len(PAIRS)
+        for st in ("approx", "transfer"):
+            for m in s.methods:
+                assert len(one.errors[z][st][m]) == len(PAIRS)
+                for a, b in zip(one.errors[z][st][m], two.errors[z][st][m]):
+                    assert np.array_equal(a, b)
+
+
+def test_point_map_recovery_does_not_depend_on_the_number_of_workers(store):
+    kw = dict(k_target=12, k_source=10, maps=("gt",), n_eval=60, seed=3, verbose=False)
+    one = point_map_recovery(store, PAIRS, workers=1, **kw)["results"]
+    two = point_map_recovery(store, PAIRS, workers=2, **kw)["results"]
+    assert one["pairs"] == two["pairs"] == [f"{a}->{b}" for a, b in PAIRS]
+    assert one["per_pair"] == two["per_pair"] and one["mean_error"] == two["mean_error"]
+
+
+@pytest.mark.slow
+def test_figure14_study_does_not_depend_on_the_number_of_workers():
+    pairs = [("anny_000", "anny_003"), ("anny_010", "anny_016")]
+    params = {"quad_size": 0}  # no quad meshes: the designs and their measures
+    one = figure14_joint_study(DS, pairs, [6], params=params, verbose=False, workers=1)
+    two = figure14_joint_study(DS, pairs, [6], params=params, verbose=False, workers=2)
+    for name in one["pairs"]:
+        a, b = dict(one["pairs"][name]), dict(two["pairs"][name])
+        a.pop("seconds"), b.pop("seconds")
+        assert a == b
+    f1, f2 = one["shown"][2], two["shown"][2]  # the fields of pair 0, computed in a worker for workers=2
+    assert set(f1) == set(f2) and (6, "std") in f1
+    for key in f1:
+        assert all(np.array_equal(a, b) for a, b in zip(f1[key], f2[key]))
