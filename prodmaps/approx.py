@@ -363,11 +363,11 @@ def _gram_eig(basis, normalization: str = "area"):
             X = np.sqrt(base.mass)[:, None] * basis.solver_basis()[0]
             if d is not None:
                 X = X * d
-            w, V = sla.eigh(X @ X.T)
+            w, V = sla.eigh(X @ X.T, driver="evd")  # all eigenpairs: divide and conquer, ~2.5x MRRR
             side = "dual"
         else:
             G = _gram(basis)
-            w, V = sla.eigh(G if d is None else d[:, None] * G * d)
+            w, V = sla.eigh(G if d is None else d[:, None] * G * d, driver="evd")
             side = "primal"
         return w[::-1], V[:, ::-1], side
 

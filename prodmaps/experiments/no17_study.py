@@ -28,6 +28,7 @@ from ..metrics import relative_error
 from ..p2p import from_fmap
 from . import families as pfam
 from .maps import landmark_pairs, no17_fit, recipe
+from .parallel import default_workers, map_tasks, store_spec, worker_store
 from .published import published_values
 from .store import ShapeStore
 
@@ -37,7 +38,7 @@ FAMILIES = ("hk_k", "XYZ", "WKS", "Random", "Indicator")  # the column's familie
 
 
 def score_recipes(store: ShapeStore, pairs, recipes, *, k_M: int = 29, k_N: int = 39, families=FAMILIES,
-                  seed: int = 0, n_eval: int | None = None, progress: bool = True) -> dict:
+                  seed: int = 0, n_eval: int | None = None, progress: bool = True, workers: int | None = None) -> dict:
     """Score computed-map recipes by the standard transfer column and the map's geodesic error.
 
     Parameters
@@ -50,6 +51,8 @@ def score_recipes(store: ShapeStore, pairs, recipes, *, k_M: int = 29, k_N: int 
     families : families of :mod:`prodmaps.experiments.families`; basis-dependent ones use
         ``k_M`` (as the tables at their largest ``k_M``); seeds as the tables'.
     n_eval : geodesic error on this many seeded target vertices (None: all).
+    workers : processes computing the pairs (:func:`prodmaps.experiments.parallel.map_tasks`; the
+        pairs of one source in one task; the same numbers for any number).
 
     Returns
     -------
@@ -61,43 +64,73 @@ def score_recipes(store: ShapeStore, pairs, recipes, *, k_M: int = 29, k_N: int 
     for r in recipes:
         recipe(r)  # unknown names fail before any work
     fams = [f for f in pfam.FAMILIES if f in families]
-    from .. import datasets
-
     out = {"transfer": {r: {f: [] for f in fams} for r in names}, "geo_error": {r: [] for r in names},
            "fit_seconds": {r: [] for r in recipes}, "families": fams, "recipes": list(recipes),
            "pairs": [list(p) for p in pairs], "sizes": [int(k_M), int(k_N)]}
-    k1, k2 = int(k_M) + 1, int(k_N) + 1
+    pairs = [tuple(p) for p in pairs]
+    groups: dict = {}  # source id -> [(pair index, target id), ...]: one task per source
     for ip, (s1, s2) in enumerate(pairs):
-        gt = datasets.ground_truth(store.dataset, s1, s2)  # (n2,)
-        F, G, cols = store.family_functions(s1, gt, ip, fams, k_M=int(k_M), seed=seed)
-        full_1, full_2 = store.basis(s1), store.basis(s2)
-        b1, b2 = full_1.truncate(k1), full_2.truncate(k2)
-        lm_cache = {}
-        maps = {"gt": fmap_from_p2p(gt, b1, b2)}
-        for r in recipes:
-            rec = recipe(r)
-            lm = lm_cache.setdefault(rec.n_landmarks, landmark_pairs(store.mesh(s1).vertices, gt, rec.n_landmarks))
-            t0 = time.perf_counter()
-            maps[r] = no17_fit(full_1, full_2, lm, k1, k2, rec)
-            out["fit_seconds"][r].append(time.perf_counter() - t0)
-        a = b1.project(F)  # (k1, m)
-        for r in names:
-            e = relative_error(b2.vecs @ (maps[r] @ a), G, b2.mass)  # (m,)
-            for f in fams:
-                out["transfer"][r][f].append(float(np.mean(e[cols[f]])))
-        idx = np.arange(b2.n)
-        if n_eval is not None and n_eval < b2.n:
-            idx = np.sort(np.random.default_rng([seed, ip]).choice(b2.n, int(n_eval), replace=False))
-        p2p = np.stack([from_fmap(maps[r], b1, b2, "std", vertices=idx) for r in names])  # (len(names), n_eval)
-        geo = map_error(store.mesh(s1), p2p, gt[idx],
-                        rows=store.distance_rows(s1)).mean(axis=1)  # (len(names),)
-        for r, g in zip(names, geo):
-            out["geo_error"][r].append(float(g))
-        if progress:
-            print(f"pair {ip + 1:2d}/{len(pairs)} {s1} -> {s2}: "
-                  + "  ".join(f"{r} hk_k {out['transfer'][r]['hk_k'][-1]:.3f} geo {out['geo_error'][r][-1]:.3f}"
-                              for r in names if "hk_k" in fams), flush=True)
+        groups.setdefault(s1, []).append((ip, s2))
+    workers = default_workers() if workers is None else workers
+    where = store if workers == 1 or len(groups) <= 1 else store_spec(store)  # workers rebuild the store
+    opts = dict(recipes=list(recipes), k1=int(k_M) + 1, k2=int(k_N) + 1, fams=fams, seed=seed, n_eval=n_eval)
+    done, nxt = {}, 0
+    for records in map_tasks(_score_pairs, [(where, s1, g, opts) for s1, g in groups.items()], workers=workers,
+                         keys=list(groups)):
+        done.update(records)
+        while nxt in done:
+            transfer, geo, fit_seconds = done.pop(nxt)
+            for r in names:
+                for f in fams:
+                    out["transfer"][r][f].append(transfer[r][f])
+                out["geo_error"][r].append(geo[r])
+            for r in recipes:
+                out["fit_seconds"][r].append(fit_seconds[r])
+            if progress:
+                s1, s2 = pairs[nxt]
+                print(f"pair {nxt + 1:2d}/{len(pairs)} {s1} -> {s2}: "
+                      + "  ".join(f"{r} hk_k {out['transfer'][r]['hk_k'][-1]:.3f} geo {out['geo_error'][r][-1]:.3f}"
+                                  for r in names if "hk_k" in fams), flush=True)
+            nxt += 1
     return out
+
+
+def _score_pairs(where, s1: str, group, opts: dict) -> dict:
+    """The pairs of source ``s1``: ``{pair index: (transfer[recipe][family], geo[recipe], fit_seconds[recipe])}``."""
+    store = where if isinstance(where, ShapeStore) else worker_store(where)
+    return {ip: _score_pair(store, ip, s1, s2, **opts) for ip, s2 in group}
+
+
+def _score_pair(store: ShapeStore, ip: int, s1: str, s2: str, *, recipes, k1: int, k2: int, fams, seed: int,
+                n_eval) -> tuple:
+    """One pair of :func:`score_recipes`."""
+    from .. import datasets
+
+    names = ["gt"] + list(recipes)
+    gt = datasets.ground_truth(store.dataset, s1, s2)  # (n2,)
+    F, G, cols = store.family_functions(s1, gt, ip, fams, k_M=k1 - 1, seed=seed)
+    full_1, full_2 = store.basis(s1), store.basis(s2)
+    b1, b2 = full_1.truncate(k1), full_2.truncate(k2)
+    lm_cache = {}
+    maps = {"gt": fmap_from_p2p(gt, b1, b2)}
+    fit_seconds = {}
+    for r in recipes:
+        rec = recipe(r)
+        lm = lm_cache.setdefault(rec.n_landmarks, landmark_pairs(store.mesh(s1).vertices, gt, rec.n_landmarks))
+        t0 = time.perf_counter()
+        maps[r] = no17_fit(full_1, full_2, lm, k1, k2, rec)
+        fit_seconds[r] = time.perf_counter() - t0
+    a = b1.project(F)  # (k1, m)
+    transfer = {}
+    for r in names:
+        e = relative_error(b2.vecs @ (maps[r] @ a), G, b2.mass)  # (m,)
+        transfer[r] = {f: float(np.mean(e[cols[f]])) for f in fams}
+    idx = np.arange(b2.n)
+    if n_eval is not None and n_eval < b2.n:
+        idx = np.sort(np.random.default_rng([seed, ip]).choice(b2.n, int(n_eval), replace=False))
+    p2p = np.stack([from_fmap(maps[r], b1, b2, "std", vertices=idx) for r in names])  # (len(names), n_eval)
+    geo = map_error(store.mesh(s1), p2p, gt[idx], rows=store.distance_rows(s1)).mean(axis=1)  # (len(names),)
+    return transfer, {r: float(g) for r, g in zip(names, geo)}, fit_seconds
 
 
 def compare_published(scores: dict, table: str = "T2", fmap: str = "computed_NO17") -> dict:

@@ -2,7 +2,8 @@
 
 :func:`map_tasks` runs ``fn(*task)`` for every task and yields the results in the tasks' order,
 in ``workers`` processes (``spawn``: nothing of the caller's state is inherited but the
-environment). Every task runs with **one BLAS thread**, in the workers and in the serial path
+environment), kept for the life of the calling process so that what they hold in memory
+serves the next call too. Every task runs with **one BLAS thread**, in the workers and in the serial path
 alike, so the numbers do not depend on the number of workers (a BLAS kernel may sum in another
 order with another thread count); the workers use the cores instead.
 
@@ -19,9 +20,11 @@ shape), so no two workers compute the same value at the same time.
 
 from __future__ import annotations
 
+import atexit
 import os
 
-__all__ = ["WORKERS_ENV", "default_workers", "map_tasks", "one_blas_thread", "store_spec", "worker_store"]
+__all__ = ["WORKERS_ENV", "default_workers", "map_tasks", "one_blas_thread", "shutdown_workers", "store_spec",
+           "worker_store"]
 
 WORKERS_ENV = "PRODMAPS_WORKERS"
 
@@ -56,13 +59,67 @@ def _init_worker():
     threadpool_limits(limits=1)  # for the whole life of the worker
 
 
-def map_tasks(fn, tasks, *, workers: int | None = None):
+_SLOTS: list = []  # one single-process executor per worker slot, kept for the life of this process
+_SLOT_OF: dict = {}  # task key -> slot that ran it last (its worker keeps that key's values in memory)
+
+
+def _slot(i: int):
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    if i < len(_SLOTS) and getattr(_SLOTS[i], "_broken", False):  # a worker died: start a fresh one
+        _SLOTS[i] = None
+        for key in [k for k, v in _SLOT_OF.items() if v == i]:
+            del _SLOT_OF[key]
+    while len(_SLOTS) <= i:
+        _SLOTS.append(None)
+    if _SLOTS[i] is None:
+        _SLOTS[i] = (ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn"),
+                                          initializer=_init_worker))
+    return _SLOTS[i]
+
+
+def shutdown_workers() -> None:
+    """Stop the worker processes (they are otherwise kept, with their memory, until this process ends)."""
+    while _SLOTS:
+        ex = _SLOTS.pop()
+        if ex is not None:
+            ex.shutdown(wait=True, cancel_futures=True)
+    _SLOT_OF.clear()
+
+
+atexit.register(shutdown_workers)
+
+
+def _assign(keys, workers: int) -> list[int]:
+    """A slot per task: a key seen before keeps its slot (its worker holds its values); the
+    others go to the slot with the fewest tasks of this call so far (lowest index on ties)."""
+    load = [0] * workers
+    slots = []
+    for key in keys:
+        s = _SLOT_OF.get(key) if key is not None else None
+        if s is None or s >= workers:
+            s = min(range(workers), key=lambda j: (load[j], j))
+            if key is not None:
+                _SLOT_OF[key] = s
+        load[s] += 1
+        slots.append(s)
+    return slots
+
+
+def map_tasks(fn, tasks, *, workers: int | None = None, keys=None):
     """Yield ``fn(*task)`` for each task of ``tasks``, in order (see the module doc).
 
     ``fn`` must be a module-level function and the tasks picklable when ``workers > 1``. Runs
-    in this process when ``workers`` is 1 or there is at most one task.
+    in this process when ``workers`` is 1 or there is at most one task. The workers are kept
+    between calls (:func:`shutdown_workers` stops them); ``keys`` (one hashable per task, e.g.
+    the source shape) sends a task to the worker that ran the same key before, so the values it
+    keeps in memory (extended-basis operators, descriptors) are computed once per notebook.
     """
     tasks = [tuple(t) for t in tasks]
+    keys = [None] * len(tasks) if keys is None else list(keys)
+    if len(keys) != len(tasks):
+        raise ValueError(f"keys has {len(keys)} entries for {len(tasks)} tasks")
     workers = default_workers() if workers is None else workers
     if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
         raise ValueError(f"workers must be a positive integer, got {workers!r}")
@@ -72,18 +129,14 @@ def map_tasks(fn, tasks, *, workers: int | None = None):
                 out = fn(*t)
             yield out
         return
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
-
-    with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=mp.get_context("spawn"),
-                             initializer=_init_worker) as ex:
-        futures = [ex.submit(fn, *t) for t in tasks]
-        try:
-            for f in futures:
-                yield f.result()
-        finally:
-            for f in futures:
-                f.cancel()
+    slots = _assign(keys, workers)
+    futures = [_slot(j).submit(fn, *t) for j, t in zip(slots, tasks)]
+    try:
+        for f in futures:
+            yield f.result()
+    finally:
+        for f in futures:
+            f.cancel()
 
 
 def store_spec(store) -> tuple:

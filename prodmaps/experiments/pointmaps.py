@@ -64,7 +64,8 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
     where = store if workers == 1 or len(groups) <= 1 else store_spec(store)  # workers rebuild the store
     tasks = [(where, s1, group, k_target, k_source, tuple(maps), no17_k_descr) for s1, group in groups.items()]
     done, nxt = {}, 0
-    for records in map_tasks(_recovery_pairs, tasks, workers=workers):
+    for records in map_tasks(_recovery_pairs, tasks, workers=workers,
+                         keys=list(groups)):
         done.update(records)
         while nxt in done:
             row, E, t_pair, t_parts = done.pop(nxt)

@@ -139,7 +139,8 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
     tasks = [(where, sid1, group, s, collect) for sid1, group in groups.items()]
     done: dict = {}  # pair index -> record, until its turn to be reported
     nxt = 0
-    for records in map_tasks(_protocol_pairs, tasks, workers=workers):
+    for records in map_tasks(_protocol_pairs, tasks, workers=workers,
+                         keys=list(groups)):
         done.update(records)
         while nxt in done:
             rec = done.pop(nxt)

@@ -29,6 +29,7 @@ from ..metrics import relative_error
 from ..products import product_basis
 from . import families as pfam
 from .maps import no17_demo_map
+from .parallel import default_workers, map_tasks, store_spec, worker_store
 from .store import ShapeStore
 
 __all__ = ["QUANTITIES", "CHOOSERS", "truncation_study"]
@@ -42,12 +43,14 @@ def _colnorm(X, mass):
 
 
 def truncation_study(store: ShapeStore, pairs, *, sizes, map_kinds, families, rtols, eps_list, paper_rtol=1e-3,
-                     max_gain=2.0, no17_k_descr=128, seed=0, progress=True) -> dict:
+                     max_gain=2.0, no17_k_descr=128, seed=0, progress=True, workers: int | None = None) -> dict:
     """Run the study (module doc) and return its results document plus the raw gains.
 
     ``sizes`` are ``(k_M, k_N)`` (paper's counts); ``map_kinds`` a subset of ``("gt", "computed")``;
     basis-dependent families use the largest ``k_M``. Returns ``{"results": ..., "gains": {case: [(K_u, 2)
-    arrays of (σ_i/σ_max, gain_i) per pair]}}``.
+    arrays of (σ_i/σ_max, gain_i) per pair]}}``. ``workers``: processes computing the pairs
+    (:func:`prodmaps.experiments.parallel.map_tasks`; the pairs of one source in one task; the same
+    numbers for any number).
     """
     sizes = [tuple(int(v) for v in s) for s in sizes]
     families = [f for f in pfam.FAMILIES if f in families]
@@ -56,83 +59,41 @@ def truncation_study(store: ShapeStore, pairs, *, sizes, map_kinds, families, rt
     k_M_family = max(s[0] for s in sizes)
     cases = [(s, mk) for s in sizes for mk in map_kinds]
 
-    def ckey(s, mk):
-        return f"k{s[0]}_{s[1]}/{mk}"
-
-    R = {ckey(*c): {f: {"rtol": {q: [] for q in QUANTITIES}, "eps": {q: [] for q in QUANTITIES}, "std": [],
+    R = {_case_key(*c): {f: {"rtol": {q: [] for q in QUANTITIES}, "eps": {q: [] for q in QUANTITIES}, "std": [],
                         "chosen": {k: {"rtol": [], "err": []} for k in CHOOSERS}} for f in families} for c in cases}
-    GAINS = {ckey(*c): [] for c in cases}
-    PRESERVE = {ckey(*c): {"linear": [], "products": []} for c in cases}
+    GAINS = {_case_key(*c): [] for c in cases}
+    PRESERVE = {_case_key(*c): {"linear": [], "products": []} for c in cases}
+    pairs = [tuple(p) for p in pairs]
+    groups: dict = {}  # source id -> [(pair index, target id), ...]: one task per source (its directions)
     for ip, (sid1, sid2) in enumerate(pairs):
-        t0 = time.perf_counter()
-        gt = datasets.ground_truth(store.dataset, sid1, sid2)
-        F, G, cols = store.family_functions(sid1, gt, ip, families, k_M=k_M_family, seed=seed)
-        for s in sizes:
-            kM, kN = s
-            b1, b2 = store.basis(sid1, kM + 1), store.basis(sid2, kN + 1)
-            ext1, ext2 = product_basis(b1), product_basis(b2)
-            sig, V = truncation.singular_directions(b1)  # (K_u,), (K_u, K_u) of sqrt(A1) B_s D
-            d = column_weights(ext1)  # the normalisation D (None: D = I)
-            if d is not None:
-                V = d[:, None] * V  # directions as solver coefficients: the function B_s D v_i
-            rel, w = sig / sig[0], sig**2
-            E = ext1.expand()  # (K, K_u) scaled-unique -> ordered
-            BsV = ext1.solver_basis()[0] @ V  # (n1, K_u) the directions on the source
-            EV = E @ V  # (K, K_u) their ordered coefficients
-            coef = V.T @ ext1.solver_rmatmul(b1.apply_mass(F))  # (K_u, m) = sigma_i * (u_i^T sqrt(A) f)
-            C_gt = fmap_from_p2p(gt, b1, b2)
-            for mk in map_kinds:
-                key = ckey(s, mk)
-                C = C_gt if mk == "gt" else no17_demo_map(store, sid1, sid2, gt, kM + 1, kN + 1, k_descr=no17_k_descr)
-                Ct = extend_fmap(C, b1, b2)  # (K2, K1)
-                img = ext2.evaluate(Ct @ EV)  # (n2, K_u) images of the directions (every filter is a mix)
-                GAINS[key].append(np.column_stack([rel, _colnorm(img, b2.mass) / np.maximum(sig, 1e-300)]))
-                Bo = ext1.matrix  # (n1, K1) product preservation of the basis functions and products
-                imgs_o = ext2.evaluate(Ct)  # (n2, K1)
-                dev = _colnorm(imgs_o - Bo[gt], b2.mass) / np.maximum(_colnorm(Bo[gt], b2.mass), 1e-300)
-                PRESERVE[key]["linear"].append(float(np.mean(dev[ext1.degree == 1])))
-                PRESERVE[key]["products"].append(float(np.mean(dev[ext1.degree == 2])))
-                std_tr = relative_error(b2.vecs @ (C @ b1.project(F)), G, b2.mass)
-                r_gain = truncation.select_rtol(b1, method="gain", C_12=C, basis_2=b2, candidates=RT, max_gain=max_gain)
+        groups.setdefault(sid1, []).append((ip, sid2))
+    workers = default_workers() if workers is None else workers
+    where = store if workers == 1 or len(groups) <= 1 else store_spec(store)  # workers rebuild the store
+    opts = dict(sizes=sizes, map_kinds=list(map_kinds), families=families, RT=RT, EPS=EPS, k_M_family=k_M_family,
+                paper_rtol=paper_rtol, max_gain=max_gain, no17_k_descr=no17_k_descr, seed=seed)
+    done, nxt = {}, 0
+    for records in map_tasks(_study_pairs, [(where, sid1, g, opts) for sid1, g in groups.items()], workers=workers,
+                         keys=list(groups)):
+        done.update(records)
+        while nxt in done:
+            rec, seconds = done.pop(nxt)
+            for key, by in rec.items():  # appended in the pairs' order, as one after the other
+                GAINS[key].append(by["gains"])
+                PRESERVE[key]["linear"].append(by["preserve"][0])
+                PRESERVE[key]["products"].append(by["preserve"][1])
                 for fam in families:
-                    sl = cols[fam]
-                    Fm, Gm, cf = F[:, sl], G[:, sl], coef[:, sl]
-                    out = R[key][fam]
-                    out["std"].append(float(std_tr[sl].mean()))
-
-                    def evaluate(filters):
-                        """filter factors (nf, K_u) -> [(approx, transfer, map part, coef norm)] family means."""
-                        nf, m = len(filters), cf.shape[1]
-                        X = cf[:, None, :] * (filters / np.maximum(w, 1e-300)).T[:, :, None]  # (K_u, nf, m)
-                        X = X.reshape(cf.shape[0], nf * m)  # one GEMM for all filters
-                        app, trf = BsV @ X, img @ X  # = B1 E V X and B2 C~ E V X (Lemma 2)
-                        Ft, Gt = np.tile(Fm, nf), np.tile(Gm, nf)  # (n, nf*m), filter-major like X
-
-                        def per_filter(v):
-                            return v.reshape(nf, m).mean(axis=1)
-
-                        q = (per_filter(relative_error(app, Ft, b1.mass)), per_filter(relative_error(trf, Gt, b2.mass)),
-                             per_filter(_colnorm(trf - app[gt], b2.mass) / _colnorm(Gt, b2.mass)),
-                             per_filter(np.linalg.norm(EV @ X, axis=0)))
-                        return [tuple(float(x[i]) for x in q) for i in range(nf)]
-
-                    rt_vals = evaluate(np.array([(rel > r).astype(float) for r in RT]))
-                    for q, vals in zip(QUANTITIES, zip(*rt_vals)):
-                        out["rtol"][q].append(list(vals))
-                    eps_vals = evaluate(np.array([w / (w + e * w[0]) for e in EPS]))
-                    for q, vals in zip(QUANTITIES, zip(*eps_vals)):
-                        out["eps"][q].append(list(vals))
-                    tr_err = np.array([v[1] for v in rt_vals])
-                    picks = {"paper": float(paper_rtol), "gain": r_gain,
-                             "cv": truncation.select_rtol(b1, Fm, method="cv", candidates=RT, seed=seed),
-                             "gcv": truncation.select_rtol(b1, Fm, method="gcv", candidates=RT),
-                             "oracle": float(RT[int(np.argmin(tr_err))])}
-                    chosen = evaluate(np.array([(rel > r).astype(float) for r in picks.values()]))
-                    for (k, r), vals in zip(picks.items(), chosen):
-                        out["chosen"][k]["rtol"].append(r)
-                        out["chosen"][k]["err"].append(vals[1])
-        if progress:
-            print(f"pair {ip + 1}/{len(pairs)} {sid1} -> {sid2}: {time.perf_counter() - t0:.1f} s", flush=True)
+                    o, r = R[key][fam], by[fam]
+                    o["std"].append(r["std"])
+                    for axis in ("rtol", "eps"):
+                        for q in QUANTITIES:
+                            o[axis][q].append(r[axis][q])
+                    for k, (rt, err) in r["chosen"].items():
+                        o["chosen"][k]["rtol"].append(rt)
+                        o["chosen"][k]["err"].append(err)
+            if progress:
+                sid1, sid2 = pairs[nxt]
+                print(f"pair {nxt + 1}/{len(pairs)} {sid1} -> {sid2}: {seconds:.1f} s", flush=True)
+            nxt += 1
 
     summary = {}
     for key in R:
@@ -164,6 +125,84 @@ def truncation_study(store: ShapeStore, pairs, *, sizes, map_kinds, families, rt
         },
     }
     return {"results": results, "gains": GAINS}
+
+
+def _study_pairs(where, sid1: str, group, opts: dict) -> dict:
+    """The pairs of source ``sid1`` (``[(pair index, target id), ...]``): ``{pair index: (record, seconds)}``."""
+    store = where if isinstance(where, ShapeStore) else worker_store(where)
+    return {ip: _study_pair(store, ip, sid1, sid2, **opts) for ip, sid2 in group}
+
+
+def _study_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, *, sizes, map_kinds, families, RT, EPS,
+                k_M_family, paper_rtol, max_gain, no17_k_descr, seed) -> tuple:
+    """One pair of :func:`truncation_study`: ``({case: {"gains", "preserve", family: values}}, seconds)``."""
+    t0 = time.perf_counter()
+    out = {}
+    gt = datasets.ground_truth(store.dataset, sid1, sid2)
+    F, G, cols = store.family_functions(sid1, gt, ip, families, k_M=k_M_family, seed=seed)
+    for s in sizes:
+        kM, kN = s
+        b1, b2 = store.basis(sid1, kM + 1), store.basis(sid2, kN + 1)
+        ext1, ext2 = product_basis(b1), product_basis(b2)
+        sig, V = truncation.singular_directions(b1)  # (K_u,), (K_u, K_u) of sqrt(A1) B_s D
+        d = column_weights(ext1)  # the normalisation D (None: D = I)
+        if d is not None:
+            V = d[:, None] * V  # directions as solver coefficients: the function B_s D v_i
+        rel, w = sig / sig[0], sig**2
+        E = ext1.expand()  # (K, K_u) scaled-unique -> ordered
+        BsV = ext1.solver_basis()[0] @ V  # (n1, K_u) the directions on the source
+        EV = E @ V  # (K, K_u) their ordered coefficients
+        coef = V.T @ ext1.solver_rmatmul(b1.apply_mass(F))  # (K_u, m) = sigma_i * (u_i^T sqrt(A) f)
+        C_gt = fmap_from_p2p(gt, b1, b2)
+        for mk in map_kinds:
+            rec = out[_case_key(s, mk)] = {}
+            C = C_gt if mk == "gt" else no17_demo_map(store, sid1, sid2, gt, kM + 1, kN + 1, k_descr=no17_k_descr)
+            Ct = extend_fmap(C, b1, b2)  # (K2, K1)
+            img = ext2.evaluate(Ct @ EV)  # (n2, K_u) images of the directions (every filter is a mix)
+            rec["gains"] = np.column_stack([rel, _colnorm(img, b2.mass) / np.maximum(sig, 1e-300)])
+            Bo = ext1.matrix  # (n1, K1) product preservation of the basis functions and products
+            imgs_o = ext2.evaluate(Ct)  # (n2, K1)
+            dev = _colnorm(imgs_o - Bo[gt], b2.mass) / np.maximum(_colnorm(Bo[gt], b2.mass), 1e-300)
+            rec["preserve"] = (float(np.mean(dev[ext1.degree == 1])), float(np.mean(dev[ext1.degree == 2])))
+            std_tr = relative_error(b2.vecs @ (C @ b1.project(F)), G, b2.mass)
+            r_gain = truncation.select_rtol(b1, method="gain", C_12=C, basis_2=b2, candidates=RT, max_gain=max_gain)
+            for fam in families:
+                sl = cols[fam]
+                Fm, Gm, cf = F[:, sl], G[:, sl], coef[:, sl]
+
+                def evaluate(filters):
+                    """filter factors (nf, K_u) -> [(approx, transfer, map part, coef norm)] family means."""
+                    nf, m = len(filters), cf.shape[1]
+                    X = cf[:, None, :] * (filters / np.maximum(w, 1e-300)).T[:, :, None]  # (K_u, nf, m)
+                    X = X.reshape(cf.shape[0], nf * m)  # one GEMM for all filters
+                    app, trf = BsV @ X, img @ X  # = B1 E V X and B2 C~ E V X (Lemma 2)
+                    Ft, Gt = np.tile(Fm, nf), np.tile(Gm, nf)  # (n, nf*m), filter-major like X
+
+                    def per_filter(v):
+                        return v.reshape(nf, m).mean(axis=1)
+
+                    q = (per_filter(relative_error(app, Ft, b1.mass)), per_filter(relative_error(trf, Gt, b2.mass)),
+                         per_filter(_colnorm(trf - app[gt], b2.mass) / _colnorm(Gt, b2.mass)),
+                         per_filter(np.linalg.norm(EV @ X, axis=0)))
+                    return [tuple(float(x[i]) for x in q) for i in range(nf)]
+
+                rt_vals = evaluate(np.array([(rel > r).astype(float) for r in RT]))
+                eps_vals = evaluate(np.array([w / (w + e * w[0]) for e in EPS]))
+                tr_err = np.array([v[1] for v in rt_vals])
+                picks = {"paper": float(paper_rtol), "gain": r_gain,
+                         "cv": truncation.select_rtol(b1, Fm, method="cv", candidates=RT, seed=seed),
+                         "gcv": truncation.select_rtol(b1, Fm, method="gcv", candidates=RT),
+                         "oracle": float(RT[int(np.argmin(tr_err))])}
+                chosen = evaluate(np.array([(rel > r).astype(float) for r in picks.values()]))
+                rec[fam] = {"std": float(std_tr[sl].mean()),
+                            "rtol": {q: list(vals) for q, vals in zip(QUANTITIES, zip(*rt_vals))},
+                            "eps": {q: list(vals) for q, vals in zip(QUANTITIES, zip(*eps_vals))},
+                            "chosen": {k: (r, vals[1]) for (k, r), vals in zip(picks.items(), chosen)}}
+    return out, time.perf_counter() - t0
+
+
+def _case_key(s, mk) -> str:
+    return f"k{s[0]}_{s[1]}/{mk}"
 
 
 # ----------------------------------------------------------------------------- figures

@@ -3,11 +3,12 @@
 import numpy as np
 import pytest
 
-from prodmaps.experiments import parallel
+from prodmaps.experiments import maps, no17_study, parallel
 from prodmaps.experiments.crossfields import figure14_joint_study
 from prodmaps.experiments.pointmaps import point_map_recovery
 from prodmaps.experiments.protocol import ProtocolSettings, run_protocol
 from prodmaps.experiments.store import ShapeStore
+from prodmaps.experiments.truncation_study import truncation_study
 from prodmaps.pipeline.schedulers import thread_env
 
 DS = "anny_humans"
@@ -26,6 +27,24 @@ def test_map_tasks_keeps_the_order_in_workers_and_here():
     assert list(parallel.map_tasks(_sq, [], workers=2)) == []
     with pytest.raises(ValueError, match="positive integer"):
         list(parallel.map_tasks(_sq, tasks, workers=0))
+
+
+def _pid(_):
+    import os
+
+    return os.getpid()
+
+
+def test_workers_are_kept_and_a_key_returns_to_its_worker():
+    parallel.shutdown_workers()
+    first = list(parallel.map_tasks(_pid, [(0,), (1,), (2,)], workers=2, keys=["a", "b", "a"]))
+    assert first[0] == first[2] != first[1]  # one worker per key, balanced
+    again = list(parallel.map_tasks(_pid, [(0,), (1,)], workers=2, keys=["b", "a"]))
+    assert again == [first[1], first[0]]  # the same processes, the same key -> worker
+    with pytest.raises(ValueError, match="keys"):
+        list(parallel.map_tasks(_pid, [(0,)], workers=2, keys=["a", "b"]))
+    parallel.shutdown_workers()
+    assert list(parallel.map_tasks(_pid, [(0,), (1,)], workers=2, keys=["a", "b"]))[0] not in first
 
 
 def test_default_workers_reads_the_environment(monkeypatch):
@@ -89,3 +108,19 @@ def test_figure14_study_does_not_depend_on_the_number_of_workers():
     assert set(f1) == set(f2) and (6, "std") in f1
     for key in f1:
         assert all(np.array_equal(a, b) for a, b in zip(f1[key], f2[key]))
+
+
+def test_studies_do_not_depend_on_the_number_of_workers(store):
+    kw = dict(sizes=[(9, 9)], map_kinds=["gt"], families=["XYZ", "HKS"], rtols=[1e-4, 1e-3, 1e-2],
+              eps_list=[1e-6, 1e-4], progress=False)
+    one = truncation_study(store, PAIRS, workers=1, **kw)
+    two = truncation_study(store, PAIRS, workers=2, **kw)
+    assert one["results"]["summary"] == two["results"]["summary"]
+    assert one["results"]["product_preservation_deviation"] == two["results"]["product_preservation_deviation"]
+    assert all(np.array_equal(a, b) for a, b in zip(one["gains"]["k9_9/gt"], two["gains"]["k9_9/gt"]))
+    assert len(one["gains"]["k9_9/gt"]) == len(PAIRS)
+    kw = dict(k_M=9, k_N=9, families=("XYZ",), n_eval=50, progress=False)
+    s1 = no17_study.score_recipes(store, PAIRS[:2], [maps.DEFAULT_RECIPE], workers=1, **kw)
+    s2 = no17_study.score_recipes(store, PAIRS[:2], [maps.DEFAULT_RECIPE], workers=2, **kw)
+    assert s1["transfer"] == s2["transfer"] and s1["geo_error"] == s2["geo_error"]
+    assert len(s1["geo_error"]["gt"]) == 2
