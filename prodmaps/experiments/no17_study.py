@@ -28,7 +28,7 @@ from ..metrics import relative_error
 from ..p2p import from_fmap
 from . import families as pfam
 from .maps import landmark_pairs, no17_fit, recipe
-from .parallel import default_workers, map_tasks, store_spec, worker_store
+from .parallel import map_by_source, worker_store
 from .published import published_values
 from .store import ShapeStore
 
@@ -68,36 +68,25 @@ def score_recipes(store: ShapeStore, pairs, recipes, *, k_M: int = 29, k_N: int 
            "fit_seconds": {r: [] for r in recipes}, "families": fams, "recipes": list(recipes),
            "pairs": [list(p) for p in pairs], "sizes": [int(k_M), int(k_N)]}
     pairs = [tuple(p) for p in pairs]
-    groups: dict = {}  # source id -> [(pair index, target id), ...]: one task per source
-    for ip, (s1, s2) in enumerate(pairs):
-        groups.setdefault(s1, []).append((ip, s2))
-    workers = default_workers() if workers is None else workers
-    where = store if workers == 1 or len(groups) <= 1 else store_spec(store)  # workers rebuild the store
     opts = dict(recipes=list(recipes), k1=int(k_M) + 1, k2=int(k_N) + 1, fams=fams, seed=seed, n_eval=n_eval)
-    done, nxt = {}, 0
-    for records in map_tasks(_score_pairs, [(where, s1, g, opts) for s1, g in groups.items()], workers=workers,
-                         keys=list(groups)):
-        done.update(records)
-        while nxt in done:
-            transfer, geo, fit_seconds = done.pop(nxt)
-            for r in names:
-                for f in fams:
-                    out["transfer"][r][f].append(transfer[r][f])
-                out["geo_error"][r].append(geo[r])
-            for r in recipes:
-                out["fit_seconds"][r].append(fit_seconds[r])
-            if progress:
-                s1, s2 = pairs[nxt]
-                print(f"pair {nxt + 1:2d}/{len(pairs)} {s1} -> {s2}: "
-                      + "  ".join(f"{r} hk_k {out['transfer'][r]['hk_k'][-1]:.3f} geo {out['geo_error'][r][-1]:.3f}"
-                                  for r in names if "hk_k" in fams), flush=True)
-            nxt += 1
+    for ip, (transfer, geo, fit_seconds) in map_by_source(_score_pairs, store, pairs, opts, workers=workers):
+        for r in names:
+            for f in fams:
+                out["transfer"][r][f].append(transfer[r][f])
+            out["geo_error"][r].append(geo[r])
+        for r in recipes:
+            out["fit_seconds"][r].append(fit_seconds[r])
+        if progress:
+            s1, s2 = pairs[ip]
+            print(f"pair {ip + 1:2d}/{len(pairs)} {s1} -> {s2}: "
+                  + "  ".join(f"{r} hk_k {out['transfer'][r]['hk_k'][-1]:.3f} geo {out['geo_error'][r][-1]:.3f}"
+                              for r in names if "hk_k" in fams), flush=True)
     return out
 
 
 def _score_pairs(where, s1: str, group, opts: dict) -> dict:
     """The pairs of source ``s1``: ``{pair index: (transfer[recipe][family], geo[recipe], fit_seconds[recipe])}``."""
-    store = where if isinstance(where, ShapeStore) else worker_store(where)
+    store = worker_store(where)
     return {ip: _score_pair(store, ip, s1, s2, **opts) for ip, s2 in group}
 
 

@@ -23,8 +23,8 @@ from __future__ import annotations
 import atexit
 import os
 
-__all__ = ["WORKERS_ENV", "default_workers", "map_tasks", "one_blas_thread", "shutdown_workers", "store_spec",
-           "worker_store"]
+__all__ = ["WORKERS_ENV", "default_workers", "map_by_source", "map_tasks", "one_blas_thread", "shutdown_workers",
+           "store_spec", "worker_store"]
 
 WORKERS_ENV = "PRODMAPS_WORKERS"
 
@@ -139,6 +139,28 @@ def map_tasks(fn, tasks, *, workers: int | None = None, keys=None):
             f.cancel()
 
 
+def map_by_source(fn, store, items, *args, workers: int | None = None):
+    """Per-pair work grouped by source shape: yield ``(index, result)`` in the order of ``items``.
+
+    ``items`` is ``[(source id, item), ...]``, one per pair. The items of one source form one
+    task, ``fn(where, source id, [(index, item), ...], *args) -> {index: result}``, where
+    ``where`` is ``store`` (in this process) or its :func:`store_spec` (in a worker; turn it into
+    the store with :func:`worker_store`). A source returns to the worker that had it before.
+    """
+    groups: dict = {}  # source id -> [(index, item), ...] in the items' order
+    for i, (src, item) in enumerate(items):
+        groups.setdefault(src, []).append((i, item))
+    workers = default_workers() if workers is None else workers
+    where = store if workers == 1 or len(groups) <= 1 else store_spec(store)
+    tasks = [(where, src, group, *args) for src, group in groups.items()]
+    done, nxt = {}, 0
+    for records in map_tasks(fn, tasks, workers=workers, keys=list(groups)):
+        done.update(records)
+        while nxt in done:  # a source's results wait until the pairs before them are out
+            yield nxt, done.pop(nxt)
+            nxt += 1
+
+
 def store_spec(store) -> tuple:
     """What a worker needs to rebuild ``store`` (a ShapeStore) with the same disk cache."""
     return (store.dataset, store.n_eig, store.kind, store.disk.enabled, str(store.disk.folder))
@@ -147,11 +169,14 @@ def store_spec(store) -> tuple:
 _STORES: dict = {}
 
 
-def worker_store(spec: tuple):
-    """The ShapeStore of ``spec`` in this process, built once and kept (its memory is reused)."""
-    if spec not in _STORES:
-        from .store import ShapeStore
+def worker_store(spec):
+    """The ShapeStore of ``spec`` in this process, built once and kept (its memory is reused);
+    a ShapeStore is returned as it is."""
+    from .store import ShapeStore
 
+    if isinstance(spec, ShapeStore):
+        return spec
+    if spec not in _STORES:
         dataset, n_eig, kind, enabled, folder = spec
         _STORES[spec] = ShapeStore(dataset, n_eig, kind=kind, disk_cache=enabled, cache_folder=folder)
     return _STORES[spec]

@@ -21,7 +21,7 @@ from ..mapping import fmap_from_p2p
 from ..p2p import from_fmap
 from .compare import count_outcomes
 from .maps import no17_demo_map
-from .parallel import default_workers, map_tasks, store_spec, worker_store
+from .parallel import map_by_source, worker_store
 from .store import ShapeStore
 
 __all__ = ["subject_pairs", "point_map_recovery", "CONVERSIONS"]
@@ -55,29 +55,21 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
     rng = np.random.default_rng(seed)
     errs = {m: {c: [] for c in CONVERSIONS} for m in maps}  # per pair: (n_eval,) arrays
     per_pair, timing = [], {"std": 0.0, "extended": 0.0, "no17": 0.0}
-    groups: dict = {}  # source id -> [(pair index, target id, evaluated target vertices), ...]
-    for ip, (s1, s2) in enumerate(pairs):
+    items = []  # (source id, (target id, evaluated target vertices)) per pair, drawn here in the pairs' order
+    for s1, s2 in pairs:
         n2 = store.mesh(s2).n_vertices
         ev = np.arange(n2) if n_eval is None else np.sort(rng.choice(n2, int(n_eval), replace=False))
-        groups.setdefault(s1, []).append((ip, s2, ev))
-    workers = default_workers() if workers is None else workers
-    where = store if workers == 1 or len(groups) <= 1 else store_spec(store)  # workers rebuild the store
-    tasks = [(where, s1, group, k_target, k_source, tuple(maps), no17_k_descr) for s1, group in groups.items()]
-    done, nxt = {}, 0
-    for records in map_tasks(_recovery_pairs, tasks, workers=workers,
-                         keys=list(groups)):
-        done.update(records)
-        while nxt in done:
-            row, E, t_pair, t_parts = done.pop(nxt)
-            for (m, method), e in E.items():
-                errs[m][method].append(e)
-            for key, v in t_parts.items():
-                timing[key] += v
-            per_pair.append(row)
-            if verbose:
-                print(f"{row['pair']}: " + "  ".join(f"{k} {v:.4f}" for k, v in row.items() if k != "pair")
-                      + f"   [{t_pair:.1f} s]")
-            nxt += 1
+        items.append((s1, (s2, ev)))
+    for _, (row, E, t_pair, t_parts) in map_by_source(_recovery_pairs, store, items, k_target, k_source, tuple(maps),
+                                                      no17_k_descr, workers=workers):
+        for (m, method), e in E.items():
+            errs[m][method].append(e)
+        for key, v in t_parts.items():
+            timing[key] += v
+        per_pair.append(row)
+        if verbose:
+            print(f"{row['pair']}: " + "  ".join(f"{k} {v:.4f}" for k, v in row.items() if k != "pair")
+                  + f"   [{t_pair:.1f} s]")
     thr = np.linspace(0.0, float(thresholds_max), 101)
     curves, means, wins = {}, {}, {}
     for m in maps:
@@ -103,9 +95,9 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
 def _recovery_pairs(where, s1: str, group, k_target: int, k_source: int, maps, no17_k_descr: int) -> dict:
     """The pairs of source ``s1``: ``{pair index: (row, {(map, conversion): errors (n_eval,)},
     seconds, {"std"|"extended"|"no17": seconds})}``."""
-    store = where if isinstance(where, ShapeStore) else worker_store(where)
+    store = worker_store(where)
     out = {}
-    for ip, s2, ev in group:
+    for ip, (s2, ev) in group:
         t0 = time.perf_counter()
         timing = {"std": 0.0, "extended": 0.0, "no17": 0.0}
         b1, b2 = store.basis(s1, k_source), store.basis(s2, k_target)

@@ -34,7 +34,7 @@ from ..metrics import relative_error
 from ..products import product_basis
 from . import families as pfam
 from .maps import no17_demo_map
-from .parallel import default_workers, map_tasks, store_spec, worker_store
+from .parallel import map_by_source, worker_store
 from .store import ShapeStore
 
 __all__ = ["ProtocolSettings", "ProtocolResult", "run_protocol", "method_label", "family_means", "area_curves",
@@ -131,42 +131,30 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
     ranks = {z: [] for z in s.sizes}
     gain_rtol = {z: [] for z in s.sizes}
     cols, seconds = None, []
-    groups: dict = {}  # source id -> [(pair index, target id), ...] in the pairs' order
-    for ip, (sid1, sid2) in enumerate(pairs):
-        groups.setdefault(sid1, []).append((ip, sid2))
-    workers = 1 if collect is not None else (default_workers() if workers is None else workers)
-    where = store if workers == 1 or len(groups) <= 1 else store_spec(store)  # workers rebuild the store
-    tasks = [(where, sid1, group, s, collect) for sid1, group in groups.items()]
-    done: dict = {}  # pair index -> record, until its turn to be reported
-    nxt = 0
-    for records in map_tasks(_protocol_pairs, tasks, workers=workers,
-                         keys=list(groups)):
-        done.update(records)
-        while nxt in done:
-            rec = done.pop(nxt)
-            cols = rec["cols"]
-            for z, by in rec["sizes"].items():
-                map_dev[z].append(by["map_dev"])
-                if by["rank"] is not None:
-                    ranks[z].append(by["rank"])
-                if by["gain_rtol"] is not None:
-                    gain_rtol[z].append(by["gain_rtol"])
-                for st in STAGES:
-                    for m in s.methods:
-                        errors[z][st][m].append(by["errors"][st][m])
-            seconds.append(rec["seconds"])
-            if progress:
-                sid1, sid2 = pairs[nxt]
-                print(f"pair {nxt + 1:2d}/{len(pairs)} {sid1} -> {sid2}: {seconds[-1]:5.1f} s"
-                      + "".join(f"  [{kM}/{kN}] map dev {map_dev[(kM, kN)][-1]:.3f}" for kM, kN in s.sizes),
-                      flush=True)
-            nxt += 1
+    workers = 1 if collect is not None else workers
+    for ip, rec in map_by_source(_protocol_pairs, store, [(a, b) for a, b in pairs], s, collect, workers=workers):
+        cols = rec["cols"]
+        for z, by in rec["sizes"].items():
+            map_dev[z].append(by["map_dev"])
+            if by["rank"] is not None:
+                ranks[z].append(by["rank"])
+            if by["gain_rtol"] is not None:
+                gain_rtol[z].append(by["gain_rtol"])
+            for st in STAGES:
+                for m in s.methods:
+                    errors[z][st][m].append(by["errors"][st][m])
+        seconds.append(rec["seconds"])
+        if progress:
+            sid1, sid2 = pairs[ip]
+            print(f"pair {ip + 1:2d}/{len(pairs)} {sid1} -> {sid2}: {seconds[-1]:5.1f} s"
+                  + "".join(f"  [{kM}/{kN}] map dev {map_dev[(kM, kN)][-1]:.3f}" for kM, kN in s.sizes),
+                  flush=True)
     return ProtocolResult(s, pairs, errors, cols, map_dev, ranks, gain_rtol, seconds)
 
 
 def _protocol_pairs(where, sid1: str, group, s: ProtocolSettings, collect) -> dict:
     """The pairs ``(sid1, sid2)`` of ``group`` (``[(pair index, sid2), ...]``): ``{pair index: record}``."""
-    store = where if isinstance(where, ShapeStore) else worker_store(where)
+    store = worker_store(where)
     return {ip: _protocol_pair(store, ip, sid1, sid2, s, collect) for ip, sid2 in group}
 
 

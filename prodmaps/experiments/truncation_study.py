@@ -29,7 +29,7 @@ from ..metrics import relative_error
 from ..products import product_basis
 from . import families as pfam
 from .maps import no17_demo_map
-from .parallel import default_workers, map_tasks, store_spec, worker_store
+from .parallel import map_by_source, worker_store
 from .store import ShapeStore
 
 __all__ = ["QUANTITIES", "CHOOSERS", "truncation_study"]
@@ -64,36 +64,25 @@ def truncation_study(store: ShapeStore, pairs, *, sizes, map_kinds, families, rt
     GAINS = {_case_key(*c): [] for c in cases}
     PRESERVE = {_case_key(*c): {"linear": [], "products": []} for c in cases}
     pairs = [tuple(p) for p in pairs]
-    groups: dict = {}  # source id -> [(pair index, target id), ...]: one task per source (its directions)
-    for ip, (sid1, sid2) in enumerate(pairs):
-        groups.setdefault(sid1, []).append((ip, sid2))
-    workers = default_workers() if workers is None else workers
-    where = store if workers == 1 or len(groups) <= 1 else store_spec(store)  # workers rebuild the store
     opts = dict(sizes=sizes, map_kinds=list(map_kinds), families=families, RT=RT, EPS=EPS, k_M_family=k_M_family,
                 paper_rtol=paper_rtol, max_gain=max_gain, no17_k_descr=no17_k_descr, seed=seed)
-    done, nxt = {}, 0
-    for records in map_tasks(_study_pairs, [(where, sid1, g, opts) for sid1, g in groups.items()], workers=workers,
-                         keys=list(groups)):
-        done.update(records)
-        while nxt in done:
-            rec, seconds = done.pop(nxt)
-            for key, by in rec.items():  # appended in the pairs' order, as one after the other
-                GAINS[key].append(by["gains"])
-                PRESERVE[key]["linear"].append(by["preserve"][0])
-                PRESERVE[key]["products"].append(by["preserve"][1])
-                for fam in families:
-                    o, r = R[key][fam], by[fam]
-                    o["std"].append(r["std"])
-                    for axis in ("rtol", "eps"):
-                        for q in QUANTITIES:
-                            o[axis][q].append(r[axis][q])
-                    for k, (rt, err) in r["chosen"].items():
-                        o["chosen"][k]["rtol"].append(rt)
-                        o["chosen"][k]["err"].append(err)
-            if progress:
-                sid1, sid2 = pairs[nxt]
-                print(f"pair {nxt + 1}/{len(pairs)} {sid1} -> {sid2}: {seconds:.1f} s", flush=True)
-            nxt += 1
+    for ip, (rec, seconds) in map_by_source(_study_pairs, store, pairs, opts, workers=workers):
+        for key, by in rec.items():  # appended in the pairs' order, as one after the other
+            GAINS[key].append(by["gains"])
+            PRESERVE[key]["linear"].append(by["preserve"][0])
+            PRESERVE[key]["products"].append(by["preserve"][1])
+            for fam in families:
+                o, r = R[key][fam], by[fam]
+                o["std"].append(r["std"])
+                for axis in ("rtol", "eps"):
+                    for q in QUANTITIES:
+                        o[axis][q].append(r[axis][q])
+                for k, (rt, err) in r["chosen"].items():
+                    o["chosen"][k]["rtol"].append(rt)
+                    o["chosen"][k]["err"].append(err)
+        if progress:
+            sid1, sid2 = pairs[ip]
+            print(f"pair {ip + 1}/{len(pairs)} {sid1} -> {sid2}: {seconds:.1f} s", flush=True)
 
     summary = {}
     for key in R:
@@ -129,7 +118,7 @@ def truncation_study(store: ShapeStore, pairs, *, sizes, map_kinds, families, rt
 
 def _study_pairs(where, sid1: str, group, opts: dict) -> dict:
     """The pairs of source ``sid1`` (``[(pair index, target id), ...]``): ``{pair index: (record, seconds)}``."""
-    store = where if isinstance(where, ShapeStore) else worker_store(where)
+    store = worker_store(where)
     return {ip: _study_pair(store, ip, sid1, sid2, **opts) for ip, sid2 in group}
 
 

@@ -47,6 +47,26 @@ def test_workers_are_kept_and_a_key_returns_to_its_worker():
     assert list(parallel.map_tasks(_pid, [(0,), (1,)], workers=2, keys=["a", "b"]))[0] not in first
 
 
+def _group_pids(where, src, group, tag):
+    import os
+
+    return {i: (src, item, tag, os.getpid(), isinstance(where, ShapeStore)) for i, item in group}
+
+
+def test_map_by_source_groups_a_source_in_one_worker_and_keeps_the_items_order(store):
+    items = [("a", 1), ("b", 2), ("a", 3), ("c", 4), ("b", 5)]
+    out = list(parallel.map_by_source(_group_pids, store, items, "x", workers=2))
+    assert [i for i, _ in out] == list(range(5))
+    assert [(r[0], r[1], r[2]) for _, r in out] == [(s, v, "x") for s, v in items]
+    pid = {}
+    for _, (src, _, _, p, here) in out:
+        assert pid.setdefault(src, p) == p and not here  # the workers get the store's spec
+    assert parallel.worker_store(parallel.store_spec(store)).n_eig == store.n_eig
+    assert parallel.worker_store(store) is store
+    serial = list(parallel.map_by_source(_group_pids, store, items, "x", workers=1))
+    assert all(r[4] for _, r in serial)  # in this process: the store itself
+
+
 def test_default_workers_reads_the_environment(monkeypatch):
     monkeypatch.setenv(parallel.WORKERS_ENV, "3")
     assert parallel.default_workers() == 3
