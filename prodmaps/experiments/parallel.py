@@ -54,9 +54,8 @@ def one_blas_thread():
 
 
 def _init_worker():
-    from threadpoolctl import threadpool_limits
-
-    threadpool_limits(limits=1)  # for the whole life of the worker
+    one_blas_thread()  # the limit holds from the call on, for the worker's life
+    os.environ[WORKERS_ENV] = "1"  # a task that maps tasks itself runs them in its worker
 
 
 _SLOTS: list = []  # one single-process executor per worker slot, kept for the life of this process

@@ -67,6 +67,17 @@ def test_map_by_source_groups_a_source_in_one_worker_and_keeps_the_items_order(s
     assert all(r[4] for _, r in serial)  # in this process: the store itself
 
 
+def _facts(_):
+    from threadpoolctl import threadpool_info
+
+    return parallel.default_workers(), max(i["num_threads"] for i in threadpool_info())
+
+
+def test_a_worker_runs_one_blas_thread_and_no_workers_of_its_own():
+    assert list(parallel.map_tasks(_facts, [(0,), (1,)], workers=2)) == [(1, 1), (1, 1)]
+    assert list(parallel.map_tasks(_facts, [(0,)], workers=1))[0][1] == 1  # here too, while a task runs
+
+
 def test_default_workers_reads_the_environment(monkeypatch):
     monkeypatch.setenv(parallel.WORKERS_ENV, "3")
     assert parallel.default_workers() == 3
