@@ -12,6 +12,11 @@ CPUs this process may run on. ``prodmaps reproduce --jobs J`` sets ``PRODMAPS_WO
 ``max(1, CPUs // J)`` for its notebooks (unless it is set), so ``J`` notebooks at a time do not
 start ``J x CPUs`` workers.
 
+Workers are *spawned*, so a plain Python script that runs an experiment needs the usual
+``if __name__ == "__main__":`` guard around its work (Python stops a child that would re-run an
+unguarded script, and the caller then sees a ``BrokenProcessPool``); notebooks need nothing. Or
+set ``PRODMAPS_WORKERS=1``.
+
 Per-shape values are shared through the disk cache of :class:`prodmaps.experiments.store.ShapeStore`
 (workers rebuild the store from :func:`store_spec` and keep it for the tasks they run); group the
 tasks so that one task holds the pairs that share the expensive per-shape work (e.g. one source
