@@ -28,7 +28,7 @@ from ..metrics import relative_error
 from ..p2p import from_fmap
 from . import families as pfam
 from .maps import landmark_pairs, no17_fit, recipe
-from .parallel import map_by_source, worker_store
+from .parallel import map_by_source
 from .published import published_values
 from .store import ShapeStore
 
@@ -69,7 +69,7 @@ def score_recipes(store: ShapeStore, pairs, recipes, *, k_M: int = 29, k_N: int 
            "pairs": [list(p) for p in pairs], "sizes": [int(k_M), int(k_N)]}
     pairs = [tuple(p) for p in pairs]
     opts = dict(recipes=list(recipes), k1=int(k_M) + 1, k2=int(k_N) + 1, fams=fams, seed=seed, n_eval=n_eval)
-    for ip, (transfer, geo, fit_seconds) in map_by_source(_score_pairs, store, pairs, opts, workers=workers):
+    for ip, (transfer, geo, fit_seconds) in map_by_source(_score_pair, store, pairs, workers=workers, **opts):
         for r in names:
             for f in fams:
                 out["transfer"][r][f].append(transfer[r][f])
@@ -82,12 +82,6 @@ def score_recipes(store: ShapeStore, pairs, recipes, *, k_M: int = 29, k_N: int 
                   + "  ".join(f"{r} hk_k {out['transfer'][r]['hk_k'][-1]:.3f} geo {out['geo_error'][r][-1]:.3f}"
                               for r in names if "hk_k" in fams), flush=True)
     return out
-
-
-def _score_pairs(where, s1: str, group, opts: dict) -> dict:
-    """The pairs of source ``s1``: ``{pair index: (transfer[recipe][family], geo[recipe], fit_seconds[recipe])}``."""
-    store = worker_store(where)
-    return {ip: _score_pair(store, ip, s1, s2, **opts) for ip, s2 in group}
 
 
 def _score_pair(store: ShapeStore, ip: int, s1: str, s2: str, *, recipes, k1: int, k2: int, fams, seed: int,

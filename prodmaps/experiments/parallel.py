@@ -78,8 +78,8 @@ def _slot(i: int):
     while len(_SLOTS) <= i:
         _SLOTS.append(None)
     if _SLOTS[i] is None:
-        _SLOTS[i] = (ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn"),
-                                          initializer=_init_worker))
+        _SLOTS[i] = ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn"),
+                                        initializer=_init_worker)
     return _SLOTS[i]
 
 
@@ -143,26 +143,32 @@ def map_tasks(fn, tasks, *, workers: int | None = None, keys=None):
             f.cancel()
 
 
-def map_by_source(fn, store, items, *args, workers: int | None = None):
-    """Per-pair work grouped by source shape: yield ``(index, result)`` in the order of ``items``.
+def map_by_source(fn, store, items, *args, workers: int | None = None, **kwargs):
+    """Per-pair work grouped by source shape: yield ``(index, fn(...))`` in the order of ``items``.
 
-    ``items`` is ``[(source id, item), ...]``, one per pair. The items of one source form one
-    task, ``fn(where, source id, [(index, item), ...], *args) -> {index: result}``, where
-    ``where`` is ``store`` (in this process) or its :func:`store_spec` (in a worker; turn it into
-    the store with :func:`worker_store`). A source returns to the worker that had it before.
+    ``items`` is ``[(source id, item), ...]``, one per pair; every pair is computed as
+    ``fn(store, index, source id, item, *args, **kwargs)`` (``store`` a ShapeStore: this one, or
+    in a worker the same store rebuilt from :func:`store_spec` and kept). The pairs of one source
+    form one task and a source returns to the worker that had it before.
     """
     groups: dict = {}  # source id -> [(index, item), ...] in the items' order
     for i, (src, item) in enumerate(items):
         groups.setdefault(src, []).append((i, item))
     workers = default_workers() if workers is None else workers
     where = store if workers == 1 or len(groups) <= 1 else store_spec(store)
-    tasks = [(where, src, group, *args) for src, group in groups.items()]
+    tasks = [(fn, where, src, group, args, kwargs) for src, group in groups.items()]
     done, nxt = {}, 0
-    for records in map_tasks(fn, tasks, workers=workers, keys=list(groups)):
+    for records in map_tasks(_source_task, tasks, workers=workers, keys=list(groups)):
         done.update(records)
         while nxt in done:  # a source's results wait until the pairs before them are out
             yield nxt, done.pop(nxt)
             nxt += 1
+
+
+def _source_task(fn, where, src, group, args, kwargs) -> dict:
+    """One task of :func:`map_by_source`: ``{index: fn(store, index, src, item, ...)}`` for its group."""
+    store = worker_store(where)
+    return {i: fn(store, i, src, item, *args, **kwargs) for i, item in group}
 
 
 def store_spec(store) -> tuple:

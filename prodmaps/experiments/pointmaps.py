@@ -21,7 +21,7 @@ from ..mapping import fmap_from_p2p
 from ..p2p import from_fmap
 from .compare import count_outcomes
 from .maps import no17_demo_map
-from .parallel import map_by_source, worker_store
+from .parallel import map_by_source
 from .store import ShapeStore
 
 __all__ = ["subject_pairs", "point_map_recovery", "CONVERSIONS"]
@@ -60,7 +60,7 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
         n2 = store.mesh(s2).n_vertices
         ev = np.arange(n2) if n_eval is None else np.sort(rng.choice(n2, int(n_eval), replace=False))
         items.append((s1, (s2, ev)))
-    for _, (row, E, t_pair, t_parts) in map_by_source(_recovery_pairs, store, items, k_target, k_source, tuple(maps),
+    for _, (row, E, t_pair, t_parts) in map_by_source(_recovery_pair, store, items, k_target, k_source, tuple(maps),
                                                       no17_k_descr, workers=workers):
         for (m, method), e in E.items():
             errs[m][method].append(e)
@@ -92,32 +92,30 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
     return {"results": results, "timing": timing}
 
 
-def _recovery_pairs(where, s1: str, group, k_target: int, k_source: int, maps, no17_k_descr: int) -> dict:
-    """The pairs of source ``s1``: ``{pair index: (row, {(map, conversion): errors (n_eval,)},
-    seconds, {"std"|"extended"|"no17": seconds})}``."""
-    store = worker_store(where)
-    out = {}
-    for ip, (s2, ev) in group:
-        t0 = time.perf_counter()
-        timing = {"std": 0.0, "extended": 0.0, "no17": 0.0}
-        b1, b2 = store.basis(s1, k_source), store.basis(s2, k_target)
-        gt = datasets.ground_truth(store.dataset, s1, s2)  # (n2,) target vertex -> source vertex
-        row, recovered = {"pair": f"{s1}->{s2}"}, {}
-        for m in maps:
-            if m == "gt":
-                C = fmap_from_p2p(gt, b1, b2)  # (k_target, k_source)
-            else:
-                t1 = time.perf_counter()
-                C = no17_demo_map(store, s1, s2, gt, k_source, k_target, k_descr=no17_k_descr)
-                timing["no17"] += time.perf_counter() - t1
-            for method in CONVERSIONS:
-                t1 = time.perf_counter()
-                recovered[m, method] = from_fmap(C, b1, b2, method, vertices=ev)  # (n_eval,) target -> source vertex
-                timing[method] += time.perf_counter() - t1
-        # all maps of the pair against the same truth: geodesics from the true images computed once
-        E = geodesics.map_error(store.mesh(s1), np.stack(list(recovered.values())), gt[ev],
-                               rows=store.distance_rows(s1))  # (maps, n_eval)
-        for (m, method), e in zip(recovered, E):
-            row[f"{m}_{method}"] = float(e.mean())
-        out[ip] = (row, dict(zip(recovered, E)), time.perf_counter() - t0, timing)
-    return out
+def _recovery_pair(store: ShapeStore, ip: int, s1: str, item, k_target: int, k_source: int, maps,
+                   no17_k_descr: int) -> tuple:
+    """One pair ``s1 -> item[0]``, evaluated at the target vertices ``item[1]``: ``(row,
+    {(map, conversion): errors (n_eval,)}, seconds, {"std"|"extended"|"no17": seconds})``."""
+    s2, ev = item
+    t0 = time.perf_counter()
+    timing = {"std": 0.0, "extended": 0.0, "no17": 0.0}
+    b1, b2 = store.basis(s1, k_source), store.basis(s2, k_target)
+    gt = datasets.ground_truth(store.dataset, s1, s2)  # (n2,) target vertex -> source vertex
+    row, recovered = {"pair": f"{s1}->{s2}"}, {}
+    for m in maps:
+        if m == "gt":
+            C = fmap_from_p2p(gt, b1, b2)  # (k_target, k_source)
+        else:
+            t1 = time.perf_counter()
+            C = no17_demo_map(store, s1, s2, gt, k_source, k_target, k_descr=no17_k_descr)
+            timing["no17"] += time.perf_counter() - t1
+        for method in CONVERSIONS:
+            t1 = time.perf_counter()
+            recovered[m, method] = from_fmap(C, b1, b2, method, vertices=ev)  # (n_eval,) target -> source vertex
+            timing[method] += time.perf_counter() - t1
+    # all maps of the pair against the same truth: geodesics from the true images computed once
+    E = geodesics.map_error(store.mesh(s1), np.stack(list(recovered.values())), gt[ev],
+                           rows=store.distance_rows(s1))  # (maps, n_eval)
+    for (m, method), e in zip(recovered, E):
+        row[f"{m}_{method}"] = float(e.mean())
+    return row, dict(zip(recovered, E)), time.perf_counter() - t0, timing

@@ -34,7 +34,7 @@ from ..metrics import relative_error
 from ..products import product_basis
 from . import families as pfam
 from .maps import no17_demo_map
-from .parallel import map_by_source, worker_store
+from .parallel import map_by_source
 from .store import ShapeStore
 
 __all__ = ["ProtocolSettings", "ProtocolResult", "run_protocol", "method_label", "family_means", "area_curves",
@@ -132,7 +132,7 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
     gain_rtol = {z: [] for z in s.sizes}
     cols, seconds = None, []
     workers = 1 if collect is not None else workers
-    for ip, rec in map_by_source(_protocol_pairs, store, [(a, b) for a, b in pairs], s, collect, workers=workers):
+    for ip, rec in map_by_source(_protocol_pair, store, pairs, s, collect, workers=workers):
         cols = rec["cols"]
         for z, by in rec["sizes"].items():
             map_dev[z].append(by["map_dev"])
@@ -150,12 +150,6 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
                   + "".join(f"  [{kM}/{kN}] map dev {map_dev[(kM, kN)][-1]:.3f}" for kM, kN in s.sizes),
                   flush=True)
     return ProtocolResult(s, pairs, errors, cols, map_dev, ranks, gain_rtol, seconds)
-
-
-def _protocol_pairs(where, sid1: str, group, s: ProtocolSettings, collect) -> dict:
-    """The pairs ``(sid1, sid2)`` of ``group`` (``[(pair index, sid2), ...]``): ``{pair index: record}``."""
-    store = worker_store(where)
-    return {ip: _protocol_pair(store, ip, sid1, sid2, s, collect) for ip, sid2 in group}
 
 
 def _protocol_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, s: ProtocolSettings, collect) -> dict:

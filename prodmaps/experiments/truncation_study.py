@@ -29,7 +29,7 @@ from ..metrics import relative_error
 from ..products import product_basis
 from . import families as pfam
 from .maps import no17_demo_map
-from .parallel import map_by_source, worker_store
+from .parallel import map_by_source
 from .store import ShapeStore
 
 __all__ = ["QUANTITIES", "CHOOSERS", "truncation_study"]
@@ -66,7 +66,7 @@ def truncation_study(store: ShapeStore, pairs, *, sizes, map_kinds, families, rt
     pairs = [tuple(p) for p in pairs]
     opts = dict(sizes=sizes, map_kinds=list(map_kinds), families=families, RT=RT, EPS=EPS, k_M_family=k_M_family,
                 paper_rtol=paper_rtol, max_gain=max_gain, no17_k_descr=no17_k_descr, seed=seed)
-    for ip, (rec, seconds) in map_by_source(_study_pairs, store, pairs, opts, workers=workers):
+    for ip, (rec, seconds) in map_by_source(_study_pair, store, pairs, workers=workers, **opts):
         for key, by in rec.items():  # appended in the pairs' order, as one after the other
             GAINS[key].append(by["gains"])
             PRESERVE[key]["linear"].append(by["preserve"][0])
@@ -114,12 +114,6 @@ def truncation_study(store: ShapeStore, pairs, *, sizes, map_kinds, families, rt
         },
     }
     return {"results": results, "gains": GAINS}
-
-
-def _study_pairs(where, sid1: str, group, opts: dict) -> dict:
-    """The pairs of source ``sid1`` (``[(pair index, target id), ...]``): ``{pair index: (record, seconds)}``."""
-    store = worker_store(where)
-    return {ip: _study_pair(store, ip, sid1, sid2, **opts) for ip, sid2 in group}
 
 
 def _study_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, *, sizes, map_kinds, families, RT, EPS,

@@ -21,8 +21,10 @@ def thread_env(jobs: int) -> dict:
         return {}
     n = str(max(1, (os.cpu_count() or 1) // jobs))
     env = {k: n for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
-    if not os.environ.get("PRODMAPS_WORKERS"):
-        env["PRODMAPS_WORKERS"] = n
+    from ..experiments.parallel import WORKERS_ENV
+
+    if not os.environ.get(WORKERS_ENV):
+        env[WORKERS_ENV] = n
     return env
 
 

@@ -47,24 +47,27 @@ def test_workers_are_kept_and_a_key_returns_to_its_worker():
     assert list(parallel.map_tasks(_pid, [(0,), (1,)], workers=2, keys=["a", "b"]))[0] not in first
 
 
-def _group_pids(where, src, group, tag):
+def _pair_facts(store, i, src, item, tag, *, scale):
     import os
 
-    return {i: (src, item, tag, os.getpid(), isinstance(where, ShapeStore)) for i, item in group}
+    return src, item * scale, tag, os.getpid(), store.n_eig, id(store)
 
 
 def test_map_by_source_groups_a_source_in_one_worker_and_keeps_the_items_order(store):
+    import os
+
     items = [("a", 1), ("b", 2), ("a", 3), ("c", 4), ("b", 5)]
-    out = list(parallel.map_by_source(_group_pids, store, items, "x", workers=2))
+    out = list(parallel.map_by_source(_pair_facts, store, items, "x", workers=2, scale=10))
     assert [i for i, _ in out] == list(range(5))
-    assert [(r[0], r[1], r[2]) for _, r in out] == [(s, v, "x") for s, v in items]
+    assert [r[:3] for _, r in out] == [(s, 10 * v, "x") for s, v in items]
     pid = {}
-    for _, (src, _, _, p, here) in out:
-        assert pid.setdefault(src, p) == p and not here  # the workers get the store's spec
+    for _, (src, _, _, p, n_eig, _) in out:
+        assert pid.setdefault(src, p) == p != os.getpid() and n_eig == store.n_eig  # the store rebuilt there
     assert parallel.worker_store(parallel.store_spec(store)).n_eig == store.n_eig
     assert parallel.worker_store(store) is store
-    serial = list(parallel.map_by_source(_group_pids, store, items, "x", workers=1))
-    assert all(r[4] for _, r in serial)  # in this process: the store itself
+    serial = list(parallel.map_by_source(_pair_facts, store, items, "x", workers=1, scale=10))
+    assert [r[:3] for _, r in serial] == [r[:3] for _, r in out]
+    assert all(r[3] == os.getpid() and r[5] == id(store) for _, r in serial)  # here: the store itself
 
 
 def _facts(_):
