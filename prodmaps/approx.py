@@ -401,7 +401,10 @@ def _fista(op: ApproximationOperator, F: np.ndarray) -> np.ndarray:
 
     Objective per column: ``½ aᵀ G a - bᵀ a + λ ||a||₁`` with ``b = Bᵀ A f`` (equal to the
     area-weighted least squares up to a constant). In the ordered convention the Gram matrix
-    of the ordered basis is ``Sᵀ G_s S`` (applied without forming it).
+    of the ordered basis is ``Sᵀ G_s S``, formed once (``K x K``, dense). One product with it per
+    iteration: ``G y`` follows from ``G x`` by linearity (``y`` is a combination of the last two
+    iterates). The optimality conditions are checked every ``_FISTA_CHECK`` iterations and at
+    the last one, so a run stops at most that many iterations after they first hold.
     """
     basis = op.basis
     B_s, base, E, K = _solver_parts(basis)
@@ -412,32 +415,37 @@ def _fista(op: ApproximationOperator, F: np.ndarray) -> np.ndarray:
     if d is not None:
         b_s = d[:, None] * b_s
     if E is None:
-        def gram(x):
-            return G_s @ x
-        b = b_s
+        G, b = G_s, b_s
     else:
-        Et = E.T.tocsr()  # (K_u, K), formed once: the loop runs up to max_iter times
-        def gram(x):
-            return E @ (G_s @ (Et @ x))
+        EG = np.asarray(E @ G_s)  # (K, K_u)
+        G = np.asarray(E @ EG.T)  # (K, K) = E G_s Eᵀ
+        G = 0.5 * (G + G.T)
         b = E @ b_s
     L = sla.eigh(G_s, eigvals_only=True, subset_by_index=[G_s.shape[0] - 1] * 2)[0]
     lam = op.params["eps"] * np.max(np.abs(b), axis=0)  # (m,)
     lam = np.where(lam > 0, lam, 1.0)
     tol, max_iter = op.params["tol"], op.params["max_iter"]
     x = np.zeros_like(b)
-    y = x.copy()
+    Gx = np.zeros_like(b)
+    y, Gy = x, Gx
     t = 1.0
-    for _ in range(max_iter):
-        z = y - (gram(y) - b) / L
+    for it in range(max_iter):
+        z = y - (Gy - b) / L
         x_new = np.sign(z) * np.maximum(np.abs(z) - lam / L, 0.0)
+        Gx_new = G @ x_new
         t_new = 0.5 * (1 + np.sqrt(1 + 4 * t * t))
-        y = x_new + ((t - 1) / t_new) * (x_new - x)
-        x, t = x_new, t_new
-        if _lasso_violation(gram(x) - b, x, lam) < tol:
+        beta = (t - 1) / t_new
+        y = x_new + beta * (x_new - x)
+        Gy = Gx_new + beta * (Gx_new - Gx)
+        x, Gx, t = x_new, Gx_new, t_new
+        if ((it + 1) % _FISTA_CHECK == 0 or it + 1 == max_iter) and _lasso_violation(Gx - b, x, lam) < tol:
             break
     if d is not None:
         x = (d[:, None] if E is None else (abs(E).sign() @ d)[:, None]) * x  # back to the basis' columns
     return x[:, 0] if one else x
+
+
+_FISTA_CHECK = 10  # FISTA iterations between two checks of the lasso optimality conditions
 
 
 def _lasso_violation(g: np.ndarray, x: np.ndarray, lam: np.ndarray) -> float:

@@ -95,20 +95,46 @@ def shutdown_workers() -> None:
 atexit.register(shutdown_workers)
 
 
-def _assign(keys, workers: int) -> list[int]:
-    """A slot per task: a key seen before keeps its slot (its worker holds its values); the
-    others go to the slot with the fewest tasks of this call so far (lowest index on ties)."""
-    load = [0] * workers
-    slots = []
-    for key in keys:
+class _Dispatch:
+    """Which task a free worker slot runs next (see :func:`map_tasks`)."""
+
+    def __init__(self, keys, workers: int):
+        from collections import deque
+
+        self.keys, self.workers = keys, workers
+        self.own = [deque() for _ in range(workers)]  # tasks whose key a slot already holds
+        self.new = deque()  # the others, in the tasks' order
+        for i, key in enumerate(keys):
+            s = self._held(key)
+            (self.new if s is None else self.own[s]).append(i)
+
+    def _held(self, key):
         s = _SLOT_OF.get(key) if key is not None else None
-        if s is None or s >= workers:
-            s = min(range(workers), key=lambda j: (load[j], j))
+        return s if s is not None and s < self.workers else None
+
+    def next(self, slot: int):
+        """The next task for ``slot`` (None when none is left): its own keys' tasks first, then a
+        new task (its key is then held by ``slot``), then the last task of the slot with the most
+        waiting (its key moves to ``slot``)."""
+        if self.own[slot]:
+            return self.own[slot].popleft()
+        while self.new:
+            i = self.new.popleft()
+            key = self.keys[i]
+            held = self._held(key)
+            if held is not None and held != slot:  # claimed earlier in this call by another slot
+                self.own[held].append(i)
+                continue
             if key is not None:
-                _SLOT_OF[key] = s
-        load[s] += 1
-        slots.append(s)
-    return slots
+                _SLOT_OF[key] = slot
+            return i
+        donor = max(range(self.workers), key=lambda j: len(self.own[j]))
+        if not self.own[donor]:
+            return None
+        i = self.own[donor].pop()
+        if self.keys[i] is not None:
+            _SLOT_OF[self.keys[i]] = slot
+        return i
 
 
 def map_tasks(fn, tasks, *, workers: int | None = None, keys=None):
@@ -119,6 +145,12 @@ def map_tasks(fn, tasks, *, workers: int | None = None, keys=None):
     between calls (:func:`shutdown_workers` stops them); ``keys`` (one hashable per task, e.g.
     the source shape) sends a task to the worker that ran the same key before, so the values it
     keeps in memory (extended-basis operators, descriptors) are computed once per notebook.
+
+    Tasks are handed out one at a time to the worker that is free: a worker runs the tasks of
+    the keys it holds, then the new tasks in the given order (it then holds their keys), then
+    takes the last waiting task of the busiest worker (whose key moves with it). So the load
+    follows the tasks' run times, not their number; which worker runs a task never changes its
+    result (one BLAS thread everywhere).
     """
     tasks = [tuple(t) for t in tasks]
     keys = [None] * len(tasks) if keys is None else list(keys)
@@ -133,13 +165,30 @@ def map_tasks(fn, tasks, *, workers: int | None = None, keys=None):
                 out = fn(*t)
             yield out
         return
-    slots = _assign(keys, workers)
-    futures = [_slot(j).submit(fn, *t) for j, t in zip(slots, tasks)]
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    plan = _Dispatch(keys, workers)
+    running, results, nxt = {}, {}, 0
+
+    def start(slot):
+        i = plan.next(slot)
+        if i is not None:
+            running[_slot(slot).submit(fn, *tasks[i])] = (i, slot)
+
     try:
-        for f in futures:
-            yield f.result()
+        for slot in range(workers):
+            start(slot)
+        while running:
+            done, _ = wait(running, return_when=FIRST_COMPLETED)
+            for f in done:
+                i, slot = running.pop(f)
+                results[i] = f.result()
+                start(slot)
+            while nxt in results:
+                yield results.pop(nxt)
+                nxt += 1
     finally:
-        for f in futures:
+        for f in running:
             f.cancel()
 
 
@@ -156,9 +205,12 @@ def map_by_source(fn, store, items, *args, workers: int | None = None, **kwargs)
         groups.setdefault(src, []).append((i, item))
     workers = default_workers() if workers is None else workers
     where = store if workers == 1 or len(groups) <= 1 else store_spec(store)
-    tasks = [(fn, where, src, group, args, kwargs) for src, group in groups.items()]
+    # the sources with the most pairs first: the free worker takes the next one, so the last
+    # tasks handed out are the short ones
+    order = sorted(groups, key=lambda src: -len(groups[src]))
+    tasks = [(fn, where, src, groups[src], args, kwargs) for src in order]
     done, nxt = {}, 0
-    for records in map_tasks(_source_task, tasks, workers=workers, keys=list(groups)):
+    for records in map_tasks(_source_task, tasks, workers=workers, keys=order):
         done.update(records)
         while nxt in done:  # a source's results wait until the pairs before them are out
             yield nxt, done.pop(nxt)

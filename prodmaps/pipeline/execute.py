@@ -65,6 +65,10 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
     root (``cwd``). Raises papermill's ``PapermillExecutionError`` if a cell fails (the executed
     notebook with the traceback is still written, and rendered as HTML). ``timeout`` is per
     cell, in seconds. With ``html`` the executed notebook is also written as ``executed.html``.
+    Once the last cell has run the kernel is stopped at once with its process group (every
+    output is written by then): a graceful shutdown waits 2.5 s for the children of a kernel
+    whose notebook used worker processes (:mod:`prodmaps.experiments.parallel`), because the
+    kernel signals and awaits multiprocessing's resource tracker, which ignores the signal.
     ``shown_out_dir`` replaces ``out_dir`` in the executed notebook's injected parameters cell
     (the batch runner executes into a temporary folder and shows the run's own folder), and in
     papermill's metadata, whose ``input_path`` becomes ``shown_notebook`` when given.
@@ -80,7 +84,7 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
         pm_.execute_notebook(
             str(notebook), str(executed), parameters=parameters, kernel_name=kernel_name,
             cwd=str(cwd or Path.cwd()), progress_bar=False, log_output=False,
-            execution_timeout=timeout,
+            execution_timeout=timeout, shutdown_kernel="immediate",
         )
     finally:
         if shown_out_dir is not None and executed.is_file():

@@ -29,22 +29,37 @@ def test_map_tasks_keeps_the_order_in_workers_and_here():
         list(parallel.map_tasks(_sq, tasks, workers=0))
 
 
-def _pid(_):
+def _pid(_, sleep=0.0):
     import os
+    import time
 
+    time.sleep(sleep)
     return os.getpid()
 
 
 def test_workers_are_kept_and_a_key_returns_to_its_worker():
     parallel.shutdown_workers()
-    first = list(parallel.map_tasks(_pid, [(0,), (1,), (2,)], workers=2, keys=["a", "b", "a"]))
-    assert first[0] == first[2] != first[1]  # one worker per key, balanced
+    # "b" is slow: the worker of "a" is free first and runs the second "a" task itself
+    first = list(parallel.map_tasks(_pid, [(0,), (1, 1.0), (2,)], workers=2, keys=["a", "b", "a"]))
+    assert first[0] == first[2] != first[1]  # one worker per key
     again = list(parallel.map_tasks(_pid, [(0,), (1,)], workers=2, keys=["b", "a"]))
     assert again == [first[1], first[0]]  # the same processes, the same key -> worker
     with pytest.raises(ValueError, match="keys"):
         list(parallel.map_tasks(_pid, [(0,)], workers=2, keys=["a", "b"]))
     parallel.shutdown_workers()
     assert list(parallel.map_tasks(_pid, [(0,), (1,)], workers=2, keys=["a", "b"]))[0] not in first
+
+
+def test_a_free_worker_takes_the_waiting_task_of_a_busy_one():
+    parallel.shutdown_workers()
+    # "a" is slow and has a second task waiting: the worker of "b" is free first and takes it,
+    # and "a" moves to that worker
+    out = list(parallel.map_tasks(_pid, [(0, 1.0), (1,), (2,)], workers=2, keys=["a", "b", "a"]))
+    assert out[1] == out[2] != out[0]
+    # both keys are now held by one worker: the idle one takes the last of them ("b")
+    again = list(parallel.map_tasks(_pid, [(0,)] * 2, workers=2, keys=["a", "b"]))
+    assert again == [out[2], out[0]]
+    parallel.shutdown_workers()
 
 
 def _pair_facts(store, i, src, item, tag, *, scale):
