@@ -105,6 +105,11 @@ def evaluate_products(vecs: np.ndarray, index: np.ndarray) -> np.ndarray:
     return out_T.T
 
 
+KEPT_BLOCKS = Cache(max_entries=256, max_bytes=512 << 20)
+"""Per process: the one-block unique bases ``B_s`` of product bases (keyed by the basis), so that
+repeated products with a small mesh's extended basis do not form its columns again (512 MB at most)."""
+
+
 @dataclass(frozen=True, eq=False)
 class ProductBasis:
     """A basis extended by pointwise products of its non-constant functions (see module doc).
@@ -233,14 +238,29 @@ class ProductBasis:
         return self.cache.get("scale", lambda: np.sqrt(_n_orderings(self.unique_index)))
 
     def _solver_blocks(self):
-        """Yield ``(rows slice, B_s[rows])`` blocks of about ``block_bytes``."""
+        """Yield ``(rows slice, B_s[rows])`` blocks of about ``block_bytes``.
+
+        When one block holds every row it is kept (:data:`KEPT_BLOCKS`, least recently used
+        dropped first) and the next product reuses it: the same array, so the same numbers."""
         uidx = self.unique_index
         scale = self._solver_scale()
         step = max(1, int(self.block_bytes // (8 * uidx.shape[0])))
+
+        def block(rows):
+            b = evaluate_products(self.base.vecs[rows], uidx)
+            return b if scale is None else b * scale
+
+        if step >= self.n:
+            def whole():
+                b = block(slice(0, self.n))
+                b.setflags(write=False)
+                return self, b  # the entry holds the basis, so no other object takes its id meanwhile
+
+            yield slice(0, self.n), KEPT_BLOCKS.get(id(self), whole)[1]
+            return
         for i0 in range(0, self.n, step):
             rows = slice(i0, min(self.n, i0 + step))
-            block = evaluate_products(self.base.vecs[rows], uidx)
-            yield rows, (block if scale is None else block * scale)
+            yield rows, block(rows)
 
     def solver_gram(self) -> np.ndarray:
         """``G_s = B_sᵀ A B_s`` ``(K_u, K_u)`` (cached), blocked for large meshes."""

@@ -153,25 +153,28 @@ def select_rtol(basis_1: Basis, F=None, *, method: str = "gain", C_12=None, basi
         from .approx import DEFAULT_NORMALIZATION, column_weights
 
         ext = product_basis(basis_1, order, pairs)
-        B_s, _ = ext.solver_basis()  # (n, K_u)
         norm = normalization or DEFAULT_NORMALIZATION
-        d = column_weights(ext, norm)
-        if d is not None:
-            B_s = B_s * d  # the truncation sees the normalised columns (coefficients are not returned)
+
+        def scaled_basis():
+            B_s, _ = ext.solver_basis()  # (n, K_u)
+            d = column_weights(ext, norm)
+            # the truncation sees the normalised columns (coefficients are not returned)
+            return B_s if d is None else B_s * d
+
         sq = np.sqrt(basis_1.mass)
         if method == "cv":
             if not 0 < holdout < 1:
                 raise ValueError(f"holdout must be in (0, 1), got {holdout}")
-            def split_svd():  # the split and its SVD depend on the basis only: cached and reused
+            def split_svd():  # the split, its SVD and the test rows depend on the basis only: cached
+                B_s = scaled_basis()
                 rng = np.random.default_rng(seed)
                 test = np.zeros(basis_1.n, dtype=bool)
                 test[rng.choice(basis_1.n, size=max(1, int(round(holdout * basis_1.n))), replace=False)] = True
                 X = sq[~test, None] * B_s[~test]  # (n_train, K_u)
-                return (test,) + tuple(np.linalg.svd(X, full_matrices=False))
+                return (test,) + tuple(np.linalg.svd(X, full_matrices=False)) + (sq[test, None] * B_s[test],)
 
-            test, U, s, Vt = ext.cache.get(("select_rtol_cv_svd", float(holdout), int(seed), norm), split_svd)
-            beta = U.T @ (sq[~test, None] * F2[~test])  # (K_u, m)
-            Bt = sq[test, None] * B_s[test]  # (n_test, K_u)
+            test, U, s, Vt, Bt = ext.cache.get(("select_rtol_cv_svd", float(holdout), int(seed), norm), split_svd)
+            beta = U.T @ (sq[~test, None] * F2[~test])  # (K_u, m); Bt (n_test, K_u)
             Ft = sq[test, None] * F2[test]
             den = np.maximum(np.sum(Ft**2, axis=0), 1e-300)
             score = []
@@ -181,7 +184,7 @@ def select_rtol(basis_1: Basis, F=None, *, method: str = "gain", C_12=None, basi
                 score.append(float(np.mean(np.sqrt(np.sum((Bt @ a - Ft) ** 2, axis=0) / den))))
         else:
             U, s = ext.cache.get(("select_rtol_gcv_svd", norm),
-                                 lambda: np.linalg.svd(sq[:, None] * B_s, full_matrices=False)[:2])
+                                 lambda: np.linalg.svd(sq[:, None] * scaled_basis(), full_matrices=False)[:2])
             Y = sq[:, None] * F2
             beta = U.T @ Y
             tot = np.sum(Y**2, axis=0)

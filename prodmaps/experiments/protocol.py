@@ -117,7 +117,10 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
     ``collect(pair_index, size, F, G, cols, b1, b2, outputs)`` (optional) receives, for every
     pair and size, the functions and ``outputs[method] = (approximation (n1, m), transfer (n2, m))``
     (e.g. for the area curves of Figure 8); it runs in this process, so the pairs are then
-    computed here one after the other.
+    computed here one after the other. A collector that splits its work into
+    ``measure(pair_index, size, F, G, cols, b1, b2, outputs) -> record`` (pure, picklable, run
+    with the pair, in a worker) and ``add(pair_index, size, record)`` (run here, in the pairs'
+    order), as :class:`AreaCurves`, keeps the workers.
 
     ``workers``: processes computing the pairs (:func:`prodmaps.experiments.parallel.map_tasks`;
     default ``$PRODMAPS_WORKERS`` or the CPUs). The pairs of one source shape go to one worker
@@ -131,10 +134,13 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
     ranks = {z: [] for z in s.sizes}
     gain_rtol = {z: [] for z in s.sizes}
     cols, seconds = None, []
-    workers = 1 if collect is not None else workers
+    split = collect is not None and callable(getattr(collect, "measure", None))
+    workers = 1 if collect is not None and not split else workers
     for ip, rec in map_by_source(_protocol_pair, store, pairs, s, collect, workers=workers):
         cols = rec["cols"]
         for z, by in rec["sizes"].items():
+            if split:
+                collect.add(ip, z, by.pop("collected"))
             map_dev[z].append(by["map_dev"])
             if by["rank"] is not None:
                 ranks[z].append(by["rank"])
@@ -214,7 +220,9 @@ def _protocol_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, s: Protocol
         for m, (fa, ft) in outputs.items():
             rec["errors"]["approx"][m] = relative_error(fa, F, b1.mass)
             rec["errors"]["transfer"][m] = relative_error(ft, G, b2.mass)
-        if collect is not None:
+        if callable(getattr(collect, "measure", None)):
+            rec["collected"] = collect.measure(ip, (kM, kN), F, G, cols, b1, b2, outputs)
+        elif collect is not None:
             collect(ip, (kM, kN), F, G, cols, b1, b2, outputs)
         sizes[(kM, kN)] = rec
     return {"cols": cols, "seconds": time.perf_counter() - t0, "sizes": sizes}
@@ -292,12 +300,29 @@ class AreaCurves:
         self.families, self.methods = list(families), list(methods)
         self._curves = {c: {st: {m: [] for m in self.methods} for st in STAGES} for c in AREA_CRITERIA}
 
-    def __call__(self, ip, size, F, G, cols, b1, b2, outputs):
+    def measure(self, ip, size, F, G, cols, b1, b2, outputs) -> dict:
+        """One pair and size: ``{(criterion, stage, method): {family: (n_gamma,) curve}}`` (pure)."""
+        out = {}
         for m, (fa, ft) in outputs.items():
             for st, f, g, mass in (("approx", fa, F, b1.mass), ("transfer", ft, G, b2.mass)):
                 cv = area_curves(f, g, mass, self.gamma)
                 for c in AREA_CRITERIA:
-                    self._curves[c][st][m].append({fam: cv[c][:, cols[fam]].mean(axis=1) for fam in self.families})
+                    out[(c, st, m)] = {fam: cv[c][:, cols[fam]].mean(axis=1) for fam in self.families}
+        return out
+
+    def add(self, ip, size, record: dict) -> None:
+        """Keep :meth:`measure`'s record (pairs in order)."""
+        for (c, st, m), by_family in record.items():
+            self._curves[c][st][m].append(by_family)
+
+    def __call__(self, ip, size, F, G, cols, b1, b2, outputs):
+        self.add(ip, size, self.measure(ip, size, F, G, cols, b1, b2, outputs))
+
+    def __getstate__(self):  # a worker gets the settings; the curves stay with the caller
+        return {"gamma": self.gamma, "families": self.families, "methods": self.methods}
+
+    def __setstate__(self, state):
+        self.__init__(state["gamma"], state["families"], state["methods"])
 
     def mean(self) -> dict:
         """``{criterion: {stage: {method: {family: (n_gamma,) curve}}}}`` averaged over pairs."""

@@ -135,6 +135,32 @@ def test_protocol_errors_do_not_depend_on_the_number_of_workers(store):
                     assert np.array_equal(a, b)
 
 
+def test_area_curves_are_measured_in_workers_with_the_same_numbers(store):
+    from prodmaps.experiments.protocol import AreaCurves
+
+    s = ProtocolSettings(sizes=[(9, 9)], methods=["std", "B"], families=["XYZ", "Indicator"])
+    gamma = np.linspace(0.0, 0.1, 5)
+    curves = {}
+    for w in (1, 2):
+        c = curves[w] = AreaCurves(gamma, s.families, s.methods)
+        run_protocol(store, PAIRS, s, progress=False, workers=w, collect=c)
+    serial = AreaCurves(gamma, s.families, s.methods)  # a plain callable: called in this process
+    run_protocol(store, PAIRS, s, progress=False, collect=lambda *a: serial(*a))
+    ref = curves[1].mean()
+    for other in (curves[2], serial):
+        got = other.mean()
+        for c in ref:
+            for st in ref[c]:
+                for m in ref[c][st]:
+                    for f in ref[c][st][m]:
+                        # the same arrays, summed in another process: numpy's SIMD sums may round
+                        # the last bit differently with another memory alignment
+                        np.testing.assert_allclose(got[c][st][m][f], ref[c][st][m][f], rtol=1e-13, atol=0)
+    one = curves[1].mean()["paper"]["transfer"]["B"]["Indicator"]
+    assert one.shape == gamma.shape and np.all(np.diff(one) >= 0)  # a fraction grows with gamma
+    assert len(curves[2]._curves["paper"]["approx"]["std"]) == len(PAIRS)
+
+
 def test_point_map_recovery_does_not_depend_on_the_number_of_workers(store):
     kw = dict(k_target=12, k_source=10, maps=("gt",), n_eval=60, seed=3, verbose=False)
     one = point_map_recovery(store, PAIRS, workers=1, **kw)["results"]
