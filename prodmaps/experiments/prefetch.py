@@ -9,7 +9,9 @@ a value often run on one core. A prefetcher computes those values on the other c
   map sizes and recipe), never a path or a value. ``prodmaps reproduce`` sets it for its runs,
   so a cold run leaves ``OUT/<profile>/prefetch_journal.jsonl``: the values, in the order the runs
   first needed them.
-* **Plan.** A journal kept from a cold run of the same profile (``paper/prefetch/<profile>.jsonl``).
+* **Plan.** A journal kept from a cold run of the same profile (``paper/prefetch/<profile>.jsonl``,
+  written by ``python -m prodmaps.experiments.prefetch --keep JOURNAL PLAN``: each request once;
+  a journal may hold one twice when two workers needed the same value at once).
 * **Prefetcher.** ``python -m prodmaps.experiments.prefetch PLAN`` replays the plan in order at
   the lowest CPU priority (``nice 19``: it takes an idle core, not a busy one) with one BLAS
   thread; a value already on disk is read, not computed. ``reproduce --jobs 1`` starts it beside
@@ -29,7 +31,7 @@ import sys
 import threading
 from pathlib import Path
 
-__all__ = ["JOURNAL_ENV", "record", "read_plan", "replay", "plan_path", "main"]
+__all__ = ["JOURNAL_ENV", "record", "read_plan", "keep_plan", "replay", "plan_path", "main"]
 
 JOURNAL_ENV = "PRODMAPS_PREFETCH_JOURNAL"
 
@@ -65,6 +67,15 @@ def read_plan(path) -> list[dict]:
         if isinstance(req, dict) and "op" in req:
             out.append(req)
     return out
+
+
+def keep_plan(journal, plan) -> int:
+    """Write ``journal``'s requests, each once in first order, as the plan ``plan``; returns their number."""
+    reqs = read_plan(journal)
+    Path(plan).parent.mkdir(parents=True, exist_ok=True)
+    Path(plan).write_text("".join(json.dumps(r, sort_keys=True, separators=(",", ":")) + "\n" for r in reqs),
+                          encoding="utf-8")
+    return len(reqs)
 
 
 def plan_path(root, profile: str) -> Path:
@@ -120,10 +131,17 @@ def _exit_with_parent(parent: int) -> None:
 
 
 def main(argv=None) -> int:
-    """``python -m prodmaps.experiments.prefetch PLAN``: replay PLAN at the lowest priority."""
+    """``python -m prodmaps.experiments.prefetch PLAN``: replay PLAN at the lowest priority.
+
+    ``--keep JOURNAL PLAN`` writes a cold run's journal as a plan instead (e.g.
+    ``results/paper/prefetch_journal.jsonl`` to ``paper/prefetch/paper.jsonl``)."""
     args = sys.argv[1:] if argv is None else list(argv)
+    if len(args) == 3 and args[0] == "--keep":
+        print(f"prefetch: {keep_plan(args[1], args[2])} requests kept in {args[2]}", file=sys.stderr)
+        return 0
     if len(args) != 1:
-        print("usage: python -m prodmaps.experiments.prefetch PLAN.jsonl", file=sys.stderr)
+        print("usage: python -m prodmaps.experiments.prefetch PLAN.jsonl\n"
+              "       python -m prodmaps.experiments.prefetch --keep JOURNAL.jsonl PLAN.jsonl", file=sys.stderr)
         return 2
     if hasattr(os, "nice"):
         os.nice(19)

@@ -54,6 +54,9 @@ def test_a_plan_keeps_the_first_order_without_repeats_or_bad_lines(tmp_path):
     line = json.dumps(a, sort_keys=True, separators=(",", ":"))
     plan.write_text("\n".join([line, "not json", json.dumps(b, sort_keys=True, separators=(",", ":")), line, "[1]"]))
     assert prefetch.read_plan(plan) == [a, b]
+    assert prefetch.keep_plan(plan, tmp_path / "kept" / "plan.jsonl") == 2
+    assert prefetch.read_plan(tmp_path / "kept" / "plan.jsonl") == [a, b]
+    assert len((tmp_path / "kept" / "plan.jsonl").read_text().splitlines()) == 2
     assert prefetch.plan_path("root", "paper").as_posix() == "root/paper/prefetch/paper.jsonl"
 
 
@@ -71,3 +74,15 @@ def test_the_prefetcher_process_fills_the_cache_and_skips_what_it_cannot_do(tmp_
     bad = subprocess.run([sys.executable, "-m", "prodmaps.experiments.prefetch"], env=env, capture_output=True,
                          text=True, timeout=60)
     assert bad.returncode == 2 and "usage" in bad.stderr
+
+
+def test_the_paper_plan_is_a_clean_journal_of_the_default_data():
+    from prodmaps.pipeline.registry import find_project_root
+
+    plan = prefetch.plan_path(find_project_root(), "paper")
+    lines = [x for x in plan.read_text().splitlines() if x.strip()]
+    reqs = prefetch.read_plan(plan)
+    assert len(reqs) == len(lines) > 0  # every line parses, none repeated
+    assert {r["op"] for r in reqs} <= {"basis", "descriptor", "no17"}
+    assert {r["dataset"] for r in reqs} == {DS}  # the embedded data only: nothing of FAUST
+    assert all("/" not in json.dumps(r) for r in reqs)  # no paths
