@@ -195,17 +195,7 @@ def no17_demo_map(store: ShapeStore, sid_1: str, sid_2: str, p2p_21, k1: int, k2
         lm = landmark_pairs(store.mesh(sid_1).vertices, p2p_21, rec.n_landmarks)
         return {"C": no17_fit(store.basis(sid_1), store.basis(sid_2), lm, int(k1), int(k2), rec)}
 
-    def request():  # on a miss: a prefetcher replays the map with the dataset's ground truth only
-        from .. import datasets
-
-        try:
-            same = np.array_equal(p2p_21, datasets.ground_truth(store.dataset, sid_1, sid_2))
-        except ValueError:
-            same = False
-        return ({"op": "no17", **store._request, "sid_1": sid_1, "sid_2": sid_2, "k1": int(k1), "k2": int(k2),
-                 "recipe": asdict(rec)} if same else None)
-
-    return store.disk.get("no17", key, compute, request)["C"]
+    return store.disk.get("no17", key, compute)["C"]
 
 
 def _recipe_of(rec) -> NO17Recipe:

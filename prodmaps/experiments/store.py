@@ -17,7 +17,6 @@ from __future__ import annotations
 import functools
 import importlib
 import json
-import os
 from pathlib import Path
 
 import numpy as np
@@ -55,11 +54,8 @@ class DiskCache:
 
     ``get(kind, key, compute)`` returns ``{name: array}`` from disk, or calls ``compute()`` (which
     returns such a dict) with one BLAS thread, stores it atomically and returns it: a stored
-    value is the same whichever process computes it first (a notebook, a worker, the
-    prefetcher of :mod:`prodmaps.experiments.prefetch`). ``request`` (a JSON-able dict naming
-    the call that computes the value, or a function returning one or None, called only then) is
-    appended to the prefetch journal on a miss.
-    ``enabled=False`` never touches the disk.
+    value is the same whichever process computes it first (a notebook's, or a worker's when
+    several notebooks run at once). ``enabled=False`` never touches the disk.
     """
 
     def __init__(self, folder=None, enabled: bool = True):
@@ -70,7 +66,7 @@ class DiskCache:
         digest = sha256_bytes(json.dumps(key, sort_keys=True, default=str).encode())[:32]
         return self.folder / f"{kind}_{digest}.npz"
 
-    def get(self, kind: str, key: dict, compute, request: dict | None = None) -> dict:
+    def get(self, kind: str, key: dict, compute) -> dict:
         from .parallel import one_blas_thread
 
         if not self.enabled:
@@ -80,13 +76,6 @@ class DiskCache:
         if path.is_file():
             with np.load(path, allow_pickle=False) as z:
                 return {k: z[k] for k in z.files}
-        if request is not None:
-            from .prefetch import JOURNAL_ENV, record
-
-            if callable(request):
-                request = request() if os.environ.get(JOURNAL_ENV) else None
-            if request is not None:
-                record(request)
         with one_blas_thread():
             out = compute()
         with atomic_path(path) as tmp:
@@ -134,11 +123,6 @@ class ShapeStore:
         Rows of the two most recently used shapes are kept (memory ``8 n`` bytes a row)."""
         return self._rows.get(sid, lambda: DistanceRows(self.mesh(sid)))
 
-    @property
-    def _request(self) -> dict:
-        """This store in a prefetch request (:mod:`prodmaps.experiments.prefetch`)."""
-        return {"dataset": self.dataset, "n_eig": self.n_eig, "kind": self.kind}
-
     def mesh_key(self, sid: str) -> str:
         return self.memo.get(("mesh_key", sid), lambda: mesh_key(self.mesh(sid)))
 
@@ -153,7 +137,7 @@ class ShapeStore:
                 b = eigenbasis(mesh, self.n_eig, kind=self.kind)
                 return {"vecs": b.vecs, "evals": b.evals, "mass": b.mass}
 
-            z = self.disk.get("eig", key, compute, request={"op": "basis", **self._request, "sid": sid})
+            z = self.disk.get("eig", key, compute)
             self._basis[sid] = Basis(z["vecs"], z["evals"], z["mass"], name=sid)
         full = self._basis[sid]
         if k is None:
@@ -170,9 +154,8 @@ class ShapeStore:
             raise ValueError(f"descriptor must be 'shot' or 'awft', got {name!r}")
         fn = descriptors.shot if name == "shot" else descriptors.awft
         key = {"mesh": self.mesh_key(sid), "code": code_fingerprint(*DESCRIPTOR_CODE[name])}
-        request = {"op": "descriptor", **self._request, "sid": sid, "name": name}
         return self.memo.get(("descriptor", sid, name),
-                             lambda: self.disk.get(name, key, lambda: {"D": fn(self.mesh(sid))}, request)["D"])
+                             lambda: self.disk.get(name, key, lambda: {"D": fn(self.mesh(sid))})["D"])
 
     def family_cache(self, sid: str, families=()) -> Cache:
         """The :class:`Cache` handed to :func:`prodmaps.experiments.families.make_family` for

@@ -54,9 +54,6 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--copy-figures", action="store_true",
                    help="copy the PNGs next to the report (report_figures/) instead of linking into OUT")
     r.add_argument("--no-progress", action="store_true", help="plain lines instead of a progress bar")
-    r.add_argument("--no-prefetch", action="store_true",
-                   help="with --jobs 1, do not compute the profile's per-shape values ahead on the idle core "
-                        "(paper/prefetch/<profile>.jsonl; the numbers are the same either way)")
     r.add_argument("--list", action="store_true", help="list the registered runs and exit")
 
     d = sub.add_parser("diff", help="compare a run folder with a baseline folder",
@@ -103,7 +100,7 @@ def _cmd_reproduce(a) -> int:
     results = execute.reproduce(registry=a.registry, only=a.only, profile=a.profile, dataset=a.dataset,
                            overrides=overrides, out=a.out, jobs=a.jobs, force=a.force,
                            scheduler=a.scheduler, kernel_name=a.kernel, timeout=a.timeout,
-                           progress=not a.no_progress, prefetch=not a.no_prefetch)
+                           progress=not a.no_progress)
     wall = time.perf_counter() - t0
     print(execute.summary(results))
     out_root = execute.profile_folder(a.out, a.profile, a.dataset)

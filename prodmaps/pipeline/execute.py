@@ -505,7 +505,7 @@ class _Progress:
 def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None, overrides=None,
               out="results", jobs: int = 1, force: bool = False, scheduler=None,
               kernel_name: str = "python3", timeout=None, progress: bool = True,
-              stream=None, prefetch: bool = True) -> list[RunResult]:
+              stream=None) -> list[RunResult]:
     """Run the selected registry entries; returns one :class:`RunResult` per run (registry order).
 
     Skips runs whose inputs are unchanged (see the module doc) unless ``force``. ``jobs`` > 1
@@ -513,11 +513,8 @@ def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None,
     ``distributed.Client``) sends one task per run to a Dask cluster instead
     (:mod:`prodmaps.pipeline.schedulers`).
 
-    The runs journal the per-shape values they compute into
-    ``OUT/<profile>/prefetch_journal.jsonl``; with ``jobs=1``, ``prefetch`` and a plan for the
-    profile in the project (``paper/prefetch/<profile>.jsonl``, the journal of a cold run, default
-    data only) a prefetcher computes those values on the core the runs leave idle
-    (:mod:`prodmaps.experiments.prefetch`; the numbers do not depend on it).
+    With ``jobs=1`` each notebook's kernel starts while the previous notebook runs, and a run's
+    HTML rendering, manifest and move into place happen while the next one runs.
     """
     from .schedulers import run_dask, run_pool, thread_env
 
@@ -542,18 +539,6 @@ def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None,
     for r in results.values():
         bar.done(r)
     env = thread_env(jobs if scheduler is None else 1)
-    helper = None
-    if todo:
-        from ..experiments import prefetch as pf
-
-        folder = profile_folder(out, profile, dataset)
-        folder.mkdir(parents=True, exist_ok=True)
-        journal = folder / "prefetch_journal.jsonl"
-        journal.write_text("")  # this invocation's misses only
-        env = {**env, pf.JOURNAL_ENV: str(journal)}
-        plan = pf.plan_path(project_root(registry), profile)
-        if prefetch and jobs <= 1 and scheduler is None and dataset in (None, DEFAULT_DATASET) and plan.is_file():
-            helper = _start_prefetcher(plan, folder / "prefetch.log")
     for t in todo:
         t["env"] = env
     try:
@@ -570,20 +555,7 @@ def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None,
         bar.close()
         if own_stream is not None:
             own_stream.close()
-        if helper is not None:
-            helper.terminate()
-            helper.wait()
     return [RunResult(**results[t["name"]]) for t in tasks]
-
-
-def _start_prefetcher(plan: Path, log: Path):
-    """The prefetcher process of :mod:`prodmaps.experiments.prefetch` on ``plan`` (its stderr in ``log``)."""
-    import subprocess
-
-    env = {k: v for k, v in os.environ.items() if k != "PRODMAPS_PREFETCH_JOURNAL"}
-    with open(log, "wb") as fh:
-        return subprocess.Popen([sys.executable, "-m", "prodmaps.experiments.prefetch", str(plan)],
-                                stdin=subprocess.DEVNULL, stdout=fh, stderr=fh, env=env)
 
 
 def _safe_execute(task, km=None, defer=None, km_log=None) -> dict:
