@@ -57,8 +57,7 @@ class ParameterError(ValueError):
 # ------------------------------------------------------------------------------ one notebook
 def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *,
                  timeout: float | None = None, cwd=None, executed_name: str = "executed.ipynb",
-                 html: bool = True, shown_out_dir: str | None = None, shown_notebook: str | None = None,
-                 km=None):
+                 html: bool = True, shown_out_dir: str | None = None, shown_notebook: str | None = None):
     """Execute ``notebook`` with papermill, writing into ``out_dir``; return the executed notebook path.
 
     ``out_dir`` is passed to the notebook as the ``out_dir`` parameter (absolute path) and the
@@ -72,8 +71,7 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
     kernel signals and awaits multiprocessing's resource tracker, which ignores the signal.
     ``shown_out_dir`` replaces ``out_dir`` in the executed notebook's injected parameters cell
     (the batch runner executes into a temporary folder and shows the run's own folder), and in
-    papermill's metadata, whose ``input_path`` becomes ``shown_notebook`` when given. ``km``: a
-    kernel manager whose kernel was started beforehand (:class:`_NextKernel`); it is stopped here.
+    papermill's metadata, whose ``input_path`` becomes ``shown_notebook`` when given.
     """
     import papermill as pm_
 
@@ -86,11 +84,9 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
         pm_.execute_notebook(
             str(notebook), str(executed), parameters=parameters, kernel_name=kernel_name,
             cwd=str(cwd or Path.cwd()), progress_bar=False, log_output=False,
-            execution_timeout=timeout, shutdown_kernel="immediate", **({} if km is None else {"km": km}),
+            execution_timeout=timeout, shutdown_kernel="immediate",
         )
     finally:
-        if km is not None:
-            _NextKernel.stop(km)
         if shown_out_dir is not None and executed.is_file():
             _show_out_dir(executed, str(out), shown_out_dir, shown_notebook)
         if html and executed.is_file():
@@ -225,87 +221,8 @@ def swap_into_place(tmp: Path, target: Path) -> None:
         shutil.rmtree(old, ignore_errors=True)
 
 
-class _NextKernel:
-    """The next notebook's kernel, started before the current notebook runs so that it boots
-    meanwhile (serial runs; a kernel takes about 0.8 s to start). It is started as papermill
-    would start it (kernel name, the project root as working directory, this process'
-    environment) in the event loop papermill then uses, and stopped at once after its notebook."""
-
-    def __init__(self, kernel_name: str, cwd):
-        self.kernel_name, self.cwd, self.km, self.log = kernel_name, str(cwd), None, None
-
-    def start(self, log: Path) -> None:
-        """Start the kernel, its stderr into ``log`` (the run's ``kernel.log`` takes it over)."""
-        from jupyter_client.manager import AsyncKernelManager
-        from jupyter_core.utils import run_sync
-
-        km = AsyncKernelManager(kernel_name=self.kernel_name)
-        try:
-            with open(log, "wb") as fh:  # the kernel keeps its own descriptor
-                run_sync(km.start_kernel)(cwd=self.cwd, stderr=fh)
-        except Exception:  # papermill starts its own kernel then
-            return
-        self.km, self.log = km, Path(log)
-
-    def take(self):
-        out, self.km, self.log = (self.km, self.log), None, None
-        return out
-
-    @staticmethod
-    def stop(km) -> None:
-        from jupyter_core.utils import run_sync
-
-        try:
-            run_sync(km.shutdown_kernel)(now=True)
-        except Exception:  # already gone
-            pass
-
-
-def _run_serially(todo: list[dict]):
-    """:func:`_safe_execute` of each task in turn, each notebook's kernel started during the previous one."""
-    if not todo:
-        return
-    for env, val in (todo[0].get("env") or {}).items():  # the kernels started ahead inherit them
-        os.environ.setdefault(env, val)
-    same = all(t.get("kernel_name", "python3") == todo[0].get("kernel_name", "python3")
-               and t.get("cwd") == todo[0].get("cwd") for t in todo)
-    ahead = _NextKernel(todo[0].get("kernel_name", "python3"), todo[0].get("cwd") or Path.cwd()) if same else None
-    tails: list[threading.Thread] = []
-
-    def defer(fn):  # a run's HTML, manifest and move into place, while the next notebook runs
-        def run():
-            try:
-                fn()
-            except Exception:  # reported, the other runs go on
-                traceback.print_exc()
-
-        th = threading.Thread(target=run, name="prodmaps-run-tail")
-        th.start()
-        tails.append(th)
-
-    try:
-        for i, t in enumerate(todo):
-            km, km_log = ahead.take() if ahead is not None else (None, None)
-            if ahead is not None and i + 1 < len(todo):
-                nxt = todo[i + 1]
-                Path(nxt["run_dir"]).parent.mkdir(parents=True, exist_ok=True)
-                ahead.start(Path(nxt["run_dir"]).parent / f".{nxt['name']}.kernel.log")
-            yield _safe_execute(t, km, defer, km_log)
-    finally:
-        if ahead is not None and ahead.km is not None:
-            km, km_log = ahead.take()
-            _NextKernel.stop(km)
-            km_log.unlink(missing_ok=True)
-        for th in tails:
-            th.join()
-
-
-def _execute_task(task: dict, km=None, defer=None, km_log: Path | None = None) -> dict:
-    """Execute one planned run (in this process, a pool worker or a Dask worker); ``km``: its
-    kernel, started ahead (:class:`_NextKernel`), whose stderr went to ``km_log`` (moved into the
-    run's ``kernel.log``). ``defer(fn)``: run the run's last steps (the
-    HTML rendering, the manifest, the move into place) later, e.g. in a thread while the next
-    notebook runs; the manifest's ``seconds`` are then the execution's alone."""
+def _execute_task(task: dict) -> dict:
+    """Execute one planned run (in this process, a pool worker or a Dask worker)."""
     name, target = task["name"], Path(task["run_dir"])
     target.parent.mkdir(parents=True, exist_ok=True)
     for env, val in (task.get("env") or {}).items():
@@ -320,9 +237,8 @@ def _execute_task(task: dict, km=None, defer=None, km_log: Path | None = None) -
     try:
         with _stderr_to(tmp / "kernel.log"):
             run_notebook(task["notebook"], tmp, task["params"], task.get("kernel_name", "python3"),
-                         timeout=task.get("timeout"), cwd=task.get("cwd"), html=defer is None,
-                         shown_out_dir=_shown_path(target, root), shown_notebook=shown_notebook, km=km)
-        _take_kernel_log(km_log, tmp / "kernel.log")
+                         timeout=task.get("timeout"), cwd=task.get("cwd"),
+                         shown_out_dir=_shown_path(target, root), shown_notebook=shown_notebook)
         _relocate_out_dir(tmp / "results.json", tmp, target, root)
         if not (tmp / "results.json").is_file():
             raise RuntimeError("the notebook finished but wrote no results.json into out_dir")
@@ -330,7 +246,6 @@ def _execute_task(task: dict, km=None, defer=None, km_log: Path | None = None) -
         if not isinstance(exc, Exception):  # Ctrl-C / SystemExit: leave no temporary folder behind
             shutil.rmtree(tmp, ignore_errors=True)
             raise
-        _take_kernel_log(km_log, tmp / "kernel.log")
         if exc.__class__.__name__ == "PapermillExecutionError":
             tb = "\n".join(getattr(exc, "traceback", []) or [])
             error = f"{getattr(exc, 'ename', 'Error')}: {getattr(exc, 'evalue', exc)}\n\n{_ANSI.sub('', tb)}"
@@ -340,37 +255,16 @@ def _execute_task(task: dict, km=None, defer=None, km_log: Path | None = None) -
         (tmp / "error.txt").write_text(error)
     seconds = time.perf_counter() - t0
     status = "failed" if error else "ok"
-
-    def finish():
-        if defer is not None and (tmp / "executed.ipynb").is_file():
-            try:
-                export_html(tmp / "executed.ipynb")
-            except Exception as exc:  # a rendering problem must not hide the notebook's own result
-                (tmp / "executed.html.error.txt").write_text(f"HTML export failed: {exc}\n")
-        manifest = {
-            "run": name, "profile": task["profile"], "status": status, "hash": task["hash"],
-            "inputs": task["inputs"], "notebook": shown_notebook, "seconds": round(seconds, 3),
-            "finished": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-            "python": sys.version.split()[0], "outputs": _output_files(tmp),
-        }
-        (tmp / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=True, default=str) + "\n")
-        swap_into_place(tmp, target)
-
-    if defer is None:
-        finish()
-    else:
-        defer(finish)
+    manifest = {
+        "run": name, "profile": task["profile"], "status": status, "hash": task["hash"],
+        "inputs": task["inputs"], "notebook": shown_notebook, "seconds": round(seconds, 3),
+        "finished": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "python": sys.version.split()[0], "outputs": _output_files(tmp),
+    }
+    (tmp / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=True, default=str) + "\n")
+    swap_into_place(tmp, target)
     first = error.strip().splitlines()[:2]
     return RunResult(name, status, seconds, str(target), " | ".join(first)).to_dict()
-
-
-def _take_kernel_log(src: Path | None, dest: Path) -> None:
-    """Append a kernel started ahead's stderr (``src``, then removed) to the run's ``kernel.log``."""
-    if src is None or not src.is_file():
-        return
-    with open(dest, "ab") as out:
-        out.write(src.read_bytes())
-    src.unlink(missing_ok=True)
 
 
 def _is_current(run_dir: Path, h: str) -> bool:
@@ -512,9 +406,6 @@ def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None,
     uses a local process pool; ``scheduler`` (a Dask scheduler address, or a
     ``distributed.Client``) sends one task per run to a Dask cluster instead
     (:mod:`prodmaps.pipeline.schedulers`).
-
-    With ``jobs=1`` each notebook's kernel starts while the previous notebook runs, and a run's
-    HTML rendering, manifest and move into place happen while the next one runs.
     """
     from .schedulers import run_dask, run_pool, thread_env
 
@@ -545,7 +436,7 @@ def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None,
         if scheduler is not None:
             results_iter = run_dask(todo, scheduler, _execute_task, _collect)
         elif jobs <= 1 or len(todo) <= 1:
-            results_iter = _run_serially(todo)
+            results_iter = (_safe_execute(t) for t in todo)
         else:
             results_iter = run_pool(todo, jobs, _execute_task, _collect)
         for r in results_iter:
@@ -558,13 +449,11 @@ def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None,
     return [RunResult(**results[t["name"]]) for t in tasks]
 
 
-def _safe_execute(task, km=None, defer=None, km_log=None) -> dict:
+def _safe_execute(task) -> dict:
     """:func:`_execute_task` in this process; an unexpected error fails that run only."""
     try:
-        return _execute_task(task, km, defer, km_log)
+        return _execute_task(task)
     except Exception as exc:  # e.g. the output folder is not writable
-        if km is not None:
-            _NextKernel.stop(km)
         msg = f"could not run: {type(exc).__name__}: {exc}"
         return RunResult(task["name"], "failed", 0.0, task["run_dir"], msg).to_dict()
 

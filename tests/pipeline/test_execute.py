@@ -437,32 +437,3 @@ def test_a_value_that_does_not_parse_or_has_the_wrong_type_is_refused_up_front()
         execute.plan_runs(runs, profile="smoke", only=["tab01"], overrides={"disk_cache": 1})
     assert execute.plan_runs(runs, profile="smoke", only=["fig04"], overrides={"seed": 3})[0]["params"]["seed"] == 3
 
-
-PID_BODY = """import os, time
-import psutil
-from prodmaps.experiments import results as nbr
-nbr.write_results(out_dir, {"pid": os.getpid(), "born": psutil.Process().create_time(), "now": time.time(),
-                            "workers": os.environ.get("PRODMAPS_WORKERS", "")}, {"profile": profile})
-"""
-
-
-def test_serial_runs_start_each_kernel_during_the_previous_notebook_and_stop_them(project, capsys):
-    import psutil
-
-    for name in ("p1", "p2", "p3"):
-        nb = nbformat.v4.new_notebook()
-        nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
-        nb.cells = [nbformat.v4.new_code_cell('profile = "smoke"\nout_dir = "x"', metadata={"tags": ["parameters"]}),
-                    nbformat.v4.new_code_cell(PID_BODY)]
-        nbformat.write(nb, str(project / "notebooks" / f"{name}.ipynb"))
-    write_registry(project, {n: (f"notebooks/{n}.ipynb", {}) for n in ("p1", "p2", "p3")})
-    out = project / "results"
-    rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(out)], capsys)
-    assert rc == 0 and "3 ran" in _statuses(text), text
-    r = [json.loads((out / "smoke" / n / "results.json").read_text())["results"] for n in ("p1", "p2", "p3")]
-    assert len({x["pid"] for x in r}) == 3  # a fresh kernel per notebook
-    assert r[1]["born"] < r[0]["now"] and r[2]["born"] < r[1]["now"]  # started while the previous one ran
-    assert not [p for p in (out / "smoke").iterdir() if p.name.startswith(".")]  # kernel logs moved into the runs
-    assert all((out / "smoke" / n / "kernel.log").is_file() for n in ("p1", "p2", "p3"))
-    assert not any(psutil.pid_exists(x["pid"]) and psutil.Process(x["pid"]).status() != psutil.STATUS_ZOMBIE
-                   for x in r)  # every kernel stopped
