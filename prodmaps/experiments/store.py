@@ -53,9 +53,8 @@ class DiskCache:
     """Arrays stored as ``.npz`` files named by a hash of their key (a JSON-able dict).
 
     ``get(kind, key, compute)`` returns ``{name: array}`` from disk, or calls ``compute()`` (which
-    returns such a dict) with one BLAS thread, stores it atomically and returns it: a stored
-    value is the same whichever process computes it first (a notebook's, or a worker's when
-    several notebooks run at once). ``enabled=False`` never touches the disk.
+    returns such a dict), stores it atomically and returns it. ``enabled=False`` never touches
+    the disk.
     """
 
     def __init__(self, folder=None, enabled: bool = True):
@@ -67,17 +66,13 @@ class DiskCache:
         return self.folder / f"{kind}_{digest}.npz"
 
     def get(self, kind: str, key: dict, compute) -> dict:
-        from .parallel import one_blas_thread
-
         if not self.enabled:
-            with one_blas_thread():
-                return compute()
+            return compute()
         path = self.path(kind, key)
         if path.is_file():
             with np.load(path, allow_pickle=False) as z:
                 return {k: z[k] for k in z.files}
-        with one_blas_thread():
-            out = compute()
+        out = compute()
         with atomic_path(path) as tmp:
             np.savez(tmp, **out)
         return out

@@ -91,3 +91,21 @@ def test_blocked_route_equals_materialised(basis_0, pairs):
     np.testing.assert_allclose(a_blk, a_full, rtol=0, atol=1e-9 * np.abs(a_full).max())
     np.testing.assert_allclose(blocked.evaluate(a_blk), full.evaluate(a_full), atol=1e-9)
     assert "solver" not in blocked.cache  # nothing materialised
+
+
+def test_a_one_block_extended_basis_is_formed_once_and_gives_the_same_products(basis_0, monkeypatch):
+    import prodmaps.products as pr
+
+    ext = pm.product_basis(basis_0.truncate(8), order=2)
+    assert 8 * ext.n * ext.unique_index.shape[0] <= ext.block_bytes  # one block: kept
+    pr.KEPT_BLOCKS.clear()
+    X = np.random.default_rng(0).standard_normal((ext.unique_index.shape[0], 3))
+    first = ext.solver_matmul(X)
+    calls = []
+    real = pr.evaluate_products
+    monkeypatch.setattr(pr, "evaluate_products", lambda *a: calls.append(1) or real(*a))
+    assert np.array_equal(ext.solver_matmul(X), first) and calls == []  # the kept block, not formed again
+    B_s, _ = ext.solver_basis()
+    np.testing.assert_allclose(first, B_s @ X, rtol=1e-12, atol=1e-12)
+    kept = pr.KEPT_BLOCKS.get(id(ext), lambda: None)[1]
+    assert not kept.flags.writeable  # shared: read-only
