@@ -134,7 +134,7 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
     ranks = {z: [] for z in s.sizes}
     gain_rtol = {z: [] for z in s.sizes}
     cols, seconds = None, []
-    split = collect is not None and callable(getattr(collect, "measure", None))
+    split = _measures(collect)
     workers = 1 if collect is not None and not split else workers
     for ip, rec in map_by_source(_protocol_pair, store, pairs, s, collect, workers=workers):
         cols = rec["cols"]
@@ -156,6 +156,11 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
                   + "".join(f"  [{kM}/{kN}] map dev {map_dev[(kM, kN)][-1]:.3f}" for kM, kN in s.sizes),
                   flush=True)
     return ProtocolResult(s, pairs, errors, cols, map_dev, ranks, gain_rtol, seconds)
+
+
+def _measures(collect) -> bool:
+    """Whether ``collect`` splits its work into ``measure`` (with the pair) and ``add`` (here)."""
+    return collect is not None and callable(getattr(collect, "measure", None))
 
 
 def _protocol_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, s: ProtocolSettings, collect) -> dict:
@@ -220,7 +225,7 @@ def _protocol_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, s: Protocol
         for m, (fa, ft) in outputs.items():
             rec["errors"]["approx"][m] = relative_error(fa, F, b1.mass)
             rec["errors"]["transfer"][m] = relative_error(ft, G, b2.mass)
-        if callable(getattr(collect, "measure", None)):
+        if _measures(collect):
             rec["collected"] = collect.measure(ip, (kM, kN), F, G, cols, b1, b2, outputs)
         elif collect is not None:
             collect(ip, (kM, kN), F, G, cols, b1, b2, outputs)

@@ -436,4 +436,3 @@ def test_a_value_that_does_not_parse_or_has_the_wrong_type_is_refused_up_front()
     with pytest.raises(execute.ParameterError, match="disk_cache"):
         execute.plan_runs(runs, profile="smoke", only=["tab01"], overrides={"disk_cache": 1})
     assert execute.plan_runs(runs, profile="smoke", only=["fig04"], overrides={"seed": 3})[0]["params"]["seed"] == 3
-
