@@ -273,7 +273,9 @@ def _read_ply(fh):
     buf = fh.read()
     fmt, elements, start = _ply_header(buf)
     vert, face, index = _ply_mesh_elements(elements)
-    out = _ply_trimesh(buf, fmt, elements, start, vert, face, index)
+    out = _ply_binary_triangles(buf, fmt, elements, start, vert, face, index) if fmt else None
+    if out is None:
+        out = _ply_trimesh(buf, fmt, elements, start, vert, face, index)
     if out is None:  # polygons, or a layout trimesh does not read: our reader (names the problem)
         read = _ply_ascii_rows if fmt == "" else _ply_binary_rows
         data = read(buf, start, elements, fmt, wanted={"vertex": ("x", "y", "z"), "face": (index,)})
@@ -282,6 +284,25 @@ def _read_ply(fh):
                                     for c in "xyz"])
         out = vertices, _faces_array(data["face"][index])
     return out
+
+
+def _ply_binary_triangles(buf, fmt, elements, start, vert, face, index):
+    """``(vertices, faces)`` of a binary PLY whose elements up to the mesh's are fixed-size records
+    and whose faces are all triangles, read as structured views (no per-record work, no trimesh
+    import); None otherwise (then trimesh or the record-by-record reader)."""
+    recs, pos = {}, start
+    for el in elements:
+        rec = _ply_fixed_records(buf, pos, el, fmt)
+        if rec is None:
+            return None
+        recs[el.name], pos = rec, pos + rec.nbytes
+        if vert.name in recs and face.name in recs:
+            break
+    fidx = recs[face.name][index]  # (F, m) for lists of m indices
+    if vert.count == 0 or face.count == 0 or fidx.ndim != 2 or fidx.shape[1] != 3:
+        return None
+    vertices = np.column_stack([recs[vert.name][c].astype(np.float64) for c in "xyz"])  # (V, 3)
+    return vertices, fidx.astype(np.int64)
 
 
 def _ply_trimesh(buf, fmt, elements, start, vert, face, index):

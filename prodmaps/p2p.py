@@ -44,6 +44,8 @@ near tie in high ones (the extended embedding has up to ~2.5k dimensions).
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from .basis import Basis
@@ -62,6 +64,9 @@ PRUNE_MIN_DIM = 128  # gemm: products on at least this many leading coordinates 
 PRUNE_SHARE = 0.995  # ... and on as many as hold this share of the points' spread
 KDTREE_MAX_EFFECTIVE_DIM = 24  # auto: kd-tree above KDTREE_MAX_DIM when the points' effective dimension is this low
 NN_METHODS = ("auto", "kdtree", "gemm")
+PROBE_MIN_DIM = 8  # auto: a kd-tree pick above this dimension is checked against the products ...
+PROBE_QUERIES = 256  # ... on this many queries each, when there are at least 4x as many (_nn_probe)
+_clock = time.perf_counter  # the probe's clock (a test replaces it)
 
 
 def effective_dimension(P: np.ndarray) -> float:
@@ -136,10 +141,10 @@ def _nn_gemm(Q, P, block):
     return idx
 
 
-def _nn_kdtree(Q, P, block):
+def _nn_kdtree(Q, P, block, tree=None):
     from scipy.spatial import cKDTree
 
-    tree = cKDTree(P)
+    tree = cKDTree(P) if tree is None else tree
     if P.shape[0] == 1:
         return np.zeros(Q.shape[0], dtype=np.int64)
     dist, nn = tree.query(Q, k=2, workers=-1)  # (n_q, 2) the two nearest
@@ -150,6 +155,31 @@ def _nn_kdtree(Q, P, block):
     amb = np.flatnonzero(dist[:, 1] ** 2 <= dist[:, 0] ** 2 * (1.0 + 4.0 * (d + 8) * _U64))
     if amb.size:
         idx[amb] = _nn_gemm(Q[amb], P, block)
+    return idx
+
+
+def _nn_probe(Q, P, block):
+    """``"auto"`` between the kd-tree and the products when neither clearly wins: the first
+    ``PROBE_QUERIES`` queries by the kd-tree, the next as many by the products, both timed, and
+    the rest by the one that was faster per query. A kd-tree's cost depends on how far the
+    queries lie from the points, not only on the dimension (measured on 5k vertices, one
+    thread, 40 dimensions: 0.03 s for queries near the points, 0.2-0.3 s for the spectral
+    embeddings of ICP's first iterations, where the products take 0.04 s). Every query gets the
+    exact answer either way, so the choice never changes the result."""
+    from scipy.spatial import cKDTree
+
+    s = PROBE_QUERIES
+    idx = np.empty(Q.shape[0], dtype=np.int64)
+    tree = cKDTree(P)
+    t1 = _clock()
+    idx[:s] = _nn_kdtree(Q[:s], P, block, tree)
+    t2 = _clock()
+    idx[s:2 * s] = _nn_gemm(Q[s:2 * s], P, block)
+    t3 = _clock()
+    rest = Q.shape[0] - 2 * s
+    kd = (t2 - t1) * rest / s  # per-query cost times the rest (the tree is built already)
+    mm = (t3 - t2) * rest / s
+    idx[2 * s:] = _nn_kdtree(Q[2 * s:], P, block, tree) if kd <= mm else _nn_gemm(Q[2 * s:], P, block)
     return idx
 
 
@@ -172,7 +202,10 @@ def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None
       points' :func:`effective_dimension` is at most ``KDTREE_MAX_EFFECTIVE_DIM`` (measured:
       the extended embedding at 29/39, 150 coordinates of effective dimension 18, 0.19 s by
       kd-tree against 0.28 s by products) or when the brute force would compare more than
-      ``GEMM_MAX_PAIRS`` pairs; ``"gemm"`` otherwise.
+      ``GEMM_MAX_PAIRS`` pairs; ``"gemm"`` otherwise. A kd-tree pick above ``PROBE_MIN_DIM``
+      dimensions with at least ``4 * PROBE_QUERIES`` queries is checked: both methods answer
+      ``PROBE_QUERIES`` queries, timed, and the faster one answers the rest (a kd-tree's cost
+      depends on how far the queries lie from the points).
 
     Returns ``idx (n_q,)`` int64 (and the Euclidean distances ``(n_q,)`` if ``return_distance``).
     """
@@ -195,8 +228,14 @@ def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None
         big = float(Q.shape[0]) * float(P.shape[0]) > GEMM_MAX_PAIRS
         low = Q.shape[1] <= KDTREE_MAX_DIM or effective_dimension(P) <= KDTREE_MAX_EFFECTIVE_DIM
         method = "kdtree" if (low or big) else "gemm"
-    idx = np.zeros(Q.shape[0], dtype=np.int64) if Q.shape[0] == 0 else (
-        _nn_kdtree(Q, P, block) if method == "kdtree" else _nn_gemm(Q, P, block))
+        if method == "kdtree" and not big and Q.shape[1] > PROBE_MIN_DIM and Q.shape[0] >= 4 * PROBE_QUERIES:
+            method = "probe"
+    if Q.shape[0] == 0:
+        idx = np.zeros(0, dtype=np.int64)
+    elif method == "probe":
+        idx = _nn_probe(Q, P, block)
+    else:
+        idx = _nn_kdtree(Q, P, block) if method == "kdtree" else _nn_gemm(Q, P, block)
     if not return_distance:
         return idx
     diff = Q - P[idx]
@@ -263,13 +302,19 @@ def extended_embeddings(
     n_eig=None,
     rtol: float = 1e-3,
     pairs: str = "unique",
+    vertices=None,
 ):
     """Canonical coefficients used by the extended conversion.
 
     Returns ``(emb_1 (n1, r), emb_2 (n2, r), info)``: the transferred squared heat kernels of
     the vertices of shape 1 and the squared heat kernels of the vertices of shape 2, both as
     canonical coefficients of shape 2's extended basis (``r`` retained singular values), plus
-    a dict of the parameters used. Arguments as in :func:`from_fmap`.
+    a dict of the parameters used. Arguments as in :func:`from_fmap`; ``vertices`` (optional
+    ``(m,)`` shape-2 vertex indices) gives ``emb_2`` of those vertices only, ``(m, r)``.
+
+    Cost: the map and the canonical projection are composed first, ``(Σ_r V_rᵀ C~) a1ᵀ``
+    (``r × K1`` times ``K1 × n1``), not ``Σ_r V_rᵀ (C~ a1ᵀ)`` (``K2 × K1`` times ``K1 × n1``
+    first): the same product, ``K2/r``-fold fewer operations on the vertices.
     """
     import prodmaps as pm
 
@@ -288,11 +333,11 @@ def extended_embeddings(
     # (a1/a2)². Equal areas change nothing; scaling either mesh changes no point of the result.
     ratio = b2.area / b1.area
     a1 = _heat_squares_of_source(b1, t, n_eig, pairs)  # (n1, K1)
-    a2 = heat_square_coefficients(b2, t * ratio, n_eig, pairs)  # (n2, K2)
+    a2 = heat_square_coefficients(b2, t * ratio, n_eig, pairs, points=vertices)  # (n2 or m, K2)
     Ct = pm.extend_fmap(C, b1, b2, order=2, pairs=pairs)  # (K2, K1)
     op = pm.product_basis(b2, order=2, pairs=pairs).operator("svd", rtol=rtol)
-    emb_1 = np.asarray(op.canonical(Ct @ a1.T)).T / ratio**2  # (n1, r)
-    emb_2 = np.asarray(op.canonical(a2.T)).T  # (n2, r)
+    emb_1 = a1 @ (np.asarray(op.canonical(Ct)).T / ratio**2)  # (n1, K1) @ (K1, r)
+    emb_2 = np.asarray(op.canonical(a2.T)).T  # (n2 or m, r)
     return emb_1, emb_2, {"t": t, "n_eig": n_eig, "rtol": rtol, "pairs": pairs, "dim": emb_1.shape[1]}
 
 
@@ -337,7 +382,5 @@ def from_fmap(
         bad = set(params) - allowed
         if bad:
             raise TypeError(f"unknown parameters for method='extended': {sorted(bad)}; allowed: {sorted(allowed)}")
-        emb_1, emb_2, _ = extended_embeddings(C, basis_1, basis_2, **params)
-        if vertices is not None:
-            emb_2 = emb_2[vertices]  # (m, r)
+        emb_1, emb_2, _ = extended_embeddings(C, basis_1, basis_2, vertices=vertices, **params)  # (n1, r), (m, r)
     return nearest_neighbors(emb_2, emb_1, block=block)

@@ -318,6 +318,11 @@ def energy_and_gradient(C: np.ndarray, terms: NO17Terms) -> tuple[float, np.ndar
     return E, G
 
 
+def _symmetric(M: np.ndarray) -> bool:
+    """Whether every ``M[q]`` of ``(p, k, k)`` equals its transpose exactly (bit for bit)."""
+    return bool(np.array_equal(M, M.transpose(0, 2, 1)))
+
+
 def quadratic_form(terms: NO17Terms) -> tuple[np.ndarray, np.ndarray]:
     """The NO17 energy as an explicit quadratic: ``E(C) = ½ cᵀ H c − bᵀ c + const``.
 
@@ -346,8 +351,11 @@ def quadratic_form(terms: NO17Terms) -> tuple[np.ndarray, np.ndarray]:
         P2 = np.einsum("qba,qbc->ac", M2, M2)  # Σ M2ᵀ M2 (k2, k2)
         X = M2.reshape(p, -1).T @ M1.reshape(p, -1)  # (k2², k1²): Σ_q M2[a,c] M1[b,d]
         cross = X.reshape(k2, k2, k1, k1).transpose(0, 2, 1, 3).reshape(n, n)  # Σ M2 ⊗ M1
-        Xt = M2.transpose(0, 2, 1).reshape(p, -1).T @ M1.transpose(0, 2, 1).reshape(p, -1)
-        cross_t = Xt.reshape(k2, k2, k1, k1).transpose(0, 2, 1, 3).reshape(n, n)  # Σ M2ᵀ ⊗ M1ᵀ
+        if _symmetric(M1) and _symmetric(M2):  # multiplication operators: Σ M2ᵀ ⊗ M1ᵀ is the same array
+            cross_t = cross
+        else:
+            Xt = M2.transpose(0, 2, 1).reshape(p, -1).T @ M1.transpose(0, 2, 1).reshape(p, -1)
+            cross_t = Xt.reshape(k2, k2, k1, k1).transpose(0, 2, 1, 3).reshape(n, n)  # Σ M2ᵀ ⊗ M1ᵀ
         H += terms.mu_dcomm * (np.kron(I2, P1) + np.kron(P2, I1) - cross - cross_t)
     b = terms.mu_descr * (terms.D2 @ terms.D1.T).ravel() if terms.mu_descr > 0 else np.zeros(n)
     return 0.5 * (H + H.T), b

@@ -229,6 +229,28 @@ def test_quadratic_form_matches_energy_and_gradient(demo):
     assert abs(0.5 * C.ravel() @ H @ C.ravel() - b @ C.ravel() + E0 - E) < 1e-12 * abs(E)
 
 
+def test_quadratic_form_with_non_symmetric_operators(demo):
+    """The form's shortcut for symmetric multiplication operators (Σ M2ᵀ ⊗ M1ᵀ = Σ M2 ⊗ M1) must
+    not be taken for general operators: the gradient still matches with random non-symmetric M."""
+    from dataclasses import replace
+
+    b1, b2, d1, d2, _ = demo
+    terms = fmaps.no17_terms(b1.truncate(8), b2.truncate(10), d1, d2)
+    rng = np.random.default_rng(5)
+    bent = replace(terms, M1=rng.normal(size=terms.M1.shape), M2=rng.normal(size=terms.M2.shape))
+    C = rng.normal(size=(10, 8))
+    _, G = fmaps.energy_and_gradient(C, bent)
+    H, b = fmaps.quadratic_form(bent)
+    np.testing.assert_allclose(H @ C.ravel() - b, G.ravel(), rtol=0, atol=1e-12 * np.abs(G).max())
+    # operators as built by no17_terms are exactly symmetric, and then the general formula's second
+    # product is bit for bit its first: the shortcut changes no number
+    M1, M2, p = terms.M1, terms.M2, terms.M1.shape[0]
+    assert np.array_equal(M1, M1.transpose(0, 2, 1)) and np.array_equal(M2, M2.transpose(0, 2, 1))
+    X = M2.reshape(p, -1).T @ M1.reshape(p, -1)
+    Xt = M2.transpose(0, 2, 1).reshape(p, -1).T @ M1.transpose(0, 2, 1).reshape(p, -1)
+    assert np.array_equal(X, Xt)
+
+
 def test_direct_solver_is_the_exact_minimiser(demo):
     b1, b2, d1, d2, _ = demo
     B1, B2 = b1.truncate(8), b2.truncate(10)

@@ -194,9 +194,32 @@ def test_effective_dimension_and_auto_on_extended_embeddings(basis_0, basis_13, 
     real = p2p._nn_kdtree
     monkeypatch.setattr(p2p, "_nn_kdtree", lambda *a: calls.append(1) or real(*a))
     assert np.array_equal(nearest_neighbors(e2, e1), _brute_force(e2, e1))
-    assert calls == [1]
+    assert len(calls) >= 1  # the kd-tree, alone or checked by the probe (e2 has thousands of rows)
+    calls.clear()
     Q, P = rng.normal(size=(50, 60)), rng.normal(size=(80, 60))  # isotropic: the products
-    assert np.array_equal(nearest_neighbors(Q, P), _brute_force(Q, P)) and calls == [1]
+    assert np.array_equal(nearest_neighbors(Q, P), _brute_force(Q, P)) and calls == []
+
+
+@pytest.mark.parametrize("kd_faster", [True, False])
+def test_auto_probe_finishes_with_the_faster_method(monkeypatch, kd_faster):
+    """Above PROBE_MIN_DIM with enough queries, a kd-tree pick is checked on PROBE_QUERIES queries
+    per method (timed) and the faster one answers the rest; the answer is the brute force's
+    either way (clock replaced so that both outcomes are exercised)."""
+    from prodmaps import p2p
+
+    rng = np.random.default_rng(7)
+    P = rng.normal(size=(600, 12)) * np.r_[np.ones(3), 1e-3 * np.ones(9)]  # effective dimension ~3
+    Q = rng.normal(size=(4 * p2p.PROBE_QUERIES + 37, 12)) * np.r_[np.ones(3), 1e-3 * np.ones(9)]
+    ticks = iter([0.0, 1.0 if kd_faster else 5.0, 3.0 if kd_faster else 6.0])  # t1, t2, t3
+    monkeypatch.setattr(p2p, "_clock", lambda: next(ticks))
+    used = {"kdtree": [], "gemm": []}
+    real_kd, real_mm = p2p._nn_kdtree, p2p._nn_gemm
+    monkeypatch.setattr(p2p, "_nn_kdtree", lambda Q_, *a: used["kdtree"].append(len(Q_)) or real_kd(Q_, *a))
+    monkeypatch.setattr(p2p, "_nn_gemm", lambda Q_, *a: used["gemm"].append(len(Q_)) or real_mm(Q_, *a))
+    assert np.array_equal(nearest_neighbors(Q, P), _brute_force(Q, P))
+    s, rest = p2p.PROBE_QUERIES, len(Q) - 2 * p2p.PROBE_QUERIES
+    winner, loser = ("kdtree", "gemm") if kd_faster else ("gemm", "kdtree")
+    assert used[winner][0] == s and rest in used[winner] and used[loser][0] == s
 
 
 @pytest.mark.parametrize("method", ["std", "extended"])
@@ -207,6 +230,11 @@ def test_from_fmap_on_sampled_vertices_is_the_full_map_sampled(basis_0, basis_13
     ev = np.sort(np.random.default_rng(3).choice(b2.n, 300, replace=False))
     np.testing.assert_array_equal(from_fmap(C, b1, b2, method, vertices=ev), full[ev])
     assert from_fmap(C, b1, b2, method, vertices=ev[:0]).shape == (0,)
+    if method == "extended":  # the sampled target embedding is the full one's rows (computed on those rows only)
+        e1, e2, _ = extended_embeddings(C, b1, b2)
+        s1, s2, _ = extended_embeddings(C, b1, b2, vertices=ev)
+        assert s2.shape == (ev.size, e2.shape[1]) and np.array_equal(s1, e1)
+        np.testing.assert_allclose(s2, e2[ev], rtol=0, atol=1e-13 * np.abs(e2).max())
     with pytest.raises(ValueError, match="vertices indices out of range"):
         from_fmap(C, b1, b2, method, vertices=np.array([b2.n]))
     with pytest.raises(ValueError, match="integer"):
