@@ -37,6 +37,8 @@ DESCRIPTOR_CODE = {
     "awft": EIGEN_CODE + ("prodmaps.curvature", "prodmaps.descriptors.windowed_fourier",
                           "prodmaps.descriptors.spectral"),
 }
+FAMILY_CODE = tuple(dict.fromkeys(EIGEN_CODE + DESCRIPTOR_CODE["shot"] + DESCRIPTOR_CODE["awft"] + (
+    "prodmaps.experiments.families", "prodmaps.products", "prodmaps.geodesics")))
 
 
 @functools.lru_cache(maxsize=None)
@@ -171,17 +173,28 @@ class ShapeStore:
         unknown = set(families) - set(pfam.FAMILIES)
         if unknown:
             raise ValueError(f"unknown families {sorted(unknown)}; choose from {list(pfam.FAMILIES)}")
-        mesh, basis = self.mesh(sid_1), self.basis(sid_1)
-        cache = self.family_cache(sid_1, fams)
-        Fs, Gs, cols, start = [], [], {}, 0
+        Fs, cols, start = [], {}, 0
         for fam in fams:
-            F1, G2 = pfam.make_family(fam, mesh, basis, k_M=k_M, seed=pfam.family_seed(seed, pair_index, fam),
-                                      p2p_21=p2p_21, cache=cache)
+            F1 = self.family(sid_1, fam, k_M=k_M, seed=pfam.family_seed(seed, pair_index, fam))
             Fs.append(F1)
-            Gs.append(G2)
             cols[fam] = slice(start, start + F1.shape[1])
             start += F1.shape[1]
-        return np.hstack(Fs), np.hstack(Gs), cols
+        F = np.hstack(Fs)  # (n1, m)
+        return F, pfam.pull_back(F, p2p_21), cols
+
+    def family(self, sid_1: str, name: str, *, k_M: int, seed: int) -> np.ndarray:
+        """The functions ``(n1, m)`` of family ``name`` on ``sid_1``
+        (:func:`prodmaps.experiments.families.make_family` with its default options), stored on
+        disk: the tables, Figure 8 and the studies draw the same families on the same pairs."""
+        key = {"mesh": self.mesh_key(sid_1), "n_eig": self.n_eig, "kind": self.kind, "family": name,
+               "k_M": int(k_M), "seed": int(seed), "code": code_fingerprint(*FAMILY_CODE)}
+
+        def compute():
+            cache = self.family_cache(sid_1, [name])
+            F1, _ = pfam.make_family(name, self.mesh(sid_1), self.basis(sid_1), k_M=k_M, seed=seed, cache=cache)
+            return {"F": F1}
+
+        return self.disk.get("family", key, compute)["F"]
 
     def __repr__(self) -> str:
         return (f"ShapeStore({self.dataset!r}, n_eig={self.n_eig}, kind={self.kind!r}, "

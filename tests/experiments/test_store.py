@@ -77,3 +77,22 @@ def test_family_functions_are_seeded_by_family_not_by_subset(store):
     assert np.array_equal(G, F[gt]) and F.shape == (5002, 13)
     with pytest.raises(ValueError, match="unknown families"):
         store.family_functions("anny_000", gt, 0, ["hks"], k_M=9, seed=0)
+
+
+def test_families_are_stored_and_equal_a_fresh_draw(store, tmp_path, monkeypatch):
+    """Each family is computed once per machine (the tables, Figure 8 and the studies draw the same
+    families on the same pairs): read back exactly, keyed by seed, k_M and the store's basis."""
+    from prodmaps.experiments import families as pfam
+
+    seed = pfam.family_seed(0, 3, "Indicator")
+    F = store.family("anny_000", "Indicator", k_M=9, seed=seed)
+    ref, _ = pfam.make_family("Indicator", pm.datasets.load_shape(DS, "anny_000"), store.basis("anny_000"),
+                              k_M=9, seed=seed)
+    assert np.array_equal(F, ref)
+    assert len(list((tmp_path / "cache").glob("family_*.npz"))) == 1
+    other = ShapeStore(DS, 20, cache_folder=tmp_path / "cache")  # another process: read, not drawn again
+    with monkeypatch.context() as mp:
+        mp.setattr(pfam, "make_family", lambda *a, **k: pytest.fail("drawn again"))
+        assert np.array_equal(other.family("anny_000", "Indicator", k_M=9, seed=seed), F)
+    assert not np.array_equal(store.family("anny_000", "Indicator", k_M=9, seed=seed + 1), F)  # another seed
+    assert len(list((tmp_path / "cache").glob("family_*.npz"))) == 2
