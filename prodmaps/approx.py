@@ -231,6 +231,20 @@ class ApproximationOperator:
             coefs = self.basis.expand().T @ coefs  # S a: ordered -> scaled unique
         return self._sV @ coefs
 
+    def span_factors(self) -> np.ndarray:
+        """``P`` ``(K, r)`` such that ``B P`` is an A-orthonormal basis of the span Approach B keeps.
+
+        ``P = D V_r Σ_r⁻¹`` (Approach B only), in the basis' own column convention: the columns
+        of ``B P`` are ``U_r / sqrt(A)``, so ``canonical(coefficients(f)) = (B P)ᵀ A f`` are the
+        coordinates of ``f``'s approximation in that basis.
+        """
+        if self._sV is None:
+            raise ValueError("span_factors needs an Approach B operator (method='svd')")
+        P = self._P if self._P is not None else self._M @ self._sV.T  # (K_u, r); M sVᵀ = D V Σ⁻¹
+        if isinstance(self.basis, ProductBasis) and self.basis.pairs == "ordered":
+            P = self.basis.expand() @ P  # Sᵀ P: B_o Sᵀ P = B_s P (S has orthonormal rows)
+        return np.asarray(P)
+
     def reconstruct(self, F) -> np.ndarray:
         """The approximation ``B a`` of ``F`` in the basis."""
         a = self.coefficients(F)

@@ -27,9 +27,11 @@ through coordinates in an A-orthonormal basis ``Q2`` of it (area inner product):
   ``Σ_j ||C Φ1ᵀA1 Q_{z1}(f_j) - Φ2ᵀA2 Q_{z2}(T f_j)||²``, i.e. ``||C Q_1 - Q_2 C||²`` for the
   ``(k+1, k)`` "operators" ``Q_s`` whose columns are the actions on the test functions.
 * ``"ext"`` (the paper's change): ``T h = B2 C~ a(h)`` with ``a(h)`` the Approach-B
-  coefficients of ``h`` in the extended basis ``B1`` of shape 1 (SVD threshold ``rtol``),
-  ``C~ = extend_fmap(C, ..., pairs="unique")`` ``(K2, K1)``, and ``Q2`` an orthonormal basis of
-  the span of ``B2``: ``||C~ Q~_1 - Q~_2 C~||²`` on the extended test functions; products let
+  coefficients of ``h`` in the extended basis ``B1`` of shape 1 (SVD threshold ``rtol``; the
+  library's operator ``ProductBasis.operator("svd")`` with its unit-Euclidean factors, one
+  truncation for the whole package), ``C~ = extend_fmap(C, ..., pairs="unique")`` ``(K2, K1)``,
+  and ``Q2`` an A-orthonormal basis of the span the same operator keeps in ``B2``:
+  ``||C~ Q~_1 - Q~_2 C~||²`` on the extended test functions; products let
   the map carry the high-frequency functions ``Q_z(f_j)``.
 * ``"default"``: ``T h`` is the library's default extended transfer of ``h``
   (:func:`prodmaps.safe_transfer.safe_operator` of ``C``, no threshold), compared in the same
@@ -170,7 +172,8 @@ def _check_C(C, k1, k2):
 
 def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Basis, C_12=None, *,
                         kind: str = "ext", N: int = 4, tests: str | None = None, rtol: float = 1e-3,
-                        p2p_21=None, span_k: int | None = None, power: float | None = 0.0) -> ConsistencyProblem:
+                        p2p_21=None, span_k: int | None = None, power: float | None = 0.0,
+                        normalization: str | None = None) -> ConsistencyProblem:
     """Build the consistency model of a pair of shapes.
 
     Parameters
@@ -192,7 +195,12 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
         ``"std"``, ``"products"`` for ``"ext"`` and ``"p2p"`` (the extended basis replaces the
         basis everywhere); ``"base"`` for ``"default"``. Comparing kinds, pass the same
         ``tests`` to all of them (``"pairs"`` is available to every kind).
-    rtol : SVD threshold of the extended bases (Approach B, the paper's 1e-3).
+    rtol : SVD threshold of the extended bases (Approach B, the paper's 1e-3), applied by the
+        library's operator (``ProductBasis.operator("svd", rtol=rtol)``): the same truncation as
+        :func:`prodmaps.approximate` and the ``"svd"`` transfer.
+    normalization : that operator's column normalisation (default: the library's
+        ``"euclidean"``; ``"area"`` is the reading this module used before issue 34, kept to
+        measure it).
     p2p_21 : ``(n2,)`` point map, only for ``kind="p2p"``; ``span_k`` its basis size if ``C_12`` is None.
     power : magnitude exponent ``p`` of the action (:func:`~prodmaps.fields.operators.field_action`):
         0 (default) direction only; ``None`` for ``p = N``, the polynomial ``Re(conj(z) g^N)``.
@@ -262,15 +270,16 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
         Tr = (C @ (b1.vecs.T * A1[None, :]))  # (k2, n1) = C Φ1ᵀ A1
     else:
         ext2 = product_basis(b2, 2, "unique") if k2 > 1 else None
-        proj2: SpanProjector = span_projector(ext2.matrix if ext2 else b2.vecs, A2, rtol)
+        # the span the library's Approach B operator keeps (one truncation, its normalisation)
+        proj2: SpanProjector = span_projector(ext2 if ext2 else b2, rtol, normalization)
         Q2 = proj2.Q  # (n2, r)
         if kind == "ext":
             ext1 = product_basis(b1, 2, "unique")
-            proj1 = span_projector(ext1.matrix, A1, rtol)
+            proj1 = span_projector(ext1, rtol, normalization)
             if Ct is None:
                 Ct = extend_fmap(C, b1, b2, order=2, pairs="unique")  # (K2, K1)
-            # a(h) = V1 Σ1⁻¹ Q1ᵀ A1 h ; coords = Σ2 V2ᵀ C~ a(h)
-            P1 = proj1.Vt.T @ ((proj1.Q.T * A1[None, :]) / proj1.s[:, None])  # (K1, n1)
+            # a(h): the library's Approach-B coefficients of h on shape 1; coords = canonical(C~ a(h))
+            P1 = proj1.coefficient_matrix()  # (K1, n1)
             Tr = proj2.from_basis(Ct @ P1)  # (r, n1)
             info.update(K1=ext1.K, K2=ext2.K, rank_1=proj1.rank, rank_2=proj2.rank)
         elif kind == "default":  # coords = Q2ᵀ A2 S(h), S the default transfer (linear in h)

@@ -505,7 +505,7 @@ def test_default_kind_transfers_through_the_default_operator(ell_pair3):
     np.testing.assert_allclose(P.H_1, E.H_1)
     x = np.random.default_rng(0).standard_normal(d["fr1"].n_faces)  # face values
     h = pf.face_to_vertex(d["fr1"]) @ x
-    Q2 = span_projector(pm.product_basis(b2, 2, "unique").matrix, b2.mass, 1e-3).Q
+    Q2 = span_projector(pm.product_basis(b2, 2, "unique"), 1e-3).Q
     expected = Q2.T @ (b2.mass * safe_operator(C, b1, b2)(h))
     np.testing.assert_allclose(P.W_1.T @ x, expected, rtol=1e-8, atol=1e-10 * np.abs(expected).max())
     z_ref, _ = pf.pushforward_field(d["fr1"], d["z1"], d["fr2"], d["p"])
@@ -514,3 +514,69 @@ def test_default_kind_transfers_through_the_default_operator(ell_pair3):
         consistency_problem(d["fr1"], b1, d["fr2"], b2, None, kind="default")
     with pytest.raises(ValueError, match="products"):
         consistency_problem(d["fr1"], b1, d["fr2"], b2, C, kind="default", tests="products")
+
+
+# ----------------------------------------------------------------------------- C~ through the library's Approach B
+def test_span_projector_is_the_library_approach_b_operator(ell_pair3):
+    from prodmaps.fields.operators import span_projector
+
+    b = ell_pair3["b1"].truncate(8)  # k = 7
+    ext = pm.product_basis(b, 2, "unique")
+    op = ext.operator("svd", rtol=1e-3)
+    proj = span_projector(ext, 1e-3)
+    assert proj.operator is op and proj.rank == op.rank < ext.K  # the library's cached operator, truncated
+    F = np.random.default_rng(1).standard_normal((b.n, 4))
+    a = pm.approximate(F, ext, "svd", rtol=1e-3)
+    np.testing.assert_allclose(proj.basis_coefficients(F), a, rtol=1e-10, atol=1e-10 * np.abs(a).max())
+    np.testing.assert_allclose(proj.coefficient_matrix() @ F, a, rtol=1e-7, atol=1e-8 * np.abs(a).max())
+    Q = proj.Q
+    np.testing.assert_allclose(Q.T @ (b.mass[:, None] * Q), np.eye(proj.rank), atol=1e-8)
+    R = op.reconstruct(F)  # Q Qᵀ A F is Approach B's approximation; from_basis gives its coordinates
+    np.testing.assert_allclose(Q @ proj.coefficients(F), R, atol=1e-8 * np.abs(R).max())
+    np.testing.assert_allclose(proj.from_basis(a), proj.coefficients(F), atol=1e-8 * np.abs(a).max())
+    # the ordered basis (the paper's pairs) spans the same kept space through span_factors
+    Po = pm.product_basis(b, 2, "ordered").operator("svd", rtol=1e-3).span_factors()
+    Qo = pm.product_basis(b, 2, "ordered").evaluate(Po)
+    np.testing.assert_allclose(Qo.T @ (b.mass[:, None] * Qo), np.eye(Po.shape[1]), atol=1e-8)
+    with pytest.raises(ValueError, match="Approach B"):
+        pf.SpanProjector(ext.operator("ridge"))
+
+
+def test_human_span_ranks_are_the_library_operators_and_free_of_units(human_0):
+    # measured on anny_000, rtol 1e-3, unique pairs: the library keeps 12 / 28 / 64 directions at
+    # k = 5 / 10 / 20 in metres and at x100; the former reading of this module (A-orthonormal
+    # factors, no column weights: normalization="area") kept 18 / 37 / 95 in metres and 11 / 24 / 61 at x100
+    from prodmaps.fields.operators import span_projector
+
+    ranks = {}
+    for s in (1.0, 100.0):
+        B = pm.eigenbasis(pm.Mesh(human_0.vertices * s, human_0.faces), 21)
+        for k in (5, 10, 20):
+            ext = pm.product_basis(B.truncate(k + 1), 2, "unique")
+            r = span_projector(ext, 1e-3).rank
+            assert r == ext.operator("svd", rtol=1e-3).rank
+            ranks[s, k] = (r, span_projector(ext, 1e-3, "area").rank)
+    assert [ranks[1.0, k][0] for k in (5, 10, 20)] == [12, 28, 64]
+    assert all(ranks[1.0, k][0] == ranks[100.0, k][0] for k in (5, 10, 20))  # free of the mesh's units
+    assert all(ranks[1.0, k][1] > ranks[1.0, k][0] and ranks[1.0, k][1] != ranks[100.0, k][1] for k in (5, 10, 20))
+
+
+def test_ext_consistency_transfers_by_the_library_approach_b(ell_pair3):
+    from prodmaps.fields.operators import span_projector
+
+    d = ell_pair3
+    b1, b2 = d["b1"].truncate(7), d["b2"].truncate(7)
+    C = pm.fmap_from_p2p(d["p"], b1, b2)
+    P = consistency_problem(d["fr1"], b1, d["fr2"], b2, C, kind="ext", tests="pairs")
+    ext1, ext2 = pm.product_basis(b1, 2, "unique"), pm.product_basis(b2, 2, "unique")
+    assert P.info["rank_1"] == ext1.operator("svd", rtol=1e-3).rank
+    assert P.info["rank_2"] == ext2.operator("svd", rtol=1e-3).rank
+    x = np.random.default_rng(2).standard_normal(d["fr1"].n_faces)  # face values
+    h = pf.face_to_vertex(d["fr1"]) @ x
+    Ct = pm.extend_fmap(C, b1, b2, order=2, pairs="unique")
+    g = ext2.evaluate(Ct @ pm.approximate(h, ext1, "svd", rtol=1e-3))  # B2 C~ a(h): the library's Approach B
+    expected = span_projector(ext2, 1e-3).coefficients(g)
+    np.testing.assert_allclose(P.W_1.T @ x, expected, rtol=1e-7, atol=1e-9 * np.abs(expected).max())
+    # the former reading is still available, and is another truncation
+    Pa = consistency_problem(d["fr1"], b1, d["fr2"], b2, C, kind="ext", tests="pairs", normalization="area")
+    assert Pa.info["rank_1"] == ext1.operator("svd", rtol=1e-3, normalization="area").rank
