@@ -1,5 +1,8 @@
 # prodmaps — two commands do all the set-up on a fresh machine:
-#   make reproduce   create .venv, install, regenerate every notebook into $(OUT)
+#   make reproduce   create .venv, install, regenerate every notebook into $(OUT) and write its
+#                    report beside the results ($(OUT)/paper/REPORT.md); paper/ is left alone
+#   make publish     the committed paper/REPORT.md(.html) and paper/report_figures/ from $(OUT)/paper
+#                    (refuses a partial run; ALLOW_PARTIAL=1 publishes one and says what is partial)
 #   make test        create/reuse .venv, run ruff, the workflow lint and the whole test suite
 #                    (with the doctests and the docs build, tests/docs/)
 #   make docs        the documentation site into docs/_build/html (DOCS_RUNS=results/smoke for
@@ -11,8 +14,10 @@ OUT    ?= results
 PROFILE ?= paper
 JOBS   ?= 1
 DOCS_RUNS ?=
+ALLOW_PARTIAL ?=
 
-.PHONY: reproduce reproduce-smoke update-baselines report claims test lint bench venv clean-venv strip-notebooks docs
+.PHONY: reproduce reproduce-smoke update-baselines report publish claims test lint bench bench-quick venv clean-venv \
+	strip-notebooks docs
 
 venv: $(VENV)/.installed
 
@@ -34,6 +39,9 @@ update-baselines: venv
 
 report: venv
 	$(PY) -m prodmaps report $(OUT)/paper
+
+publish: venv
+	$(PY) -m prodmaps publish $(OUT)/paper $(if $(ALLOW_PARTIAL),--allow-partial)
 
 claims: venv
 	$(PY) -m prodmaps claims $(OUT)/paper

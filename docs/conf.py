@@ -18,6 +18,12 @@ import prodmaps  # noqa: E402
 from prodmaps.pipeline import gallery  # noqa: E402
 
 _runs = os.environ.get("PRODMAPS_DOCS_RUNS") or None
+if _runs is not None:  # `make docs DOCS_RUNS=results/smoke`: relative to the project root, not to docs/
+    _runs = Path(_runs).expanduser()
+    _runs = _runs if _runs.is_absolute() else ROOT / _runs
+    if not any(_runs.glob("*/executed.ipynb")):
+        raise RuntimeError(f"PRODMAPS_DOCS_RUNS={os.environ['PRODMAPS_DOCS_RUNS']}: no executed notebooks in "
+                           f"{_runs} (expected <run>/executed.ipynb, e.g. results/smoke after `make reproduce-smoke`)")
 _names = gallery.write_gallery(HERE / "_generated" / "gallery", _runs)
 gallery.write_report_page(HERE / "_generated", ROOT / "paper" / "REPORT.md", _names)
 

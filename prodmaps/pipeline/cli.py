@@ -9,8 +9,10 @@ Examples::
     prodmaps reproduce --scheduler tcp://host:8786       # one task per run on a Dask cluster
     prodmaps reproduce --profile smoke --update-baselines   # refresh paper/baselines/smoke/
     prodmaps diff results/smoke/fig03 paper/baselines/smoke/fig03
-    prodmaps report results/paper                        # paper/REPORT.md and .html
+    prodmaps report results/paper                        # results/paper/REPORT.md and .html
+    prodmaps publish                                     # results/paper -> the committed paper/REPORT.md
     prodmaps claims results/paper                        # the verdicts of the claims ledger
+    prodmaps --version
 
 Exit status: 0 on success; 1 if a run failed or a diff found drift; 2 for usage errors.
 """
@@ -27,6 +29,7 @@ __all__ = ["main", "build_parser"]
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="prodmaps", description="Reproduce the paper's figures and tables.")
+    p.add_argument("--version", action="version", version=f"prodmaps {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
 
     r = sub.add_parser("reproduce", help="run the registered notebooks (resumable, parallel)",
@@ -46,10 +49,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--update-baselines", action="store_true",
                    help="copy results.json and PNGs of the runs into paper/baselines/<profile>/<run>/ (smoke only)")
     r.add_argument("--registry", help="run registry file (default $PRODMAPS_RUNS or paper/runs.toml)")
-    r.add_argument("--timeout", type=float, default=None, help="per-cell timeout in seconds")
+    r.add_argument("--timeout", type=_positive_seconds, default=None, help="per-cell timeout in seconds (> 0)")
     r.add_argument("--kernel", default="python3", help="Jupyter kernel name (default python3)")
-    r.add_argument("--report", metavar="PATH", help="where to write the report (default: paper/REPORT.md "
-                   "for the paper profile of the default registry, else OUT/<profile>/REPORT.md)")
+    r.add_argument("--report", metavar="PATH", help="where to write the report (default: OUT/<profile>/REPORT.md, "
+                   "beside the results; the committed paper/REPORT.md changes only by `prodmaps publish`)")
     r.add_argument("--no-report", action="store_true", help="do not write the report")
     r.add_argument("--copy-figures", action="store_true",
                    help="copy the PNGs next to the report (report_figures/) instead of linking into OUT")
@@ -71,15 +74,59 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("results_dir", nargs="?", default="results/paper", help="e.g. results/paper (default)")
     c.add_argument("--json", action="store_true", help="print the verdicts as JSON")
 
-    rp = sub.add_parser("report", help="write paper/REPORT.md and REPORT.html from a results folder")
+    rp = sub.add_parser("report", help="write RESULTS_DIR/REPORT.md and REPORT.html from a results folder")
     rp.add_argument("results_dir", nargs="?", default="results/paper", help="e.g. results/paper (default)")
-    rp.add_argument("--out", help="Markdown path (default: paper/REPORT.md for OUT/paper of the default "
-                    "registry, else RESULTS_DIR/REPORT.md); HTML goes beside it")
+    rp.add_argument("--out", help="Markdown path (default: RESULTS_DIR/REPORT.md; the committed paper/REPORT.md "
+                    "is written only by `prodmaps publish`); HTML goes beside it")
     rp.add_argument("--registry", help="run registry file")
     rp.add_argument("--published", help="published tables CSV (default: the one shipped with the package)")
     rp.add_argument("--copy-figures", action="store_true",
                     help="copy the PNGs into <report folder>/report_figures/ and link those")
+    pb = sub.add_parser("publish", help="regenerate the committed paper/REPORT.md from a complete paper run",
+                        description="Write paper/REPORT.md and .html from RESULTS_DIR (default results/paper), "
+                                    "copy the figures it shows into paper/report_figures/ and link the committed "
+                                    "notebooks, so every local link resolves in a fresh clone. Refuses a partial "
+                                    "run (missing, failed, other profile, overridden parameters) unless "
+                                    "--allow-partial. A prepared dataset's runs (RESULTS_DIR-faust) are reported "
+                                    "when present; otherwise its column and sections are kept from the committed "
+                                    "report.")
+    pb.add_argument("results_dir", nargs="?", default=None, help="default: results/paper of the project")
+    pb.add_argument("--allow-partial", action="store_true", help="publish anyway; the report says what is partial")
+    pb.add_argument("--registry", help="run registry file")
+    pb.add_argument("--published", help="published tables CSV (default: the one shipped with the package)")
     return p
+
+
+def _version() -> str:
+    from importlib import metadata
+
+    try:
+        return metadata.version("prodmaps")
+    except metadata.PackageNotFoundError:  # a source tree that is not installed
+        from .. import __version__
+
+        return __version__
+
+
+def _positive_seconds(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not v > 0 or v != v or v == float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r}: the per-cell timeout must be a positive number of seconds")
+    return v
+
+
+def _check_dataset(name: str) -> None:
+    """Refuse an unknown or unprepared dataset before anything runs (and before any folder is made)."""
+    from .. import datasets
+
+    if name not in datasets.names():
+        raise ValueError(f"unknown dataset {name!r}; registered datasets: {', '.join(datasets.names())}")
+    if name not in datasets.prepared():
+        raise ValueError(f"dataset {name!r} is not prepared under {datasets.data_root()}: prepare it with "
+                         f"`python -m prodmaps.prepare {name} --archive ...` (or set PRODMAPS_DATA)")
 
 
 def _cmd_reproduce(a) -> int:
@@ -96,6 +143,13 @@ def _cmd_reproduce(a) -> int:
     if a.update_baselines and a.profile != "smoke":
         raise ValueError("--update-baselines refreshes the smoke baselines: add --profile smoke")
     overrides = registry.parse_params(a.param)
+    if a.dataset is not None:
+        _check_dataset(a.dataset)
+    if a.report and not a.no_report:
+        root = registry.project_root(a.registry)
+        if Path(a.report).resolve() == (root / "paper" / "REPORT.md").resolve():
+            raise ValueError("the committed paper/REPORT.md is written only by `prodmaps publish` (make publish), "
+                             "which refuses partial runs; drop --report to write OUT/<profile>/REPORT.md")
     t0 = time.perf_counter()
     results = execute.reproduce(registry=a.registry, only=a.only, profile=a.profile, dataset=a.dataset,
                            overrides=overrides, out=a.out, jobs=a.jobs, force=a.force,
@@ -112,19 +166,15 @@ def _cmd_reproduce(a) -> int:
     if not a.no_report:
         from .report import build_report
 
-        root = registry.project_root(a.registry)
-        default_registry = registry.registry_path(a.registry) == root / registry.REGISTRY
         main_root = execute.profile_folder(a.out, a.profile)  # the embedded data's runs; other datasets beside
         if not main_root.is_dir():
             main_root = out_root
-        if a.report:
-            md = Path(a.report)
-        elif a.profile == "paper" and default_registry:
-            md = root / "paper" / "REPORT.md"
-        else:
-            md = main_root / "REPORT.md"
+        md = Path(a.report) if a.report else main_root / "REPORT.md"
         md, html = build_report(main_root, md, registry=a.registry, copy_figures=a.copy_figures)
         print(f"report: {md} and {html}")
+        if a.profile == "paper":
+            print("the committed paper/REPORT.md is unchanged; publish this run with `make publish` "
+                  "(prodmaps publish)")
     return 1 if any(r.status == "failed" for r in results) else 0
 
 
@@ -202,15 +252,21 @@ def _cmd_report(a) -> int:
 
     folder = Path(a.results_dir)
     _check_results_folder(folder, set(registry.load_registry(a.registry)))
-    out = a.out
-    if out is None:  # only the paper profile of the default registry writes the committed report
-        root = registry.project_root(a.registry)
-        default_registry = registry.registry_path(a.registry) == root / registry.REGISTRY
-        out = (root / "paper" / "REPORT.md" if folder.resolve().name == "paper" and default_registry
-               else folder / "REPORT.md")
+    out = a.out if a.out is not None else folder / "REPORT.md"  # beside the results; paper/: `publish`
     md, html = build_report(a.results_dir, out, registry=a.registry, published=a.published,
                             copy_figures=a.copy_figures)
     print(f"report: {md} and {html}")
+    return 0
+
+
+def _cmd_publish(a) -> int:
+    from .report import publish
+
+    md, html, problems = publish(a.results_dir, registry=a.registry, allow_partial=a.allow_partial,
+                                 published=a.published)
+    print(f"published: {md} and {html} (figures in {md.parent / 'report_figures'})")
+    for p in problems:
+        print(f"partial: {p}")
     return 0
 
 
@@ -220,7 +276,7 @@ def main(argv=None) -> int:
     a = parser.parse_args(argv)
     try:
         return {"reproduce": _cmd_reproduce, "diff": _cmd_diff, "report": _cmd_report,
-                "claims": _cmd_claims}[a.command](a)
+                "claims": _cmd_claims, "publish": _cmd_publish}[a.command](a)
     except (ValueError, FileNotFoundError, ModuleNotFoundError) as exc:  # incl. RegistryError, ParameterError
         print(f"prodmaps {a.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -45,7 +45,7 @@ from pathlib import Path
 from ..files import sha256_file
 from .hashing import run_hash
 from .notebooks import declared_parameters, export_html
-from .registry import PROFILES, load_registry, project_root
+from .registry import PROFILES, BareWord, load_registry, project_root
 
 __all__ = ["RunResult", "run_notebook", "plan_runs", "reproduce", "summary", "ParameterError", "profile_folder"]
 
@@ -260,11 +260,55 @@ def _execute_task(task: dict) -> dict:
         "inputs": task["inputs"], "notebook": shown_notebook, "seconds": round(seconds, 3),
         "finished": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         "python": sys.version.split()[0], "outputs": _output_files(tmp),
+        "overrides": task.get("overrides") or {}, **run_environment(root),
     }
     (tmp / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=True, default=str) + "\n")
     swap_into_place(tmp, target)
     first = error.strip().splitlines()[:2]
     return RunResult(name, status, seconds, str(target), " | ".join(first)).to_dict()
+
+
+MANIFEST_PACKAGES = ("numpy", "scipy", "trimesh", "threadpoolctl", "robust-laplacian", "potpourri3d", "matplotlib",
+                     "pyvista", "vtk", "pymeshlab", "libigl", "papermill", "nbclient", "ipykernel")
+
+
+def run_environment(root=None) -> dict:
+    """What a run's numbers depend on beyond its inputs: package versions, the BLAS in use
+    (threadpoolctl: library, version, kernel, threads) and the project's git commit."""
+    from importlib import metadata
+
+    versions = {}
+    for name in ("prodmaps", *MANIFEST_PACKAGES):
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            pass
+    blas = []
+    try:
+        import numpy  # noqa: F401  (loads the BLAS threadpoolctl reports)
+        from threadpoolctl import threadpool_info
+
+        blas = [{k: i.get(k) for k in ("internal_api", "version", "architecture", "num_threads", "threading_layer")}
+                for i in threadpool_info() if i.get("user_api") == "blas"]
+    except Exception:  # threadpoolctl missing or failing: the manifest says so, the run goes on
+        blas = []
+    return {"versions": versions, "blas": blas, "commit": git_commit(root)}
+
+
+def git_commit(root=None) -> str:
+    """The project's ``git rev-parse HEAD`` (``+dirty`` with uncommitted changes), or ``"unknown"``."""
+    import subprocess
+
+    cwd = str(root or Path.cwd())
+    try:
+        r = subprocess.run(["git", "rev-parse", "HEAD"], cwd=cwd, capture_output=True, text=True, timeout=10)
+        if r.returncode != 0:
+            return "unknown"
+        d = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=cwd, capture_output=True,
+                           text=True, timeout=20)
+        return r.stdout.strip() + ("+dirty" if d.returncode == 0 and d.stdout.strip() else "")
+    except (OSError, subprocess.TimeoutExpired):
+        return "unknown"
 
 
 def _is_current(run_dir: Path, h: str) -> bool:
@@ -293,6 +337,11 @@ def _check_declared(run, params: dict, where: str) -> None:
             f"{run.notebook.name}; it declares {sorted(declared)}")
     for k, v in params.items():
         default = _literal(declared[k]["default"])
+        if isinstance(v, BareWord) and not isinstance(default, str):
+            raise ParameterError(
+                f"run {run.name!r}: parameter {k}={v!s} is not a literal (number, list, quoted string, ...) and "
+                f"its default in {run.notebook.name} is {declared[k]['default']}: give a literal "
+                f"(e.g. -p '{k}=[4, 8]'), or quote a string (-p '{k}=\"{v!s}\"')")
         if not _same_kind(v, default):
             raise ParameterError(
                 f"run {run.name!r}: parameter {k}={v!r} ({type(v).__name__}) does not match the type of its "
@@ -344,6 +393,10 @@ def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, ov
     unknown = [n for n in names if n not in runs]
     if unknown:
         raise ValueError(f"unknown run(s) {unknown}; registered runs: {list(runs)}")
+    reserved = sorted(set(overrides or {}) & {"out_dir", "profile"})
+    if reserved:
+        raise ParameterError(f"parameter(s) {reserved} are set by the pipeline, not by -p: use --out for the "
+                             "output root (runs go to OUT/<profile>/<run>) and --profile for the profile")
     out = Path(out).resolve()
     tasks = []
     for n in dict.fromkeys(names):
@@ -352,6 +405,11 @@ def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, ov
         _check_declared(run, params, f"registry parameters (params.{profile})")
         if dataset is not None:
             params["dataset"] = dataset
+        for k, v in (overrides or {}).items():  # a default of None leaves the kind to the registry's value
+            ref = params.get(k)
+            if ref is not None and v is not None and not _same_kind(v, ref):
+                raise ParameterError(f"run {n!r}: parameter {k}={v!r} ({type(v).__name__}) does not match the type "
+                                     f"of the registry's params.{profile}.{k} = {ref!r} ({type(ref).__name__})")
         params.update(overrides or {})
         _check_declared(run, {k: v for k, v in params.items() if k not in run.parameters(profile)},
                         "parameters")
@@ -362,6 +420,7 @@ def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, ov
             "name": n, "notebook": str(run.notebook), "params": params, "profile": profile,
             "run_dir": str(profile_folder(out, profile, dataset) / n), "hash": h, "inputs": inputs,
             "kernel_name": kernel_name, "timeout": timeout, "cwd": str(cwd or Path.cwd()),
+            "overrides": dict(overrides or {}),
         })
     return tasks
 

@@ -90,6 +90,8 @@ def _after_title(nb) -> int:
 
 
 _RUN_LINK = re.compile(r"\]\(\.\./results/[^/)]+/([A-Za-z0-9_]+)/executed\.html\)")
+# a published report links the committed notebooks: [text](../notebooks/<file>.ipynb)
+_NB_LINK = re.compile(r"\[([^\]]+)\]\(\.\./notebooks/([^)\s]+?)\.ipynb\)")
 
 
 def write_report_page(dest, report=None, gallery_names=()) -> Path:
@@ -100,6 +102,18 @@ def write_report_page(dest, report=None, gallery_names=()) -> Path:
     text = report.read_text(encoding="utf-8")
     names = set(gallery_names)
     text = _RUN_LINK.sub(lambda m: f"](gallery/{m.group(1)}.ipynb)" if m.group(1) in names else "]()", text)
+    by_notebook = {}
+    try:
+        for name, run in load_registry().items():
+            by_notebook.setdefault(run.notebook.stem, name)
+    except Exception:  # no registry here: the links become plain text
+        pass
+
+    def _nb(m):
+        run = m.group(1) if m.group(1) in names else by_notebook.get(m.group(2))
+        return f"[{m.group(1)}](gallery/{run}.ipynb)" if run in names else m.group(1)
+
+    text = _NB_LINK.sub(_nb, text)
     text = text.replace("]()", "]")  # a run without a gallery page: plain text
     figures = report.parent / "report_figures"
     if figures.is_dir():

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 __all__ = ["PROFILES", "REGISTRY", "Run", "RegistryError", "find_project_root", "registry_path",
-           "project_root", "load_registry", "parse_param", "parse_params"]
+           "project_root", "load_registry", "parse_param", "parse_params", "BareWord"]
 
 PROFILES = ("smoke", "paper")
 REGISTRY = Path("paper") / "runs.toml"
@@ -150,8 +150,14 @@ def load_registry(path=None) -> dict[str, Run]:
     return out
 
 
+class BareWord(str):
+    """A ``-p key=value`` value that parses as no literal (JSON, TOML or Python): kept as a string,
+    accepted only for a parameter whose default is a string (``dataset=faust``)."""
+
+
 def parse_param(text: str):
-    """``key=value`` -> ``(key, value)``; value read as JSON, else a TOML literal, else a string."""
+    """``key=value`` -> ``(key, value)``; value read as JSON, else a TOML literal, else a Python
+    literal, else a string (a :class:`BareWord`)."""
     if "=" not in text:
         raise ValueError(f"parameter {text!r} must look like key=value")
     key, raw = text.split("=", 1)
@@ -166,10 +172,16 @@ def parse_param(text: str):
         return key, _toml().loads(f"v = {raw}")["v"]
     except Exception:
         pass
+    try:
+        import ast
+
+        return key, ast.literal_eval(raw.strip())
+    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
+        pass
     if raw.strip()[:1] in "[{(\"'" and raw.strip():
         raise ValueError(f"parameter {key}={raw!r} looks like a list, table or quoted string but does not parse "
                          "as JSON or TOML (e.g. -p 'k_values=[4, 8]', -p 'name=\"x\"')")
-    return key, raw
+    return key, BareWord(raw)
 
 
 def parse_params(items) -> dict:

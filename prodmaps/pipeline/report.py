@@ -37,7 +37,7 @@ from ..experiments import compare
 from ..experiments.published import PUBLISHED_CSV, TABLE_KEYS, load_published, match_entries
 from .registry import RegistryError, load_registry, project_root
 
-__all__ = ["collect_runs", "build_report"]
+__all__ = ["collect_runs", "build_report", "publish", "PublishError", "partial_problems", "kept_dataset"]
 
 _PACKAGES = ("numpy", "scipy", "matplotlib", "pyvista", "vtk", "pymeshlab", "potpourri3d",
              "robust-laplacian", "papermill", "nbclient", "ipykernel", "dask", "distributed")
@@ -110,6 +110,7 @@ class _Doc:
 
     def __init__(self):
         self.blocks = []
+        self.copied = []  # figures copied beside the report (report_figures/...)
 
     def h(self, level, text):
         self.blocks.append(("h", level, text))
@@ -265,6 +266,15 @@ def _show(path: Path, registry=None) -> str:
         return str(path)
 
 
+def _shown_results(path: Path, base: Path, registry=None) -> str:
+    """A results folder as the report names it: relative to the project (``results/paper/fig02``)
+    when inside it, else relative to the report's folder (never a machine's absolute path)."""
+    try:
+        return Path(path).resolve().relative_to(project_root(registry)).as_posix()
+    except ValueError:
+        return _rel(path, base)
+
+
 def _num(v, signed=False) -> str:
     return "" if v is None else (f"{v:+.3f}" if signed else f"{v:.3f}")
 
@@ -301,7 +311,17 @@ def _link(path: Path, base: Path, text: str) -> str:
     return f"[{text}]({_rel(path, base)})" if path.is_file() else text
 
 
-def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: dict | None = None) -> None:
+def _nb_link(run_folder: Path, base: Path, text: str, notebooks: dict | None = None) -> str:
+    """Link to a run's executed notebook, or (a published report, ``notebooks`` given) to the
+    committed source notebook of the run: ``results/`` is not committed, the notebooks are."""
+    if notebooks is None:
+        return _link(run_folder / "executed.html", base, text)
+    nb = notebooks.get(Path(run_folder).name)
+    return _link(nb, base, text) if nb is not None else text
+
+
+def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: dict | None = None,
+                    notebooks: dict | None = None, kept: dict | None = None) -> None:
     d.h(2, "Claims of the paper, judged on these results")
     lead = {}
     for v in verdicts:
@@ -318,6 +338,10 @@ def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: 
     for ds, vs in other_verdicts.items():
         d.counts(f"On {DATASET_NAMES.get(ds, ds)}", {k: sum(1 for v in vs.values() if v.verdict == k)
                                                     for k in ledger.VERDICTS})
+    kept = kept or {}
+    for ds, k in kept.items():
+        d.counts(f"On {DATASET_NAMES.get(ds, ds)} (kept from the report published at commit `{k.commit}`)",
+                 {v: sum(1 for c in k.column.values() if _verdict_of(c) == v) for v in ledger.VERDICTS})
     d.p("One row per entry of the claims ledger (`prodmaps/experiments/claims.toml`). The verdict is "
         "computed from the runs' numbers by the entry's rule: **holds** at the paper's settings, **holds "
         "with the threshold rule** (Approach B with `select_rtol(method=\"gain\")`, no ground truth) but not "
@@ -330,9 +354,9 @@ def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: 
     by_claim: dict = {}
     for v in verdicts:
         by_claim.setdefault(v.claim.id, {})[v.subset] = v
-    if others:
+    if others or kept:
         d.p("Verdict columns per dataset: *" + DATASET_NAMES.get("anny_humans", "anny_humans") + "* (the default "
-            "data, always) and " + ", ".join(f"*{DATASET_NAMES.get(ds, ds)}*" for ds in others)
+            "data, always) and " + ", ".join(f"*{DATASET_NAMES.get(ds, ds)}*" for ds in [*others, *kept])
             + " (prepared from the user's own files; see its section below).")
     rows = []
     for cid, subs in by_claim.items():
@@ -342,18 +366,21 @@ def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: 
                  ledger.setting_mark(v, "paper"), ledger.setting_mark(v, "rule"), ledger.setting_mark(v, "default")]
         kinds = "; ".join(f"{k}: {subs[k].verdict}" for k in ("intra", "inter") if k in subs)
         if len(c.runs) == 1:
-            links = _link(results_dir / c.runs[0] / "executed.html", base, c.notebook or c.runs[0])
+            links = _nb_link(results_dir / c.runs[0], base, c.notebook or c.runs[0], notebooks)
         else:  # one executed notebook per run the claim is judged on
-            links = ", ".join(_link(results_dir / r / "executed.html", base, r) for r in c.runs)
+            links = ", ".join(_nb_link(results_dir / r, base, r, notebooks) for r in c.runs)
         for ds in others:
             ov = other_verdicts.get(ds, {}).get(cid)
             cells.append(_verdict_cell(ov) + f" (paper {ledger.setting_mark(ov, 'paper')}, default "
                          f"{ledger.setting_mark(ov, 'default')})" if ov and ov.verdict != "not measured here"
                          else "not measured here")
+        for ds, k in kept.items():
+            cells.append(k.column.get(cid, "not measured here"))
         cells += [kinds, v.evidence, links]
         rows.append(cells)
     d.table(["claim", "where", "the paper's words", "verdict", "paper", "rule", "default"]
-            + [f"{DATASET_NAMES.get(ds, ds)}" for ds in others] + ["intra / inter", "evidence", "notebook"], rows)
+            + [f"{DATASET_NAMES.get(ds, ds)}" for ds in [*others, *kept]] + ["intra / inter", "evidence", "notebook"],
+            rows)
 
 
 def _table_summaries(d: "_Doc", infos, published_rows, matches,
@@ -476,6 +503,7 @@ def _figures(d: "_Doc", info, base: Path, copy_figures: bool, prefix: str = "") 
             dest = base / "report_figures" / f"{prefix}{info.name}" / fig.name
             dest.parent.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(fig, dest)
+            d.copied.append(dest.resolve())
             fig = dest
         d.img(_rel(fig, base), f"{info.name} {fig.stem}")
 
@@ -504,7 +532,7 @@ def _dataset_section(d: "_Doc", ds: str, folder: Path, infos, published_rows, ba
             if isinstance(p, (list, tuple)) and len(p) == 2 and list(p) not in pairs:
                 pairs.append(list(p))
                 shapes.update(p)
-    d.p(f"Runs on `{ds}` (`{_rel(folder, base)}`): " + ", ".join(f"`{i.name}`" for i in present) + ". "
+    d.p(f"Runs on `{ds}` (`{_shown_results(folder, base)}`): " + ", ".join(f"`{i.name}`" for i in present) + ". "
         + (f"Shapes: {', '.join(f'`{x}`' for x in sorted(shapes))}. " if shapes else "")
         + (f"{len(pairs)} ordered (source, target) pairs in the tables: "
            + ", ".join(f"{a}→{b}" for a, b in pairs) + "." if pairs else ""))
@@ -592,19 +620,27 @@ def _normalization_section(d: "_Doc", info, base: Path, copy_figures: bool, data
 
 
 def build_report(results_dir, out=None, *, registry=None, published=None, html_out=None,
-                 copy_figures: bool = False, datasets: dict | None = None):
+                 copy_figures: bool = False, datasets: dict | None = None, notebooks: dict | None = None,
+                 kept: dict | None = None, notes=(), generated_by: str = "prodmaps report",
+                 copied: list | None = None):
     """Write the Markdown and HTML reports for ``results_dir`` (e.g. ``results/paper``).
 
-    ``out`` defaults to ``paper/REPORT.md`` of the project; the HTML goes beside it (``.html``).
+    ``out`` defaults to ``RESULTS_DIR/REPORT.md``, beside the results it reads; the HTML goes
+    beside it (``.html``). The committed ``paper/REPORT.md`` is written only by :func:`publish`.
     Image and notebook links are relative to the report's folder. ``copy_figures=True`` copies the
     PNGs into ``<report folder>/report_figures/<run>/`` and links those instead (so a committed
     report shows its figures although ``results/`` is not committed). ``datasets``
     (``{name: folder}``, default: the sibling folders ``<results_dir>-<dataset>``, see
     :func:`other_datasets`) adds a verdict column and a section per prepared dataset.
+    ``notebooks`` (``{run: source notebook}``) links the source notebooks instead of the executed
+    ones; ``kept`` (``{dataset: KeptDataset}``) adds a dataset's column and sections taken from an
+    earlier report; ``notes`` are paragraphs shown under the title. Parameters overridden on the
+    command line (recorded in the runs' manifests) are always shown. ``copied``, a list, receives
+    the paths of the figures copied.
     Returns ``(md_path, html_path)``.
     """
     results_dir = Path(results_dir).resolve()
-    out = Path(out) if out is not None else project_root(registry) / "paper" / "REPORT.md"
+    out = Path(out) if out is not None else results_dir / "REPORT.md"
     out = out.resolve()
     html_out = Path(html_out).resolve() if html_out is not None else out.with_suffix(".html")
     base = out.parent
@@ -618,19 +654,29 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
     verdicts = ledger.evaluate_folder(results_dir)
     extra = other_datasets(results_dir) if datasets is None else {k: Path(v).resolve() for k, v in datasets.items()}
     others = {ds: (f, ledger.evaluate_folder(f)) for ds, f in extra.items()}
+    kept = {ds: k for ds, k in (kept or {}).items() if ds not in others}
 
     d = _Doc()
     d.h(1, "Reproduction report: Improved Functional Mappings via Product Preservation")
     d.p("Nogneng, Melzi, Rodolà, Castellani, Bronstein, Ovsjanikov, Eurographics 2018. "
-        f"Generated by `prodmaps report` from `{_show(results_dir, registry)}` on "
+        f"Generated by `{generated_by}` from `{_show(results_dir, registry)}` on "
         f"{_dt.datetime.now(_dt.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}, "
         f"code at commit `{_git_commit(registry)}`; Python {platform.python_version()} on {platform.system()} "
         f"{platform.machine()}.")
-    _claims_section(d, verdicts, results_dir, base, others)
+    for note in notes:
+        d.p(note)
+    overridden = overridden_parameters(infos)
+    if overridden:
+        d.p("**Parameters overridden on the command line** (these runs do not use the registry's settings): "
+            + "; ".join(f"`{r}`: " + ", ".join(f"`{k}={json.dumps(v)}`" for k, v in ov.items())
+                        for r, ov in overridden.items()) + ".")
+    _claims_section(d, verdicts, results_dir, base, others, notebooks, kept)
     if published_rows:
         _table_summaries(d, infos, published_rows, matches)
     for ds, (folder, _) in others.items():
         _dataset_section(d, ds, folder, collect_runs(folder, registry), published_rows, base, copy_figures)
+    for ds, k in kept.items():
+        d.blocks += k.blocks
     norm = _normalization_run(infos)
     if norm is not None:
         _normalization_section(d, norm, base, copy_figures, norm.doc.get("results", {}).get("dataset", "anny_humans"))
@@ -640,9 +686,9 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
     d.h(2, "Runs")
     rows = []
     for i in infos:
-        nb = i.folder / "executed.html"
         rows.append([f"`{i.name}`", i.reproduces, i.status, "" if i.seconds is None else f"{i.seconds:.1f}",
-                     len(i.figures), _link(nb, base, "executed notebook")])
+                     len(i.figures), _nb_link(i.folder, base, "notebook" if notebooks is not None
+                                              else "executed notebook", notebooks)])
     d.table(["run", "reproduces", "status", "time (s)", "figures", "read"], rows)
     failed = [i.name for i in infos if i.status not in ("ok",)]
     if failed:
@@ -660,8 +706,8 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
         line = f"Status **{i.status}**" + (f", {i.seconds:.1f} s" if i.seconds is not None else "")
         d.p(
             line
-            + f"; outputs in `{_rel(i.folder, base)}`; "
-            + _link(i.folder / "executed.html", base, "executed notebook")
+            + f"; outputs in `{_shown_results(i.folder, base, registry)}`; "
+            + _nb_link(i.folder, base, "notebook" if notebooks is not None else "executed notebook", notebooks)
             + "; every number in `results.json`."
         )
         if i.status == "failed" and (i.folder / "error.txt").is_file():
@@ -698,4 +744,174 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
         tmp = path.with_name(path.name + ".tmp")
         tmp.write_text(text, encoding="utf-8")
         os.replace(tmp, path)
+    if copied is not None:
+        copied += d.copied
     return out, html_out
+
+
+# ------------------------------------------------------------------------------ publishing
+def overridden_parameters(infos) -> dict:
+    """``{run: {name: value}}``: parameters given on the command line (``-p``), from the manifests."""
+    return {i.name: dict(i.manifest["overrides"]) for i in infos
+            if isinstance(i.manifest.get("overrides"), dict) and i.manifest["overrides"]}
+
+
+def _verdict_of(cell: str) -> str:
+    """The verdict a report cell starts with (``"**does not hold** (paper no, ...)"`` -> ``"does not hold"``)."""
+    text = str(cell).replace("**", "").split(" (paper", 1)[0].strip()
+    return max((v for v in ledger.VERDICTS if text.startswith(v)), key=len, default="")
+
+
+@dataclass
+class KeptDataset:
+    """A prepared dataset's verdict column and sections taken from an earlier (committed) report."""
+
+    dataset: str
+    commit: str
+    column: dict  # {claim id: cell}
+    blocks: list  # the dataset's ``##`` sections as _Doc blocks
+
+
+def _split_cells(line: str) -> list[str]:
+    return [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", line.strip()[1:-1])]
+
+
+def _blocks_from_markdown(text: str) -> list:
+    """Parse Markdown written by ``_Doc.markdown`` back into its blocks (so both files render it)."""
+    blocks, lines, i = [], text.splitlines(), 0
+    while i < len(lines):
+        line = lines[i]
+        if not line.strip():
+            i += 1
+        elif line.startswith("```"):
+            j = i + 1
+            while j < len(lines) and not lines[j].startswith("```"):
+                j += 1
+            blocks.append(("code", "\n".join(lines[i + 1:j])))
+            i = j + 1
+        elif line.startswith("#"):
+            level = len(line) - len(line.lstrip("#"))
+            blocks.append(("h", level, line[level:].strip()))
+            i += 1
+        elif line.startswith("|"):
+            j = i
+            while j < len(lines) and lines[j].startswith("|"):
+                j += 1
+            rows = [_split_cells(x) for x in lines[i:j] if not re.fullmatch(r"\|(---\|)+", x.strip())]
+            blocks.append(("table", rows[0], rows[1:]))
+            i = j
+        elif line.startswith("- "):
+            j = i
+            while j < len(lines) and lines[j].startswith("- "):
+                j += 1
+            blocks.append(("ul", [x[2:] for x in lines[i:j]]))
+            i = j
+        else:
+            m = re.fullmatch(r"!\[([^\]]*)\]\(([^)\s]+)\)", line.strip())
+            blocks.append(("img", m.group(2), m.group(1)) if m else ("p", line))
+            i += 1
+    return blocks
+
+
+def kept_dataset(report, dataset: str) -> KeptDataset | None:
+    """The column and sections of ``dataset`` in an earlier report (``paper/REPORT.md``), or None."""
+    report = Path(report)
+    if not report.is_file():
+        return None
+    text = report.read_text(encoding="utf-8")
+    name = DATASET_NAMES.get(dataset, dataset)
+    sections = re.split(r"(?m)^(?=## )", text)
+    mine = [sec for sec in sections if sec.startswith("## ") and (
+        sec.splitlines()[0] == f"## On {name}" or sec.splitlines()[0].endswith(f" on {name}"))]
+    if not mine:
+        return None
+    column = {}
+    claims = next((sec for sec in sections if sec.startswith("## Claims of the paper")), "")
+    table = [line for line in claims.splitlines() if line.startswith("|")]
+    if table:
+        header = _split_cells(table[0])
+        if name in header:
+            col = header.index(name)
+            for line in table[2:]:
+                cells = _split_cells(line)
+                if len(cells) == len(header):
+                    column[cells[0].strip("`")] = cells[col]
+    m = re.search(r"code at commit `([^`]+)`", text)
+    return KeptDataset(dataset, m.group(1) if m else "unknown", column, _blocks_from_markdown("".join(mine)))
+
+
+class PublishError(ValueError):
+    """A results folder that is not a complete paper run (the message says what is partial)."""
+
+
+def partial_problems(results_dir, registry=None) -> list[str]:
+    """What keeps ``results_dir`` from being a complete paper-profile run of every registered notebook."""
+    results_dir = Path(results_dir)
+    runs = load_registry(registry)
+    infos = {i.name: i for i in collect_runs(results_dir, registry)}
+    problems = []
+    failed = [n for n in runs if infos[n].status == "failed"]
+    missing = [n for n in runs if not infos[n].doc and n not in failed]
+    failed += [n for n in runs if infos[n].doc and infos[n].status not in ("ok", "failed")]
+    profiles = sorted({f"{n} ({infos[n].manifest['profile']})" for n in runs
+                       if infos[n].manifest.get("profile") not in (None, "paper")})
+    if missing:
+        problems.append(f"{len(missing)} of {len(runs)} registered runs have no results: " + ", ".join(missing))
+    if failed:
+        problems.append("failed: " + ", ".join(failed))
+    if profiles:
+        problems.append("not the paper profile: " + ", ".join(profiles))
+    over = overridden_parameters(infos.values())
+    if over:
+        problems.append("parameters overridden: " + "; ".join(
+            f"{r} " + ", ".join(f"{k}={json.dumps(v)}" for k, v in ov.items()) for r, ov in over.items()))
+    return problems
+
+
+def publish(results_dir=None, dest=None, *, registry=None, allow_partial: bool = False, published=None):
+    """Regenerate the committed report (``paper/REPORT.md`` and ``.html``) from a paper run.
+
+    Refuses (:class:`PublishError`) a results folder that is not a complete, failure-free paper
+    run at the registry's parameters, unless ``allow_partial``: then the report says, under its
+    title, what is partial. The figures it shows are copied into ``paper/report_figures/`` (stale
+    ones removed) and its notebook links point at the committed notebooks, so every local link
+    resolves in a fresh clone. A prepared dataset (``<results_dir>-faust``) is reported from its
+    folder when present; otherwise its column and sections are kept from the current committed
+    report, with its figures. Returns ``(md_path, html_path, problems)``.
+    """
+    root = project_root(registry)
+    results_dir = Path(results_dir) if results_dir is not None else root / "results" / "paper"
+    dest = Path(dest) if dest is not None else root / "paper" / "REPORT.md"
+    if not results_dir.is_dir():
+        raise FileNotFoundError(f"{results_dir}: no such results folder; run `make reproduce` first")
+    problems = partial_problems(results_dir, registry)
+    if problems and not allow_partial:
+        raise PublishError(f"refusing to publish {results_dir}, a partial paper run: " + "; ".join(problems)
+                           + ". Rerun those (make reproduce), or publish anyway with --allow-partial "
+                           "(make publish ALLOW_PARTIAL=1): the report then says what is partial.")
+    notes = ["**Partial publication:** " + "; ".join(problems) + "."] if problems else []
+    fresh = other_datasets(results_dir)
+    kept = {}
+    for ds in DATASET_NAMES:
+        k = None if ds in fresh or ds == "anny_humans" else kept_dataset(dest, ds)
+        if k is not None:
+            kept[ds] = k
+            notes.append(f"{DATASET_NAMES[ds]} was not rerun for this report (no `{results_dir.name}-{ds}` "
+                         f"folder): its verdict column and sections are kept from the report published at "
+                         f"commit `{k.commit}`.")
+    notebooks = {n: r.notebook for n, r in load_registry(registry).items()}
+    copied: list = []
+    figures = dest.parent.resolve() / "report_figures"
+    md, html_path = build_report(results_dir, dest, registry=registry, published=published, copy_figures=True,
+                                 notebooks=notebooks, kept=kept, notes=notes, generated_by="prodmaps publish",
+                                 copied=copied)
+    keep = set(copied)
+    for f in sorted(figures.rglob("*"), reverse=True) if figures.is_dir() else []:
+        rel = f.relative_to(figures).parts
+        if rel and rel[0] in kept:
+            continue
+        if f.is_file() and f.resolve() not in keep:
+            f.unlink()
+        elif f.is_dir() and not any(f.iterdir()):
+            f.rmdir()
+    return md, html_path, problems

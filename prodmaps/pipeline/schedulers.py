@@ -10,7 +10,34 @@ from __future__ import annotations
 import os
 import time
 
-__all__ = ["thread_env", "run_pool", "run_dask"]
+__all__ = ["thread_env", "run_pool", "run_dask", "SchedulerError"]
+
+
+class SchedulerError(ValueError):
+    """The Dask scheduler cannot be reached (the message names the address and the fix)."""
+
+
+def _check_reachable(address: str, timeout: float = 5.0) -> None:
+    """Fail at once, with the address, when nothing listens at a ``tcp://host:port`` scheduler address
+    (Dask's own client retries for its whole connect timeout and then raises a bare traceback)."""
+    import socket
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(address if "://" in address else f"tcp://{address}")
+    if parts.scheme not in ("tcp", "tls") or not parts.hostname:
+        return
+    try:
+        port = parts.port
+    except ValueError as exc:
+        raise SchedulerError(f"--scheduler {address!r}: {exc}") from exc
+    if port is None:
+        raise SchedulerError(f"--scheduler {address!r} names no port (e.g. tcp://host:8786)")
+    try:
+        socket.create_connection((parts.hostname, port), timeout=timeout).close()
+    except OSError as exc:
+        raise SchedulerError(f"no Dask scheduler reachable at {address} ({exc.strerror or exc}); start one with "
+                             "`dask scheduler` (pip install 'prodmaps[dask]') or drop --scheduler to run "
+                             "locally") from exc
 
 
 def thread_env(jobs: int) -> dict:
@@ -48,7 +75,14 @@ def run_dask(tasks: list[dict], scheduler, execute, collect):
     except ModuleNotFoundError as exc:
         raise ModuleNotFoundError("--scheduler needs Dask: pip install 'prodmaps[dask]'") from exc
     own = not hasattr(scheduler, "submit")
-    client = Client(scheduler) if own else scheduler
+    if own:
+        _check_reachable(str(scheduler))
+        try:
+            client = Client(scheduler)
+        except (OSError, TimeoutError) as exc:
+            raise SchedulerError(f"could not connect to the Dask scheduler at {scheduler}: {exc}") from exc
+    else:
+        client = scheduler
     try:
         futs = {}
         for t in tasks:

@@ -436,3 +436,64 @@ def test_a_value_that_does_not_parse_or_has_the_wrong_type_is_refused_up_front()
     with pytest.raises(execute.ParameterError, match="disk_cache"):
         execute.plan_runs(runs, profile="smoke", only=["tab01"], overrides={"disk_cache": 1})
     assert execute.plan_runs(runs, profile="smoke", only=["fig04"], overrides={"seed": 3})[0]["params"]["seed"] == 3
+
+
+# ----------------------------------------------------------------------------- command-line rough edges
+def test_version_flag(capsys):
+    with pytest.raises(SystemExit) as e:
+        cli.main(["--version"])
+    assert e.value.code == 0
+    assert capsys.readouterr().out.strip() == f"prodmaps {__import__('prodmaps').__version__}"
+
+
+def test_a_bare_word_for_a_non_string_parameter_is_refused_up_front(tmp_path, capsys):
+    runs = rp.load_registry()
+    with pytest.raises(execute.ParameterError, match=r"k_values=abc is not a literal.*k_values=\[4, 8\]"):
+        execute.plan_runs(runs, profile="paper", only=["fig03"], overrides=rp.parse_params(["k_values=abc"]))
+    assert execute.plan_runs(runs, profile="paper", only=["fig03"],
+                             overrides=rp.parse_params(["k_values=[4,8]"]))[0]["params"]["k_values"] == [4, 8]
+    assert rp.parse_param("k=(1, 2)") == ("k", (1, 2)) and rp.parse_param("x=None") == ("x", None)
+    out = tmp_path / "o"
+    assert cli.main(["reproduce", "--only", "fig03", "-p", "k_values=abc", "--out", str(out), "--no-progress"]) == 2
+    assert "not a literal" in capsys.readouterr().err and not out.exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--dataset", "nope"], "unknown dataset 'nope'"),
+    (["--timeout", "-5"], "positive number of seconds"),
+    (["-p", "out_dir=/tmp/x"], "use --out"),
+    (["-p", "profile=paper"], "--profile"),
+])
+def test_bad_command_lines_fail_early_and_leave_no_results_folder(tmp_path, capsys, args, message):
+    out = tmp_path / "results"
+    try:
+        rc = cli.main(["reproduce", "--only", "fig02", "--out", str(out), "--no-progress", *args])
+    except SystemExit as e:  # argparse's own usage errors
+        rc = e.code
+    assert rc == 2
+    assert message in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_an_unreachable_scheduler_is_a_clear_error(project, capsys):
+    import time as _time
+
+    t0 = _time.perf_counter()
+    rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(project / "r"), "--force",
+                      "--scheduler", "tcp://127.0.0.1:1"], capsys)
+    assert rc == 2 and "no Dask scheduler reachable at tcp://127.0.0.1:1" in text and "Traceback" not in text
+    assert _time.perf_counter() - t0 < 20
+
+
+def test_manifest_records_versions_blas_commit_and_overrides(project, capsys):
+    out = project / "results"
+    rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(out), "--only", "tiny_a", "-p", "value=2.5"],
+                     capsys)
+    assert rc == 0, text
+    man = json.loads((out / "smoke" / "tiny_a" / "manifest.json").read_text())
+    assert man["overrides"] == {"value": 2.5}
+    assert {"prodmaps", "numpy", "scipy", "threadpoolctl"} <= set(man["versions"])
+    assert man["blas"] and man["blas"][0]["internal_api"] and man["blas"][0]["num_threads"] >= 1
+    assert man["commit"]  # the throwaway project is no git checkout: "unknown"
+    env = execute.run_environment(Path(__file__).resolve().parents[2])
+    assert env["commit"] != "unknown" and len(env["commit"].split("+")[0]) == 40

@@ -438,7 +438,7 @@ def test_figures_section(project):
     assert re.findall(r"^### (.*)$", figs, flags=re.M) == ["fig02 — Figure 2", "fig03 — Figure 3", "tab01 — Table 1"]
     assert "![fig02 fourier](../results/fig02/fourier.png)" in figs
     assert "![tab01 table](../results/tab01/table.png)" in figs
-    assert "Status **ok**, 12.3 s; outputs in `../results/tab01`;" in figs
+    assert "Status **ok**, 12.3 s; outputs in `results/tab01`;" in figs  # relative to the project
     # the failed run shows the first 15 lines of its error.txt
     block = re.search(r"```\n(.*?)\n```", figs, flags=re.S).group(1).splitlines()
     assert block == [f"error line {i}" for i in range(1, 16)]
@@ -516,12 +516,13 @@ def test_html_links_resolve_from_the_html_folder(tmp_path, monkeypatch):
         build_report(res, tmp_path / "paper" / "R.md", registry=reg, html_out=tmp_path / "site" / "R.html")
 
 
-def test_default_output_is_the_projects_paper_report(tmp_path, monkeypatch):
+def test_default_output_is_beside_the_results_never_the_committed_report(tmp_path, monkeypatch):
     reg, res = make_project(tmp_path)
     monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
-    md, html = build_report(res)  # registry and output from $PRODMAPS_RUNS
-    assert md == (tmp_path / "paper" / "REPORT.md").resolve()
+    md, html = build_report(res)  # registry from $PRODMAPS_RUNS; the report beside the results it reads
+    assert md == (res / "REPORT.md").resolve()
     assert html == md.with_suffix(".html") and html.is_file()
+    assert not (tmp_path / "paper" / "REPORT.md").exists()
     assert _runs_names(md.read_text(encoding="utf-8")) == ["fig02", "fig03", "fig04", "tab01", "study_truncation",
                                                             "extra_run"]
     assert len(load_registry(reg)) == 5
@@ -532,20 +533,18 @@ def _runs_names(text):
     return [r[0].strip("`") for r in table[1:]]
 
 
-def test_cli_report_writes_the_committed_report_only_for_the_paper_profile(tmp_path, monkeypatch, capsys):
+def test_cli_report_never_writes_the_committed_report(tmp_path, monkeypatch, capsys):
     from prodmaps.pipeline import cli
 
     reg, res = make_project(tmp_path)
     monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
-    smoke = tmp_path / "out" / "smoke"
-    smoke.parent.mkdir()
-    res.rename(smoke)
-    assert cli.main(["report", str(smoke)]) == 0
-    assert (smoke / "REPORT.md").is_file() and not (tmp_path / "paper" / "REPORT.md").exists()
-    paper = tmp_path / "out" / "paper"
-    smoke.rename(paper)
-    assert cli.main(["report", str(paper)]) == 0
-    assert (tmp_path / "paper" / "REPORT.md").is_file()
+    for profile in ("smoke", "paper"):
+        folder = tmp_path / "out" / profile
+        folder.parent.mkdir(exist_ok=True)
+        res.rename(folder)
+        assert cli.main(["report", str(folder)]) == 0
+        assert (folder / "REPORT.md").is_file() and not (tmp_path / "paper" / "REPORT.md").exists()
+        res = folder
 
 
 def test_cli_claims_and_report_refuse_a_folder_without_runs(tmp_path, monkeypatch, capsys):
@@ -613,3 +612,149 @@ def test_html_leads_with_verdict_badges_left_aligned_and_quotes_folded(project):
     style = page.split("<style>", 1)[1].split("</style>", 1)[0]
     assert "text-align:left" in style and "text-align:right" not in style.replace("td.num{text-align:right", "")
     assert '<td class="num">' in page  # numbers, and only numbers, right-aligned
+
+
+# ------------------------------------------------------------------------------ publish
+def _complete_paper_run(root: Path) -> tuple[Path, Path]:
+    """A project whose five registered runs all ran, ok, in the paper profile (``root/results/paper``)."""
+    reg, res = make_project(root)
+    res.rename(root / "moving")
+    res.mkdir()
+    paper = (root / "moving").rename(res / "paper")
+    for name in ("fig02", "fig03", "fig04"):
+        folder = paper / name
+        folder.mkdir(exist_ok=True)
+        (folder / "error.txt").unlink(missing_ok=True)
+        if not (folder / "results.json").is_file():
+            (folder / "results.json").write_text(json.dumps(_doc({"x": 1})))
+        if not list(folder.glob("*.png")):
+            _png(folder / f"{name}.png", 3)
+    for name in ("fig02", "fig03", "fig04", "tab01", "study_truncation"):
+        (paper / name / "manifest.json").write_text(json.dumps(_manifest(name, "ok", 1.0)))
+    for name in ("fig02", "fig03", "fig04", "tables", "study"):
+        (root / "notebooks").mkdir(exist_ok=True)
+        (root / "notebooks" / f"{name}.ipynb").write_text("{}")
+    return reg, paper
+
+
+def _local_links(path: Path) -> list[str]:
+    text = path.read_text(encoding="utf-8")
+    pattern = r"\]\(([^)\s]+)\)" if path.suffix == ".md" else r'(?:href|src)="([^"]+)"'
+    links = re.findall(pattern, text)
+    return [x for x in links if "://" not in x and not x.startswith("#")]
+
+
+def test_reproduce_writes_its_report_beside_the_results_and_leaves_the_committed_one(tmp_path, monkeypatch, capsys):
+    from prodmaps.pipeline import cli
+
+    reg, paper = _complete_paper_run(tmp_path)
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    committed = tmp_path / "paper" / "REPORT.md"
+    committed.write_text("# the committed report\n")
+    monkeypatch.setattr(execute, "reproduce", lambda **kw: [])  # nothing to run: the report step only
+    assert cli.main(["reproduce", "--out", str(tmp_path / "results"), "--no-progress"]) == 0
+    assert committed.read_text() == "# the committed report\n"
+    assert (paper / "REPORT.md").is_file() and (paper / "REPORT.html").is_file()
+    assert "make publish" in capsys.readouterr().out
+    for link in _local_links(paper / "REPORT.md"):  # beside its results: every link resolves
+        assert (paper / link).is_file(), link
+    assert cli.main(["reproduce", "--out", str(tmp_path / "results"), "--report", str(committed)]) == 2
+    assert "prodmaps publish" in capsys.readouterr().err
+    assert committed.read_text() == "# the committed report\n"
+
+
+def test_publish_refuses_a_partial_run_and_says_what_is_partial(tmp_path, monkeypatch, capsys):
+    from prodmaps.pipeline import cli
+    from prodmaps.pipeline.report import PublishError, publish
+
+    reg, res = make_project(tmp_path)  # fig03 failed, fig04 missing, no manifests for some
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    committed = tmp_path / "paper" / "REPORT.md"
+    committed.write_text("# the committed report\n")
+    with pytest.raises(PublishError, match=r"fig04.*failed: fig03.*--allow-partial"):
+        publish(res, registry=reg)
+    assert cli.main(["publish", str(res)]) == 2
+    assert "refusing to publish" in capsys.readouterr().err
+    assert committed.read_text() == "# the committed report\n"
+    assert cli.main(["publish", str(res), "--allow-partial"]) == 0
+    text = committed.read_text(encoding="utf-8")
+    assert "**Partial publication:**" in text and "fig04" in text.split("## Claims")[0]
+
+
+def test_publish_shows_overridden_parameters_and_refuses_them_by_default(tmp_path, monkeypatch):
+    from prodmaps.pipeline.report import PublishError, publish
+
+    reg, paper = _complete_paper_run(tmp_path)
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    man = dict(_manifest("fig03", "ok", 1.0), overrides={"k_values": [4, 8, 12, 16]})
+    (paper / "fig03" / "manifest.json").write_text(json.dumps(man))
+    md, _ = build_report(paper, registry=reg)  # every report shows them
+    assert "`fig03`: `k_values=[4, 8, 12, 16]`" in md.read_text(encoding="utf-8")
+    with pytest.raises(PublishError, match=r"parameters overridden: fig03 k_values=\[4, 8, 12, 16\]"):
+        publish(paper, registry=reg)
+
+
+def test_published_report_links_resolve_in_a_fresh_clone(tmp_path, monkeypatch):
+    """Every local link of the published report points into paper/ or the committed notebooks."""
+    from prodmaps.pipeline.report import publish
+
+    reg, paper = _complete_paper_run(tmp_path)
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    stale = tmp_path / "paper" / "report_figures" / "old_run" / "gone.png"
+    stale.parent.mkdir(parents=True)
+    stale.write_bytes(b"")
+    md, html, problems = publish(paper, registry=reg)
+    assert problems == [] and md == (tmp_path / "paper" / "REPORT.md").resolve()
+    assert not stale.exists() and not stale.parent.exists()  # figures no longer shown are removed
+    import shutil
+
+    shutil.rmtree(tmp_path / "results")  # a fresh clone has no results/
+    for f in (md, html):
+        links = _local_links(f)
+        assert links and not [x for x in links if "results/" in x], links
+        for link in links:
+            assert (f.parent / link).is_file(), link
+    text = md.read_text(encoding="utf-8")
+    assert "Generated by `prodmaps publish`" in text and "[notebook](../notebooks/tables.ipynb)" in text
+    assert "outputs in `results/paper/tab01`" in text  # the run folder named relative to the project
+
+
+def test_publish_keeps_the_faust_section_when_faust_was_not_rerun(tmp_path, monkeypatch):
+    from prodmaps.pipeline.report import kept_dataset, publish
+
+    reg, paper = _complete_paper_run(tmp_path)
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    faust = paper.with_name("paper-faust")
+    tab01 = {f"errors{sub}": {"k9_9": {"approx": APPROX, "transfer": tr}} for sub, tr in TRANSFER.items()}
+    tab01["table"] = TABLE1
+    tab01["pairs"] = [["tr_reg_000", "tr_reg_001"]]
+    _run(faust, "tab01", _doc(tab01, table="T1"), _manifest("tab01", "ok", 3.0), pngs=["table.png"])
+    md, html, _ = publish(paper, registry=reg)  # with the FAUST runs: a fresh section and its figures
+    first = md.read_text(encoding="utf-8")
+    first_html = html.read_text(encoding="utf-8")
+    faust_png = tmp_path / "paper" / "report_figures" / "faust" / "tab01" / "table.png"
+    assert "## On FAUST" in first and not faust_png.exists()  # tab01 is not a figure run on FAUST
+    (tmp_path / "paper" / "report_figures" / "faust" / "fig08").mkdir(parents=True)
+    kept_png = tmp_path / "paper" / "report_figures" / "faust" / "fig08" / "curves.png"
+    _png(kept_png, 7)
+    import shutil
+
+    shutil.rmtree(faust)  # FAUST not rerun: its column and sections come from the committed report
+    k = kept_dataset(md, "faust")
+    assert k is not None and len(k.column) == len(load_ledger())
+    md, html, _ = publish(paper, registry=reg)
+    second = md.read_text(encoding="utf-8")
+
+    def faust_part(text):
+        return "".join(s for s in re.split(r"(?m)^(?=## )", text) if "FAUST" in s.splitlines()[0])
+
+    assert faust_part(second) == faust_part(first) != ""
+    rows_first = {r[0]: r for r in _tables(_section(first, "Claims of the paper"))[0][1:]}
+    rows_second = {r[0]: r for r in _tables(_section(second, "Claims of the paper"))[0][1:]}
+    head = _tables(_section(second, "Claims of the paper"))[0][0]
+    col = head.index("FAUST")
+    assert {c: r[col] for c, r in rows_second.items()} == {c: r[col] for c, r in rows_first.items()}
+    assert "kept from the report published at commit" in second
+    assert re.search(r"On FAUST \(kept from the report published at commit `[^`]+`\): \d+ ", second)
+    assert kept_png.is_file()  # a kept dataset's figures stay
+    assert "<h2>On FAUST</h2>" in html.read_text(encoding="utf-8") and "<h2>On FAUST</h2>" in first_html
