@@ -59,6 +59,9 @@ test: venv lint
 bench: venv
 	$(PY) benchmarks/run.py --out benchmarks/results
 
+bench-quick: venv
+	$(PY) benchmarks/run.py --quick --out $(or $(TMPDIR),/tmp)/prodmaps-bench-quick
+
 strip-notebooks: venv
 	$(PY) -m prodmaps.pipeline.notebooks strip notebooks/*.ipynb
 

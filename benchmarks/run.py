@@ -147,44 +147,65 @@ def bench_nn(args):
             "check": "; ".join(parts)}
 
 
+def _euclidean_weights(ext, basis) -> np.ndarray:
+    """``D`` of the unit-Euclidean reading for the columns of ``ext.matrix``: each factor ``φ_i`` scaled to
+    unit Euclidean norm, a product column by the product of its factors' scales (written out here from the
+    definition in :mod:`prodmaps.approx`, independently of the library's ``column_weights``)."""
+    c = 1.0 / np.linalg.norm(basis.vecs, axis=0)  # (k,) per factor
+    idx = np.asarray(ext.index)  # (K, 2): factors 1-based, 0 pads; row 0 the constant
+    D = np.prod(np.where(idx > 0, c[idx], 1.0), axis=1)
+    D[0] = c[0]
+    return D
+
+
 def bench_approach_b(args):
+    k = 11 if args.quick else 70  # k = 69 non-constant functions (quick: 10)
     mesh = pm.load_mesh(SHAPE_1)
-    basis = pm.eigenbasis(mesh, 70)  # k = 69 non-constant functions
+    basis = pm.eigenbasis(mesh, k)
     F = np.column_stack([mesh.vertices, np.random.default_rng(0).normal(size=(mesh.n_vertices, 7))])
 
     def ours():
         ext = pm.product_basis(pm.Basis(basis.vecs, basis.evals, basis.mass), 2, "ordered")  # fresh: nothing cached
-        return ext, ext.operator("svd", rtol=1e-3).coefficients(F)
+        return ext, ext.operator("svd", rtol=1e-3).coefficients(F)  # the library's reading: unit-Euclidean
 
     t_ours, (ext, a_ours) = timed(ours)
-    row = {"name": "approach_b", "what": f"Approach B operator, k=69 ordered ({ext.K} columns), n={mesh.n_vertices}",
-           "ours_s": t_ours, "target": "direct/ours >= 20 (coefficients equal to 1e-8 rel.)"}
+    row = {"name": "approach_b", "what": f"Approach B operator, k={k - 1} ordered ({ext.K} columns), "
+           f"n={mesh.n_vertices}", "ours_s": t_ours, "target": "direct/ours >= 20 (coefficients equal to 1e-8 rel.)"}
     if args.skip_direct:
         row.update(skipped="--skip-direct")
         return row
 
-    def direct():
-        B = ext.matrix  # (n, 4831), both ordered pairs, as the paper builds it
+    def direct(D=None):
+        """The paper's recipe on the ordered basis as built: SVD of sqrt(A) B D, singular values below
+        1e-3 sigma_max dropped, coefficients of B's own columns (a = D a')."""
+        B = ext.matrix if D is None else ext.matrix * D  # (n, K), both ordered pairs, as the paper builds it
         X = np.sqrt(basis.mass)[:, None] * B
         U, s, Vt = np.linalg.svd(X, full_matrices=False)
         r = int(np.sum(s > 1e-3 * s[0]))
-        return Vt[:r].T @ ((U[:, :r].T @ (np.sqrt(basis.mass)[:, None] * F)) / s[:r, None])
+        a = Vt[:r].T @ ((U[:, :r].T @ (np.sqrt(basis.mass)[:, None] * F)) / s[:r, None])
+        return a if D is None else D[:, None] * a
 
-    t_direct, a_direct = timed(direct)
+    D = _euclidean_weights(ext, basis)
+    t_direct, a_direct = timed(lambda: direct(D))  # like with like: the same unit-Euclidean reading
     err = np.abs(a_ours - a_direct).max() / np.abs(a_direct).max()
-    assert err < 1e-8, f"Approach B coefficients differ from the direct SVD by {err:.2e}"
-    row.update(baseline="full SVD of sqrt(A) B (numpy gesdd)", baseline_s=t_direct,
-               ratio=t_direct / t_ours, met=t_direct / t_ours >= 20, check=f"coefficients equal to {err:.1e} rel.")
+    assert err < 1e-8, f"Approach B coefficients differ from the direct SVD (unit-Euclidean reading) by {err:.2e}"
+    a_area = ext.operator("svd", rtol=1e-3, normalization="area").coefficients(F)  # and the area reading
+    err_area = np.abs(a_area - direct()).max() / np.abs(a_area).max()
+    assert err_area < 1e-8, f"Approach B (area reading) differs from the direct SVD of sqrt(A) B by {err_area:.2e}"
+    row.update(baseline="full SVD of sqrt(A) B D (numpy gesdd), unit-Euclidean D", baseline_s=t_direct,
+               ratio=t_direct / t_ours, met=t_direct / t_ours >= 20,
+               check=f"coefficients equal to {err:.1e} rel. (area reading: {err_area:.1e})")
     return row
 
 
 def bench_transfer(args):
     m1, m2 = pm.load_mesh(SHAPE_1), pm.load_mesh(SHAPE_2)
-    b1, b2 = pm.eigenbasis(m1, 30), pm.eigenbasis(m2, 40)
+    b1, b2 = (pm.eigenbasis(m1, 8), pm.eigenbasis(m2, 10)) if args.quick else (pm.eigenbasis(m1, 30),
+                                                                                 pm.eigenbasis(m2, 40))
     C = pm.fmap_from_p2p(np.arange(m2.n_vertices), b1, b2)
-    F = np.random.default_rng(1).normal(size=(m1.n_vertices, 1000))
+    F = np.random.default_rng(1).normal(size=(m1.n_vertices, 40 if args.quick else 1000))
     pm.transfer(F[:, :1], C, b1, b2, "prod")  # build and cache the operators once
-    t_batch, G = timed(lambda: pm.transfer(F, C, b1, b2, "prod"), repeat=3)
+    t_batch, G = timed(lambda: pm.transfer(F, C, b1, b2, "prod"), repeat=args.repeat)
 
     def loop():
         return np.column_stack([pm.transfer(F[:, j], C, b1, b2, "prod") for j in range(F.shape[1])])
@@ -192,7 +213,8 @@ def bench_transfer(args):
     t_loop, G_loop = timed(loop)
     err = np.abs(G - G_loop).max() / np.abs(G_loop).max()
     assert err < 1e-10, err
-    return {"name": "transfer", "what": "1000 functions, k_M=29, k_N=39, operators cached", "ours_s": t_batch,
+    return {"name": "transfer", "what": f"{F.shape[1]} functions, k_M={b1.k - 1}, k_N={b2.k - 1}, operators cached",
+            "ours_s": t_batch,
             "baseline": "one pm.transfer call per function", "baseline_s": t_loop,
             "ratio": t_loop / t_batch, "target": "batched (report)", "met": True,
             "check": f"identical results ({err:.1e})"}
@@ -200,10 +222,11 @@ def bench_transfer(args):
 
 def bench_default(args):
     m1, m2 = pm.load_mesh(SHAPE_1), pm.load_mesh(SHAPE_2)
-    B1, B2 = pm.eigenbasis(m1, 70), pm.eigenbasis(m2, 70)
+    sizes = ((6, 8), (12, 12)) if args.quick else ((30, 40), (70, 70))  # k_M = 29, k_N = 39 and 69/69
+    B1, B2 = pm.eigenbasis(m1, sizes[-1][0]), pm.eigenbasis(m2, sizes[-1][1])
     F = np.column_stack([m1.vertices, np.random.default_rng(2).normal(size=(m1.n_vertices, 97))])  # (n1, 100)
     parts, worst = [], 0.0
-    for k1, k2 in ((30, 40), (70, 70)):  # k_M = 29, k_N = 39 and 69/69 non-constant functions
+    for k1, k2 in sizes:  # non-constant functions: k1 - 1, k2 - 1
         b1, b2 = B1.truncate(k1), B2.truncate(k2)
         C = pm.fmap_from_p2p(np.arange(m2.n_vertices), b1, b2)
 
@@ -211,14 +234,15 @@ def bench_default(args):
             c1, c2 = pm.Basis(b1.vecs, b1.evals, b1.mass), pm.Basis(b2.vecs, b2.evals, b2.mass)
             return pm.transfer(F, C, c1, c2, method, **kw)
 
-        t_def, G_def = timed(lambda: cold("prod"), repeat=3)
-        t_b, _ = timed(lambda: cold("prod", rtol=1e-3, pairs="ordered"), repeat=3)
+        t_def, G_def = timed(lambda: cold("prod"), repeat=args.repeat)
+        t_b, _ = timed(lambda: cold("prod", rtol=1e-3, pairs="ordered"), repeat=args.repeat)
         err_def = pm.relative_error(G_def, F, b2.mass)  # identity correspondence: F is its own target
         err_std = pm.relative_error(pm.transfer(F, C, b1, b2, "std"), F, b2.mass)
         assert np.all(err_def <= err_std + 1e-2), "default transfer worse than the standard one"
         worst = max(worst, t_def / t_b)
         parts.append(f"{k1 - 1}/{k2 - 1}: default {t_def:.2f} s, paper B {t_b:.2f} s ({t_def / t_b:.2f}x)")
-    return {"name": "default", "what": "default vs Approach B transfer, cold, 100 functions, k 29/39 and 69/69",
+    return {"name": "default", "what": "default vs Approach B transfer, cold, 100 functions, k "
+            + " and ".join(f"{a - 1}/{b - 1}" for a, b in sizes),
             "ours_s": t_def, "baseline": "Approach B, rtol 1e-3, ordered pairs", "baseline_s": t_b,
             "ratio": worst, "target": "default/B < 1.5", "met": worst < 1.5, "check": "; ".join(parts)}
 
@@ -330,6 +354,10 @@ BENCHES = {"eigenbasis": bench_eigenbasis, "approach_b": bench_approach_b, "tran
            "no17": bench_no17, "scale": bench_scale, "scale_1m": bench_scale_1m, "reproduce": bench_reproduce}
 
 
+# benchmarks with a quick mode (``args.quick``: tiny sizes, the same code paths and equality checks)
+QUICK = ("approach_b", "transfer", "default")
+
+
 def _cpu_model() -> str:
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
@@ -363,9 +391,15 @@ def main(argv=None):
     ap.add_argument("--only", nargs="*", choices=sorted(BENCHES))
     ap.add_argument("--skip-direct", action="store_true", help="skip the ~1 min direct SVD baseline")
     ap.add_argument("--with-reproduce", action="store_true", help="also time the full paper-profile reproduce")
-    ap.add_argument("--repeat", type=int, default=3, help="interleaved repeats of each timed pair")
+    ap.add_argument("--repeat", type=int, default=None, help="interleaved repeats of each timed pair (default 3; "
+                    "1 with --quick)")
+    ap.add_argument("--quick", action="store_true", help="tiny sizes, same code paths and equality checks, in "
+                    f"seconds (the test suite runs it): {', '.join(QUICK)} unless --only names others")
     args = ap.parse_args(argv)
-    names = args.only or [n for n in BENCHES if n != "reproduce" or args.with_reproduce]
+    if args.repeat is None:
+        args.repeat = 1 if args.quick else 3
+    default = [n for n in BENCHES if n != "reproduce" or args.with_reproduce]
+    names = args.only or ([n for n in default if n in QUICK] if args.quick else default)
     Path(args.out).mkdir(parents=True, exist_ok=True)
     rows = []
     for name in names:
@@ -373,7 +407,7 @@ def main(argv=None):
         row = BENCHES[name](args)
         rows.append(row)
         print("   ", json.dumps(row), flush=True)
-    doc = {"machine": machine(), "benchmarks": rows}
+    doc = {"machine": machine(), "quick": args.quick, "benchmarks": rows}
     (Path(args.out) / "bench.json").write_text(json.dumps(doc, indent=2) + "\n")
     lines = ["| benchmark | what | ours (s) | baseline | baseline (s) | ratio | target | met | check |",
              "|---|---|---|---|---|---|---|---|---|"]

@@ -119,3 +119,43 @@ def test_front_page_screenshot_in_headless_chromium(site, tmp_path):
     assert colours is not None and len(colours) > 50  # text and theme drawn, not a blank page
     dark = sum(n for n, (r_, g, b) in colours if r_ + g + b < 200)
     assert dark > 0.002 * 1280 * 900  # some text is drawn
+
+
+def test_report_page_of_a_published_report_links_gallery_pages(tmp_path):
+    """A published report links the committed notebooks (../notebooks/*.ipynb): the site turns them into
+    gallery pages and never needs results/."""
+    report = tmp_path / "paper" / "REPORT.md"
+    (tmp_path / "paper" / "report_figures" / "fig02").mkdir(parents=True)
+    png = tmp_path / "paper" / "report_figures" / "fig02" / "a.png"
+    shutil.copyfile(next((BASELINES / "fig02").glob("*.png")), png)
+    report.write_text("# R\n\n| run | read |\n|---|---|\n| `tab03` | [notebook](../notebooks/tables_transfer.ipynb) |\n"
+                      "\n[tab04](../notebooks/tables_transfer.ipynb), [x](../notebooks/fig02_fourier_products.ipynb)\n"
+                      "\n![fig02 a](report_figures/fig02/a.png)\n", encoding="utf-8")
+    names = list(load_registry())
+    page = gallery.write_report_page(tmp_path / "site", report, names).read_text(encoding="utf-8")
+    assert "(gallery/tab01.ipynb)" in page and "[tab04](gallery/tab04.ipynb)" in page
+    assert "[x](gallery/fig02.ipynb)" in page and "../notebooks" not in page
+    assert (tmp_path / "site" / "report_figures" / "fig02" / "a.png").is_file()
+
+
+def test_docs_runs_is_resolved_from_the_project_root(tmp_path):
+    """`make docs DOCS_RUNS=results/smoke` names the folder from the project root (conf.py lives in docs/)."""
+    runs = tmp_path / "smoke"
+    nb = nbformat.read(ROOT / "notebooks" / "fig02_fourier_products.ipynb", as_version=4)
+    code = next(c for c in nb.cells if c.cell_type == "code")
+    code.outputs = [nbformat.v4.new_output("stream", text="EXECUTED-MARKER\n")]
+    (runs / "fig02").mkdir(parents=True)
+    nbformat.write(nb, runs / "fig02" / "executed.ipynb")
+    rel = os.path.relpath(runs, ROOT)  # relative to the project root, as the Makefile passes it
+    code = "import runpy; runpy.run_path('conf.py')"
+    env = dict(os.environ, PRODMAPS_DOCS_RUNS=rel)
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT / "docs", env=env, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    shown = nbformat.read(ROOT / "docs" / "_generated" / "gallery" / "fig02.ipynb", as_version=4)
+    assert any("EXECUTED-MARKER" in o.get("text", "") for c in shown.cells if c.cell_type == "code"
+               for o in c.outputs)
+    env["PRODMAPS_DOCS_RUNS"] = "results/no_such_folder"  # a typo fails the build instead of showing nothing
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT / "docs", env=env, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode != 0 and "no executed notebooks" in r.stderr
