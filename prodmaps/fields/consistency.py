@@ -281,7 +281,10 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
             # a(h): the library's Approach-B coefficients of h on shape 1; coords = canonical(C~ a(h))
             P1 = proj1.coefficient_matrix()  # (K1, n1)
             Tr = proj2.from_basis(Ct @ P1)  # (r, n1)
-            info.update(K1=ext1.K, K2=ext2.K, rank_1=proj1.rank, rank_2=proj2.rank)
+            # transfer gain of the kept source directions (A-norm of B2 C~ q for unit q, no ground
+            # truth): ~1 when C~ preserves products there; large when C is far from orthogonal
+            gain = np.sqrt(np.max(A2 @ ext2.evaluate(Ct @ proj1.P) ** 2))
+            info.update(K1=ext1.K, K2=ext2.K, rank_1=proj1.rank, rank_2=proj2.rank, gain_max=float(gain))
         elif kind == "default":  # coords = Q2ᵀ A2 S(h), S the default transfer (linear in h)
             from ..default_transfer import safe_operator
 

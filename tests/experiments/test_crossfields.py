@@ -77,10 +77,10 @@ def small_joint():
 
 def test_figure14_joint_pair_outputs(small_joint):
     m1, m2, r = small_joint
-    assert set(r) == {"k3", "k4", "baselines", "quads", "seconds", "fields"}
+    assert set(r) == {"k3", "k4", "baselines", "quads", "seconds", "fields", "map_only", "map"}
     q = r["quads"]
     assert set(q) == {"size", "k3", "k4", "baselines"} and q["size"] == cf.JOINT_DEFAULTS["quad_size"]
-    assert set(q["k3"]) == {"std", "ext", "default"} and set(q["baselines"]) == {"independent", "pushforward"}
+    assert set(q["k3"]) == {"std", "ext", "default", "p2p"} and set(q["baselines"]) == {"independent", "pushforward"}
     for grp, n in (("k3", "std"), ("k4", "ext"), ("baselines", "independent"), ("baselines", "pushforward")):
         st = q[grp][n]
         for side in ("source", "target"):
@@ -95,7 +95,7 @@ def test_figure14_joint_pair_outputs(small_joint):
     # quad meshes' irregular vertices correspond one to one
     pfq = q["baselines"]["pushforward"]
     assert pfq["irregular_match_fraction"] > 0.9
-    assert set(r["k3"]) == set(cf.JOINT_KINDS) and set(r["baselines"]) == set(cf.BASELINES)
+    assert set(r["k3"]) == set(cf.JOINT_KINDS) | {"no_map"} and set(r["baselines"]) == set(cf.BASELINES)
     assert r["baselines"]["pushforward"]["angle_mean_deg"] < 1e-9
     pf_ = r["baselines"]["pushforward"]
     assert pf_["sing_recall"] in (None, 1.0) or pf_["n_sing_low_1"] == 0
@@ -111,6 +111,52 @@ def test_figure14_joint_pair_outputs(small_joint):
     b = r["baselines"]
     assert b["copy"]["align_1_deg"] == b["independent"]["align_1_deg"] == b["pushforward"]["align_1_deg"]
     np.testing.assert_array_equal(r["fields"]["copy"][1], r["fields"]["independent"][0])
+
+
+def test_map_only_setting_carries_the_fixed_source_field(small_joint):
+    m1, m2, r = small_joint
+    mo = r["map_only"]
+    assert set(mo) == {"k3", "k4", "baselines"} and mo["baselines"]["independent"] == r["baselines"]["independent"]
+    z_ind = r["fields"]["independent"][0]
+    for k in ("k3", "k4"):
+        assert set(mo[k]) == set(cf.JOINT_KINDS) | {"no_map"}
+        assert mo[k]["no_map"] == r[k]["no_map"] == r["baselines"]["independent"]  # one no-map baseline
+        for kd in cf.JOINT_KINDS:
+            z1, z2 = r["fields"][(int(k[1:]), "map_only", kd)]
+            np.testing.assert_array_equal(z1, z_ind)  # the source field is fixed: the no-map design's
+            assert mo[k][kd]["align_1_deg"] == r["baselines"]["independent"]["align_1_deg"]
+            np.testing.assert_allclose(np.abs(z2), 1.0)
+            assert 0 <= mo[k][kd]["consistency_energy"] < 1
+        # the extended kind reports the library operator's ranks and its transfer gain
+        assert mo[k]["ext"]["rank_1"] == r[k]["ext"]["rank_1"] > int(k[1:]) + 1
+        assert mo[k]["ext"]["gain_max"] == pytest.approx(r[k]["ext"]["gain_max"]) and mo[k]["ext"]["gain_max"] > 0
+        # identity map between a shape and its stretched copy: C is close to orthogonal
+        assert 0.5 < r["map"][k]["C_sigma_min"] <= r["map"][k]["C_sigma_max"] < 1.5
+    # the map carries a stretched ellipsoid's field: the oracle (exact transfer) within a few degrees
+    assert mo["k4"]["p2p"]["angle_mean_deg"] < 10.0
+
+
+def test_verdict_table_counts_per_setting_and_k():
+    def cell(v):
+        return {"angle_regular_deg": v, "angle_mean_deg": v + 1, "sing_recall": 0.5}
+
+    def row(s, e, d, o, n):
+        return {"std": cell(s), "ext": cell(e), "default": cell(d), "p2p": cell(o), "no_map": cell(n)}
+
+    per = {"a": {"k5": row(2, 1, 3, 1, 4), "map_only": {"k5": row(3, 2, 4, 2.5, 1)}},
+           "b": {"k5": row(2, 3, 1, 3, 1), "map_only": {"k5": row(3, 4, 2, 2.0, 1)}}}
+    kinds = cf.JOINT_KINDS + ("no_map",)
+    study = {"pairs": per, "kinds": list(cf.JOINT_KINDS),
+             "summary": {m: cf.summarize_pairs(per, [5], kinds, measure=m)
+                         for m in ("angle_regular_deg", "angle_mean_deg")}}
+    mo = {n: p["map_only"] for n, p in per.items()}
+    study["summary"]["map_only"] = {m: cf.summarize_pairs(mo, [5], kinds, measure=m)
+                                    for m in ("angle_regular_deg", "angle_mean_deg")}
+    rows = {(x["setting"], x["measure"]): x for x in cf.verdict_table(study, [5])}
+    j, m = rows[("joint", "angle_regular_deg")], rows[("map_only", "angle_regular_deg")]
+    assert (j["ext_beats_std"], j["p2p_beats_std"], j["no_map_beats_std"], j["default_beats_std"]) == (1, 1, 1, 1)
+    assert (m["ext_beats_std"], m["p2p_beats_std"], m["no_map_beats_std"]) == (1, 2, 2) and m["n_pairs"] == 2
+    assert m["no_map_mean"] == 1.0 and m["p2p_mean"] == 2.25
 
 
 def test_summarize_pairs_counts_and_pools():
