@@ -260,7 +260,7 @@ def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped") ->
             f"eigenbasis needs a connected mesh: {mesh.name or 'this mesh'} has {ncomp} connected components "
             f"(vertex counts {sorted(sizes.tolist(), reverse=True)[:5]}); each has its own constant eigenfunction, "
             "so the conventions (one constant column, A-orthonormal) cannot hold. Keep the largest with "
-            "pm.mesh.largest_component(mesh.vertices, mesh.faces), or load with pm.load_mesh_repaired(path)"
+            "pm.mesh.largest_component(mesh.vertices, mesh.faces), or load with pm.io.load_mesh_repaired(path)"
         )
     W, A = laplacian(mesh, kind=kind, mass=mass)
     evals, vecs = smallest_eigenpairs(W, A, k)  # ascending, A-normalised

@@ -289,6 +289,9 @@ def safe_operator(C_12, basis_1: Basis, basis_2: Basis, **params) -> SafeTransfe
     from .mapping import check_fmap
 
     C = check_fmap(C_12, basis_1, basis_2)
+    if basis_1.k < 2:
+        raise ValueError(f"the default extended transfer needs a non-constant function in basis_1 (k >= 2, the "
+                         f"constant counts); got k = {basis_1.k}: there are no products to add, use method='std'")
     full = {**DEFAULTS, **params}
     full.pop("pairs", None)
     ext_u = product_basis(basis_1, 2, "unique")

@@ -38,15 +38,27 @@ def check_p2p(p2p_21, n1: int, n2: int) -> np.ndarray:
 
 
 def check_fmap(C_12, basis_1: Basis, basis_2: Basis, allow_truncation: bool = False) -> np.ndarray:
-    """Validate ``C_12`` against the bases: shape ``(k2, k1)``, finite.
+    """Validate ``C_12`` against the bases: shape ``(k2, k1)``, real, finite; returns a dense float64 array.
 
-    With ``allow_truncation`` the map may be smaller than the bases (``k1 <= basis_1.k``,
-    ``k2 <= basis_2.k``): callers then use the first ``k1`` / ``k2`` columns.
+    A scipy sparse matrix is densified (functional maps are small). Complex values raise
+    ``ValueError`` (a functional map between real function spaces is real), values that are not
+    numbers ``TypeError``. With ``allow_truncation`` the map may be smaller than the bases
+    (``k1 <= basis_1.k``, ``k2 <= basis_2.k``): callers then use the first ``k1`` / ``k2`` columns.
     """
     for b, name in ((basis_1, "basis_1"), (basis_2, "basis_2")):
         if not isinstance(b, Basis):
             raise TypeError(f"{name} must be a prodmaps.Basis, got {type(b).__name__}")
-    C = np.asarray(C_12, dtype=np.float64)
+    import scipy.sparse as sp
+
+    if sp.issparse(C_12):
+        C_12 = C_12.toarray()
+    C = np.asarray(C_12)
+    if np.iscomplexobj(C):
+        raise ValueError("C_12 is complex; a functional map between real function spaces is real (if the imaginary "
+                         "part is round-off, pass C_12.real)")
+    if C.dtype.kind not in "biuf":
+        raise TypeError(f"C_12 must be a real numeric (k2, k1) array or a scipy sparse matrix; got dtype {C.dtype}")
+    C = C.astype(np.float64, copy=False)
     if C.ndim != 2:
         raise ValueError(f"C_12 must be a 2D array (k2, k1); got shape {C.shape}")
     if allow_truncation:

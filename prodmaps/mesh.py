@@ -177,7 +177,8 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -
         bad = np.flatnonzero((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2]))
         raise MeshError(
             f"degenerate faces: {bad.size} faces repeat a vertex (first {bad[:5].tolist()}); "
-            "use prodmaps.mesh.remove_degenerate_faces"
+            "use prodmaps.mesh.repair(vertices, faces), which drops them and the vertices they leave unreferenced "
+            "(or load the file with pm.io.load_mesh_repaired(path))"
         )
     with np.errstate(over="ignore", invalid="ignore"):
         diag2 = float(np.sum((v.max(0) - v.min(0)) ** 2))
@@ -191,14 +192,16 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -
     if degen.size:
         raise MeshError(
             f"degenerate (zero-area) faces: {degen.size} faces, first {degen[:5].tolist()}; "
-            "use prodmaps.mesh.remove_degenerate_faces"
+            "use prodmaps.mesh.repair(vertices, faces), which drops them and the vertices they leave unreferenced "
+            "(or load the file with pm.io.load_mesh_repaired(path))"
         )
     fs = np.sort(f, axis=1)
     _, first, counts = np.unique(fs, axis=0, return_index=True, return_counts=True)
     if np.any(counts > 1):
         raise MeshError(
             f"duplicate faces: {int(np.sum(counts - 1))} faces repeat another face's vertices; "
-            "use prodmaps.mesh.remove_duplicate_faces"
+            "use prodmaps.mesh.repair(vertices, faces), which drops them and the vertices they leave unreferenced "
+            "(or load the file with pm.io.load_mesh_repaired(path))"
         )
     used = np.zeros(n, dtype=bool)
     used[f.ravel()] = True
@@ -207,7 +210,7 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -
         raise MeshError(
             f"unreferenced vertices: {bad.size} vertices belong to no face (first {bad[:5].tolist()}); "
             "use prodmaps.mesh.remove_unreferenced_vertices(vertices, faces), or load the file with "
-            "pm.load_mesh_repaired(path)"
+            "pm.io.load_mesh_repaired(path)"
         )
     e, c = edges(f)
     if np.any(c > 2):
@@ -221,7 +224,7 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -
         sizes = np.bincount(labels)
         raise MeshError(
             f"several connected components: {ncomp} (sizes {sorted(sizes.tolist(), reverse=True)[:5]}); "
-            "use prodmaps.mesh.largest_component(vertices, faces), or load the file with pm.load_mesh_repaired(path)"
+            "use prodmaps.mesh.largest_component(vertices, faces), or load the file with pm.io.load_mesh_repaired(path)"
         )
 
 

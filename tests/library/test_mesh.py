@@ -127,3 +127,36 @@ def test_ellipsoid_is_a_scaled_icosphere_with_a_simple_spectrum(subdivisions, n)
 def test_ellipsoid_rejects_bad_axes(axes):
     with pytest.raises(ValueError, match="axes"):
         pmesh.ellipsoid(2, axes=axes)
+
+
+def test_repair_advice_names_functions_that_exist_and_do_the_whole_fix():
+    """Every fix an error names resolves to a real function; degenerate or duplicate faces lead to
+    ``mesh.repair``, which also drops the vertices they leave unreferenced (issue 35)."""
+    import re
+
+    import prodmaps.io
+    import prodmaps.mesh
+    from prodmaps.mesh import icosphere
+
+    s = icosphere(1)
+    v_extra = np.vstack([s.vertices, [[5.0, 5.0, 5.0]]])
+    repeat = s.faces.copy()
+    repeat[0, 1] = repeat[0, 0]
+    flat = np.vstack([s.vertices, s.vertices[:1]])  # a zero-area face on a duplicated point
+    cases = [(s.vertices, repeat), (s.vertices, np.vstack([s.faces, s.faces[:1]])),
+             (flat, np.vstack([s.faces, [[0, 1, s.n_vertices]]])), (v_extra, s.faces)]
+    for v, f in cases:
+        with pytest.raises(pm.MeshError) as e:
+            pm.Mesh(v, f)
+        msg = str(e.value)
+        for name in re.findall(r"\b(?:pm|prodmaps)\.[\w.]+(?=\()", msg):
+            obj = {"pm": pm, "prodmaps": pm}[name.split(".")[0]]
+            for part in name.split(".")[1:]:
+                obj = getattr(obj, part)  # raises AttributeError for a name that does not exist
+            assert callable(obj), name
+        assert "pm.load_mesh_repaired" not in msg
+        if "unreferenced" not in msg:
+            assert "prodmaps.mesh.repair(vertices, faces)" in msg, msg
+            fixed, kept = prodmaps.mesh.repair(v, f)  # the advice works on its own: a valid mesh
+            assert fixed.n_vertices == kept.size
+    assert prodmaps.io.load_mesh_repaired is pm.io.load_mesh_repaired

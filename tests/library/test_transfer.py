@@ -108,3 +108,26 @@ def test_transfer_refuses_bad_pairs_complex_functions_and_string_thresholds(basi
         pm.transfer(f + 1j * f, C, b1, b2, method="std")
     with pytest.raises(TypeError, match="rtol and eps are numbers"):
         pm.transfer(f, C, b1, b2, method="prod", rtol="1e-3")
+
+
+def test_complex_sparse_and_constant_only_maps_issue35():
+    """A complex C raises (never silently cast to real), a scipy sparse C is densified, and the
+    default extended transfer with only the constant (k = 1) says so instead of an IndexError."""
+    import scipy.sparse as sp
+
+    from prodmaps.mesh import ellipsoid
+
+    m = ellipsoid(2)
+    b = pm.eigenbasis(m, 4)
+    C = pm.fmap_from_p2p(np.arange(m.n_vertices), b, b)
+    f = m.vertices[:, 0] * m.vertices[:, 1]
+    with pytest.raises(ValueError, match="C_12 is complex"):
+        pm.transfer(f, C + 1e-3j, b, b)
+    with pytest.raises(ValueError, match="C_12 is complex"):
+        pm.transfer(f, C.astype(complex), b, b, method="prod")
+    for method in ("std", "prod"):
+        assert np.array_equal(pm.transfer(f, sp.csr_matrix(C), b, b, method), pm.transfer(f, C, b, b, method))
+    b1 = b.truncate(1)
+    C1 = pm.fmap_from_p2p(np.arange(m.n_vertices), b1, b1)
+    with pytest.raises(ValueError, match="k >= 2.*method='std'"):
+        pm.transfer(f, C1, b1, b1, method="prod")
