@@ -34,7 +34,13 @@ first two:
 * ``holds with the threshold rule`` — it does not at the paper's settings but does with the
   gain rule;
 * ``does not hold`` — measured, and it holds neither at the paper's settings nor with the rule;
-* ``not measured here`` — the results needed are missing (e.g. FAUST/TOSCA not prepared).
+* ``not measured here`` — the results needed are missing (e.g. FAUST/TOSCA not prepared);
+* ``not demonstrable in this setting`` — the entry has a ``rule.demonstrable`` (e.g. "an oracle,
+  exact product-preserving transfer through the ground-truth point map, beats ``C``") and it
+  fails on the results: the setting cannot show a product effect at all, so the claim is not
+  judged there (the paper/rule/default columns are still computed and shown). The gate's
+  ``rule.demonstrable_evidence`` (oracle and no-map numbers) leads the evidence; its outcome is in
+  ``settings["oracle"]``.
 
 The first two carry the suffix ``" within rounding"`` when the rule's outcome hinges on a
 comparison whose margin is so thin that floating-point rounding (another BLAS kernel, another
@@ -74,8 +80,9 @@ __all__ = ["Claim", "Verdict", "load_ledger", "evaluate", "evaluate_folder", "ve
            "format_table", "setting_mark", "LEDGER", "VERDICTS"]
 
 LEDGER = Path(str(importlib.resources.files("prodmaps.experiments") / "claims.toml"))
+NOT_DEMONSTRABLE = "not demonstrable in this setting"
 VERDICTS = ("holds", "holds within rounding", "holds with the threshold rule",
-            "holds with the threshold rule within rounding", "does not hold", "not measured here")
+            "holds with the threshold rule within rounding", "does not hold", NOT_DEMONSTRABLE, "not measured here")
 SUBSET_SUFFIX = {"all": "", "intra": "_intra", "inter": "_inter"}
 def _mean(values) -> float:
     values = list(values)
@@ -122,6 +129,9 @@ class Claim:
     method_rule: str = "our_B_gainrule"
     method_default: str = "our_default"
     note: str = ""
+    demonstrable: str = ""  # rule.demonstrable: can the setting show the claim at all (an oracle beats C)?
+    demonstrable_margin: str = ""
+    demonstrable_evidence: str = ""
     smoke_verdict: dict = field(default_factory=dict)  # subset -> the verdict expected on the smoke results
 
 
@@ -134,13 +144,19 @@ class Verdict:
     verdict: str
     settings: dict = field(default_factory=dict)  # setting -> {"holds": bool | None, "margin": ..., "evidence": str}
 
+    def __post_init__(self):
+        # a measured claim whose setting cannot show it (its oracle does not beat C) is not judged
+        if self.settings.get("oracle", {}).get("holds") is False and self.verdict != "not measured here":
+            self.verdict = NOT_DEMONSTRABLE
+
     @property
     def evidence(self) -> str:
+        gate = self.settings.get("oracle", {}).get("evidence")
         for s in ("paper", "rule", "default"):
             e = self.settings.get(s, {}).get("evidence")
             if e:
-                return e
-        return "results not found"
+                return f"{gate}; {e}" if gate else e
+        return gate or "results not found"
 
     def to_dict(self) -> dict:
         return {"id": self.claim.id, "where": self.claim.where, "subset": self.subset, "verdict": self.verdict,
@@ -172,7 +188,9 @@ def load_ledger(path=None) -> dict[str, Claim]:
             notebook=e.get("notebook", ""), settings=e.get("settings", ""),
             subsets=tuple(e.get("subsets", ("all",))), method=e.get("method", "our_B"),
             method_rule=e.get("method_rule", "our_B_gainrule"), method_default=e.get("method_default", "our_default"),
-            note=e.get("note", ""), smoke_verdict=_per_subset(cid, e.get("smoke_verdict", {})))
+            note=e.get("note", ""), smoke_verdict=_per_subset(cid, e.get("smoke_verdict", {})),
+            demonstrable=rule.get("demonstrable", ""), demonstrable_margin=rule.get("demonstrable_margin", ""),
+            demonstrable_evidence=rule.get("demonstrable_evidence", ""))
     return out
 
 
@@ -182,6 +200,34 @@ def _per_subset(cid: str, v) -> dict:
     if bad:
         raise ValueError(f"claims ledger: claim {cid!r}: smoke_verdict {bad} (verdicts: {VERDICTS})")
     return out
+
+
+def _gate(claim: Claim, results: dict, subset: str) -> dict:
+    """The entry's ``rule.demonstrable`` on the results: whether the setting can show the claim.
+
+    Evaluated on the values that do not name ``{method}`` (typically an oracle and ``C``), with
+    the exact tie rule. ``{"holds": bool | None, "margin": ..., "evidence": str}``.
+    """
+    env = dict(_FUNCS)
+    try:
+        for name, path in claim.values.items():
+            if "{method}" not in path:
+                env[name] = _lookup(path.replace("{subset}", SUBSET_SUFFIX[subset]), results)
+    except _Missing as exc:
+        return {"holds": None, "evidence": f"not measured: {exc}"}
+    scope = {"__builtins__": {}, **env, **_comparators("exact")}
+    try:
+        holds = bool(eval(claim.demonstrable, scope))  # noqa: S307 - the ledger is package data
+        margin = eval(claim.demonstrable_margin, scope) if claim.demonstrable_margin else None  # noqa: S307
+    except (KeyError, NameError, TypeError, ZeroDivisionError, ValueError) as exc:
+        return {"holds": None, "evidence": f"not measured: rule.demonstrable failed ({type(exc).__name__}: {exc})"}
+    fmt = {k: v for k, v in env.items() if k not in _FUNCS}
+    fmt.update({f"n_{k}": len(v) for k, v in fmt.items() if isinstance(v, dict)})
+    try:
+        ev = claim.demonstrable_evidence.format(margin=margin, **fmt) if claim.demonstrable_evidence else ""
+    except (KeyError, IndexError, ValueError, TypeError) as exc:
+        ev = f"(evidence template failed: {exc})"
+    return {"holds": holds, "margin": margin, "evidence": ev}
 
 
 def _flatten(obj, prefix: str = "") -> dict:
@@ -253,6 +299,8 @@ def evaluate(claim: Claim, results: dict) -> list[Verdict]:
     out = []
     for subset in claim.subsets:
         settings = {"paper": _judge(claim, prepared, claim.method, subset)}
+        if claim.demonstrable:  # the setting's oracle first: a claim is judged only where it can show
+            settings["oracle"] = _gate(claim, prepared, subset)
         uses_method = any("{method}" in p for p in claim.values.values())
         if uses_method:
             settings["rule"] = _judge(claim, prepared, claim.method_rule, subset)

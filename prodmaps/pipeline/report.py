@@ -167,7 +167,7 @@ class _Doc:
     # verdict -> badge class, longest phrases first so "holds with the threshold rule" is not "holds"
     _BADGES = (("holds with the threshold rule within rounding", "v-rule"), ("holds with the threshold rule", "v-rule"),
                ("holds within rounding", "v-round"), ("does not hold", "v-not"),
-               ("not measured here", "v-none"), ("holds", "v-holds"))
+               ("not measured here", "v-none"), ("not demonstrable in this setting", "v-none"), ("holds", "v-holds"))
     _NUMBER = re.compile(r"[-+−]?(\d[\d,]*\.?\d*(e[-+]?\d+)?|\.\d+)\s*(%|x|s)?", re.I)
     _STYLE = (
         "body{font-family:system-ui,-apple-system,'Segoe UI',sans-serif;line-height:1.45;max-width:1400px;"
@@ -345,7 +345,9 @@ def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: 
     d.p("One row per entry of the claims ledger (`prodmaps/experiments/claims.toml`). The verdict is "
         "computed from the runs' numbers by the entry's rule: **holds** at the paper's settings, **holds "
         "with the threshold rule** (Approach B with `select_rtol(method=\"gain\")`, no ground truth) but not "
-        "at the paper's, **does not hold**, or **not measured here**; \"within rounding\" when a margin under "
+        "at the paper's, **does not hold**, **not demonstrable in this setting** (the entry's oracle, e.g. the "
+        "exact point-map transfer, does not beat C there, so no product effect can show; the evidence starts "
+        "with the oracle and no-map numbers), or **not measured here**; \"within rounding\" when a margin under "
         f"{compare.ROUNDING_REL:g} relative decides it (rounding on another machine could flip it), ties "
         f"within {compare.TIE_REL:g} relative never count as wins. The columns *paper*, *rule* and "
         "*default* say whether the rule holds at the paper's settings, with the threshold rule and with the "
