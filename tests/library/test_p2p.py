@@ -6,7 +6,14 @@ from scipy.spatial.distance import cdist
 
 import prodmaps as pm
 from prodmaps import fmaps
-from prodmaps.p2p import NN_METHODS, extended_embeddings, from_fmap, heat_square_coefficients, nearest_neighbors
+from prodmaps.p2p import (
+    NN_METHODS,
+    extended_embeddings,
+    from_fmap,
+    heat_square_coefficients,
+    nearest_neighbors,
+    point_functions,
+)
 
 
 @pytest.mark.parametrize("dim", [3, 40, 2500])
@@ -104,18 +111,19 @@ def test_std_matches_its_definition(basis_0, basis_13):
     assert np.array_equal(p2p, ref)
 
 
-@pytest.mark.parametrize("method", ["std", "extended"])
+@pytest.mark.parametrize("method", ["std", "extended", "extended_closed_form"])
 def test_ground_truth_identity_recovered_exactly(basis_0, method):
     k = 12
     C = fmaps.ground_truth(np.arange(basis_0.n), basis_0.truncate(k), basis_0.truncate(k))
     assert np.array_equal(from_fmap(C, basis_0, basis_0, method=method), np.arange(basis_0.n))
 
 
-def test_extended_identity_rectangular(basis_0):
-    """Ground-truth (k2, k1) = (16, 10) map on one shape: the extended conversion is exact."""
+def test_closed_form_identity_rectangular(basis_0):
+    """Ground-truth (k2, k1) = (16, 10) map on one shape: the closed form is exact (its kernels
+    lie in the span of the first 10 eigenfunctions' products on both sides)."""
     C = fmaps.ground_truth(np.arange(basis_0.n), basis_0.truncate(10), basis_0.truncate(16))
     assert C.shape == (16, 10)
-    assert np.array_equal(from_fmap(C, basis_0, basis_0, method="extended"), np.arange(basis_0.n))
+    assert np.array_equal(from_fmap(C, basis_0, basis_0, method="extended_closed_form"), np.arange(basis_0.n))
 
 
 @pytest.mark.parametrize("pairs", ["unique", "ordered"])
@@ -135,7 +143,7 @@ def test_canonical_distances_are_area_distances(basis_0):
     """‖ã_y − ã_y'‖ equals the area-L2 distance of the squared kernels (no truncation)."""
     b = basis_0.truncate(8)
     C = np.eye(8)
-    e1, e2, info = extended_embeddings(C, b, b, rtol=1e-12)
+    e1, e2, info = extended_embeddings(C, b, b, rtol=1e-12, point="closed_form")
     assert info["dim"] == 1 + 7 + 28  # full rank, unique products
     t = info["t"]
     w = np.exp(-b.evals * t)
@@ -148,11 +156,12 @@ def test_canonical_distances_are_area_distances(basis_0):
 
 
 def test_pairs_conventions_agree(basis_0, basis_13):
+    """The closed form's canonical coefficients do not depend on the pair convention."""
     rng = np.random.default_rng(4)
     C = fmaps.ground_truth(np.arange(basis_13.n), basis_0.truncate(8), basis_13.truncate(10))
     C = C + 0.05 * rng.normal(size=C.shape)
-    pu = from_fmap(C, basis_0, basis_13, method="extended", pairs="unique")
-    po = from_fmap(C, basis_0, basis_13, method="extended", pairs="ordered")
+    pu = from_fmap(C, basis_0, basis_13, method="extended_closed_form", pairs="unique")
+    po = from_fmap(C, basis_0, basis_13, method="extended_closed_form", pairs="ordered")
     assert np.mean(pu == po) > 0.999  # identical up to floating-point near-ties
 
 
@@ -169,7 +178,15 @@ def test_from_fmap_bad_inputs(basis_0, basis_13):
     with pytest.raises(TypeError, match="unknown"):
         from_fmap(C, basis_0, basis_13, method="extended", time=1.0)
     with pytest.raises(ValueError, match="n_eig"):
-        from_fmap(C, basis_0, basis_13, method="extended", n_eig=9)
+        from_fmap(C, basis_0, basis_13, method="extended_closed_form", n_eig=9)  # above min(k1, k2) = 8
+    with pytest.raises(ValueError, match="n_eig"):
+        from_fmap(C, basis_0, basis_13, method="extended", n_eig=41)  # above the bases' 40 columns
+    with pytest.raises(ValueError, match="point"):
+        from_fmap(C, basis_0, basis_13, method="extended", point="gauss")
+    with pytest.raises(ValueError, match="dtype"):
+        from_fmap(C, basis_0, basis_13, method="extended", dtype="float16")
+    with pytest.raises(TypeError, match="unknown"):
+        from_fmap(C, basis_0, basis_13, method="extended_closed_form", point="heat")
     with pytest.raises(ValueError, match="t must"):
         from_fmap(C, basis_0, basis_13, method="extended", t=-1.0)
     with pytest.raises(TypeError):
@@ -188,7 +205,7 @@ def test_effective_dimension_and_auto_on_extended_embeddings(basis_0, basis_13, 
     assert p2p.effective_dimension(np.c_[rng.normal(size=(100, 1)), np.zeros((100, 9))]) == pytest.approx(1.0)
     assert p2p.effective_dimension(np.ones((5, 3))) == 0.0
     C = rng.normal(size=(40, 30)) * 0.05 + np.eye(40, 30)
-    e1, e2, _ = extended_embeddings(C, basis_0.truncate(30), basis_13.truncate(40))
+    e1, e2, _ = extended_embeddings(C, basis_0.truncate(30), basis_13.truncate(40), point="closed_form")
     assert e1.shape[1] > p2p.KDTREE_MAX_DIM and p2p.effective_dimension(e1) <= p2p.KDTREE_MAX_EFFECTIVE_DIM
     calls = []
     real = p2p._nn_kdtree
@@ -222,20 +239,152 @@ def test_auto_probe_finishes_with_the_faster_method(monkeypatch, kd_faster):
     assert used[winner][0] == s and rest in used[winner] and used[loser][0] == s
 
 
-@pytest.mark.parametrize("method", ["std", "extended"])
+@pytest.mark.parametrize("method", ["std", "extended", "extended_closed_form"])
 def test_from_fmap_on_sampled_vertices_is_the_full_map_sampled(basis_0, basis_13, method):
-    b1, b2 = basis_0.truncate(12), basis_13.truncate(16)
+    b1, b2 = (basis_0.truncate(12), basis_13.truncate(16)) if method != "extended" else (basis_0, basis_13)
     C = np.random.default_rng(2).normal(size=(16, 12))
     full = from_fmap(C, b1, b2, method)  # (n2,)
     ev = np.sort(np.random.default_rng(3).choice(b2.n, 300, replace=False))
     np.testing.assert_array_equal(from_fmap(C, b1, b2, method, vertices=ev), full[ev])
     assert from_fmap(C, b1, b2, method, vertices=ev[:0]).shape == (0,)
-    if method == "extended":  # the sampled target embedding is the full one's rows (computed on those rows only)
-        e1, e2, _ = extended_embeddings(C, b1, b2)
-        s1, s2, _ = extended_embeddings(C, b1, b2, vertices=ev)
+    if method != "std":  # the sampled target embedding is the full one's rows (computed on those rows only)
+        kw = {"point": "closed_form"} if method == "extended_closed_form" else {}
+        e1, e2, _ = extended_embeddings(C, b1, b2, **kw)
+        s1, s2, _ = extended_embeddings(C, b1, b2, vertices=ev, **kw)
         assert s2.shape == (ev.size, e2.shape[1]) and np.array_equal(s1, e1)
-        np.testing.assert_allclose(s2, e2[ev], rtol=0, atol=1e-13 * np.abs(e2).max())
+        tol = 1e-13 if method == "extended_closed_form" else 1e-6  # float32 products by blocks of points
+        np.testing.assert_allclose(s2, e2[ev], rtol=0, atol=tol * np.abs(e2).max())
     with pytest.raises(ValueError, match="vertices indices out of range"):
         from_fmap(C, b1, b2, method, vertices=np.array([b2.n]))
     with pytest.raises(ValueError, match="integer"):
         from_fmap(C, b1, b2, method, vertices=ev.astype(float))
+
+
+# --------------------------------------------- the extended conversion of Section 4.4 (issue 33)
+def _ellipsoid_pair():
+    """Two small shapes with the same connectivity and simple spectra: an ellipsoid and a smooth
+    deformation of it (identity correspondence), 60 eigenpairs each."""
+    from prodmaps.mesh import ellipsoid
+
+    m1 = ellipsoid(3)
+    v = m1.vertices.copy()
+    v = v * np.array([1.1, 0.9, 1.0]) + 0.08 * np.sin(2.0 * v[:, [1, 2, 0]])
+    m2 = pm.Mesh(v, m1.faces)
+    return pm.eigenbasis(m1, 60), pm.eigenbasis(m2, 60)
+
+
+def _dense_reference(C, b1, b2, k1, k2, rtol, point="heat"):
+    """The extended conversion written out densely with numpy: point functions as full (n, n)
+    matrices, Approach B by the SVD of sqrt(A) B D ("euclidean" D: unit Euclidean norm factors),
+    the fit a = D V Σ⁻¹ Uᵀ sqrt(A) f, the transfer C~ a and the canonical coefficients Σ Vᵀ D⁻¹ a."""
+    def svd_parts(b, k):
+        ext = pm.product_basis(b.truncate(k), 2, "unique")
+        c = 1.0 / np.linalg.norm(b.vecs[:, :k], axis=0)
+        d = np.where(ext.index > 0, c[ext.index], 1.0).prod(axis=1)
+        d[0] = c[0]
+        U, s, Vt = np.linalg.svd(np.sqrt(b.mass)[:, None] * ext.matrix * d, full_matrices=False)
+        r = int(np.sum(s > rtol * s[0]))
+        return U[:, :r], s[:r], Vt[:r], d
+
+    def functions(b, t):
+        if point == "delta":
+            return b.area * np.diag(1.0 / b.mass)
+        H = (b.vecs * np.exp(-b.evals * t)) @ b.vecs.T * b.area  # (n, n) area · h_t(x, y), 60 eigenpairs
+        return H**2
+
+    t = 1.0 / b1.evals[k1 - 1]
+    U1, s1, V1, d1 = svd_parts(b1, k1)
+    U2, s2, V2, d2 = svd_parts(b2, k2)
+    F1, F2 = functions(b1, t), functions(b2, t * b2.area / b1.area)
+    a1 = d1[:, None] * (V1.T @ ((U1.T @ (np.sqrt(b1.mass)[:, None] * F1)) / s1[:, None]))  # (K1, n1)
+    Ct = pm.extend_fmap(C, b1.truncate(k1), b2.truncate(k2), order=2, pairs="unique")
+    e1 = (s2[:, None] * V2 / d2) @ (Ct @ a1)  # (r2, n1)
+    e2 = U2.T @ (np.sqrt(b2.mass)[:, None] * F2)  # (r2, n2) = Σ Vᵀ D⁻¹ of the target functions' fits
+    return e1.T / np.sqrt(b2.area), e2.T / np.sqrt(b2.area)
+
+
+@pytest.mark.parametrize("point", ["heat", "delta"])
+def test_extended_equals_dense_computation(point):
+    b1, b2 = _ellipsoid_pair()
+    k1, k2 = 9, 12
+    rng = np.random.default_rng(1)
+    C = fmaps.ground_truth(np.arange(b2.n), b1.truncate(k1), b2.truncate(k2)) + 0.03 * rng.normal(size=(k2, k1))
+    r1, r2 = _dense_reference(C, b1, b2, k1, k2, 1e-3, point)
+    e1, e2, info = extended_embeddings(C, b1, b2, point=point, dtype="float64", block_bytes=40_000)  # several blocks
+    assert info["n_eig"] == 60 and info["dim"] == r1.shape[1]
+    # canonical coordinates are defined up to the singular vectors' signs: compare what the search
+    # sees, the distances between every target point and every transferred source point
+    D = cdist(r2, r1)  # (n2, n1)
+    np.testing.assert_allclose(cdist(e2, e1), D, rtol=0, atol=1e-8 * D.max())
+    np.testing.assert_allclose(np.linalg.norm(e1, axis=1), np.linalg.norm(r1, axis=1), rtol=1e-8)
+    f1, f2, _ = extended_embeddings(C, b1, b2, point=point)  # float32 products
+    np.testing.assert_allclose(cdist(f2, f1), D, rtol=0, atol=1e-5 * D.max())
+    assert np.array_equal(from_fmap(C, b1, b2, "extended", point=point, dtype="float64"), _brute_force(r2, r1))
+    # the canonical coefficients are area-L2 norms of the fitted functions (Section 4.4)
+    F = point_functions(b2, [3, 50], point=point, t=info["t"] * b2.area / b1.area)
+    ext = pm.product_basis(b2.truncate(k2), 2, "unique")
+    fit = ext.operator("svd", rtol=1e-3).reconstruct(F)
+    np.testing.assert_allclose(np.linalg.norm(e2[[3, 50]], axis=1),
+                               np.sqrt(b2.mass @ fit**2) / np.sqrt(b2.area), rtol=1e-8)
+
+
+def test_point_functions_kernel(basis_0):
+    """Squared heat kernels from the basis' eigenpairs, unit-area scaled; δ integrates to the area."""
+    t = 1.0 / basis_0.evals[29]
+    F = point_functions(basis_0, [7, 4000], t=t)
+    h = (basis_0.vecs * np.exp(-basis_0.evals * t)) @ basis_0.vecs[[7, 4000]].T  # (n, 2) from 40 eigenpairs
+    np.testing.assert_allclose(F, (basis_0.area * h) ** 2, rtol=0, atol=1e-12 * F.max())
+    D = point_functions(basis_0, [7], point="delta", t=t)
+    assert D[7, 0] * basis_0.mass[7] == pytest.approx(basis_0.area) and np.count_nonzero(D) == 1
+    F10 = point_functions(basis_0, [7], t=t, n_eig=10)
+    h10 = (basis_0.vecs[:, :10] * np.exp(-basis_0.evals[:10] * t)) @ basis_0.vecs[7, :10]
+    np.testing.assert_allclose(F10[:, 0], (basis_0.area * h10) ** 2, rtol=0, atol=1e-12 * F10.max())
+
+
+def test_extended_is_unit_free(basis_0, basis_13):
+    """Scaling either mesh (or both) by 0.01 or 100 gives the same map."""
+    rng = np.random.default_rng(0)
+    C = fmaps.ground_truth(np.arange(basis_13.n), basis_0.truncate(12), basis_13.truncate(16))
+    C = C + 0.02 * rng.normal(size=C.shape)
+    ev = np.sort(rng.choice(basis_13.n, 400, replace=False))
+    p1 = from_fmap(C, basis_0, basis_13, "extended", vertices=ev)
+    for s in (0.01, 100.0):
+        for s1, s2 in ((1.0, s), (s, s)):
+            Cs = C * s2 / s1  # C_12 scales as sqrt(area_2 / area_1)
+            p = from_fmap(Cs, basis_0.scaled(s1), basis_13.scaled(s2), "extended", vertices=ev)
+            assert np.mean(p == p1) > 0.999, (s1, s2, np.mean(p == p1))
+
+
+def test_closed_form_is_the_mesh_reading_with_the_maps_own_eigenpairs():
+    """Why the closed form cannot beat the standard conversion, as a computation: a kernel built
+    from the map's own k eigenpairs lies in the span of their products, and the mesh reading
+    with that kernel (fitted exactly: rtol 1e-10) gives the closed form's embeddings up to one
+    global factor, hence its map. Only eigenpairs beyond k bring information the products lack."""
+    b1, b2 = _ellipsoid_pair()
+    k = 10
+    rng = np.random.default_rng(2)
+    C = fmaps.ground_truth(np.arange(b2.n), b1.truncate(k), b2.truncate(k)) + 0.05 * rng.normal(size=(k, k))
+    c1, c2, _ = extended_embeddings(C, b1, b2, point="closed_form", rtol=1e-10)
+    with pytest.warns(UserWarning, match="closed form"):
+        m1, m2, _ = extended_embeddings(C, b1, b2, n_eig=k, rtol=1e-10, dtype="float64")
+    g = b2.area**2 / np.sqrt(b2.area)  # unit-area kernels (area·h)² over sqrt(area_2) against h²
+    # (the source fit at rtol 1e-10 sees the products' conditioning: agreement to ~1e-6)
+    np.testing.assert_allclose(m1, g * c1, rtol=0, atol=1e-5 * np.abs(m1).max())
+    np.testing.assert_allclose(m2, g * c2, rtol=0, atol=1e-9 * np.abs(m2).max())
+    assert np.mean(_brute_force(m2, m1) == _brute_force(c2, c1)) > 0.99
+
+
+def test_closed_form_reproduces_the_previous_release(basis_0, basis_13):
+    """The closed form is the extended conversion of the releases before issue 33, unchanged: its
+    maps on two configurations hash to the values computed with that code (commit cc2b118)."""
+    import hashlib
+
+    def digest(p):
+        return hashlib.sha256(np.asarray(p, dtype=np.int64).tobytes()).hexdigest()[:16]
+
+    rng = np.random.default_rng(4)
+    C = fmaps.ground_truth(np.arange(basis_13.n), basis_0.truncate(12), basis_13.truncate(16))
+    C = C + 0.05 * rng.normal(size=C.shape)
+    assert digest(from_fmap(C, basis_0, basis_13, "extended_closed_form")) == "faff928a3646df91"
+    C2 = np.random.default_rng(2).normal(size=(16, 12))
+    assert digest(from_fmap(C2, basis_0, basis_13, "extended_closed_form")) == "987aeb3c7451b7d6"
