@@ -77,7 +77,7 @@ from . import compare
 from .compare import ROUNDING_REL
 
 __all__ = ["Claim", "Verdict", "load_ledger", "evaluate", "evaluate_folder", "verdicts_for_run",
-           "format_table", "setting_mark", "LEDGER", "VERDICTS"]
+           "format_table", "setting_mark", "reading_verdicts", "LEDGER", "VERDICTS"]
 
 LEDGER = Path(str(importlib.resources.files("prodmaps.experiments") / "claims.toml"))
 NOT_DEMONSTRABLE = "not demonstrable in this setting"
@@ -264,13 +264,42 @@ def _lookup(path: str, results: dict):
     return hits
 
 
-def _judge(claim: Claim, results: dict, method: str, subset: str) -> dict:
+def _reading_rows(values: dict, reading: str | None) -> tuple[dict, set]:
+    """Family rows of one reading: rows labelled ``"HKS (textbook)"`` (a family under a reading
+    other than the run's) are dropped, or, for ``reading="textbook"``, take the place of ``"HKS"``.
+    Returns the values and the set of readings found."""
+    from .families import PAPER_LABELS
+
+    labels = set(PAPER_LABELS.values())
+    found, out = set(), {}
+    for key, v in values.items():
+        if not isinstance(v, dict):
+            out[key] = v
+            continue
+        rows, alt = {}, {}
+        for label, x in v.items():
+            base, sep, rest = str(label).partition(" (")
+            if sep and base in labels and rest.endswith(")"):
+                found.add(rest[:-1])
+                if rest[:-1] == reading:
+                    alt[base] = x
+            else:
+                rows[label] = x
+        out[key] = {**rows, **alt}
+    return out, found
+
+
+def _judge(claim: Claim, results: dict, method: str, subset: str, reading: str | None = None) -> dict:
     env = dict(_FUNCS)
     try:
-        for name, path in claim.values.items():
-            env[name] = _lookup(path.replace("{method}", method).replace("{subset}", SUBSET_SUFFIX[subset]), results)
+        looked = {name: _lookup(path.replace("{method}", method).replace("{subset}", SUBSET_SUFFIX[subset]), results)
+                  for name, path in claim.values.items()}
     except _Missing as exc:
         return {"holds": None, "evidence": f"not measured: {exc}"}
+    looked, found = _reading_rows(looked, reading)
+    if reading is not None and reading not in found:
+        return {"holds": None, "evidence": f"not measured: no family under the {reading} reading"}
+    env.update(looked)
     try:
         ways = {}
         for mode in _MODES:
@@ -290,7 +319,8 @@ def _judge(claim: Claim, results: dict, method: str, subset: str) -> dict:
         ev = f"(evidence template failed: {exc})"
     if within_rounding:
         ev += f" (decided by a margin under {ROUNDING_REL:g} relative: within rounding)"
-    return {"holds": holds, "margin": margin, "evidence": ev, "within_rounding": within_rounding}
+    return {"holds": holds, "margin": margin, "evidence": ev, "within_rounding": within_rounding,
+            "readings": sorted(found)}
 
 
 def evaluate(claim: Claim, results: dict) -> list[Verdict]:
@@ -305,18 +335,29 @@ def evaluate(claim: Claim, results: dict) -> list[Verdict]:
         if uses_method:
             settings["rule"] = _judge(claim, prepared, claim.method_rule, subset)
             settings["default"] = _judge(claim, prepared, claim.method_default, subset)
-        measured = [s for s in settings.values() if s["holds"] is not None]
-        if not measured:
-            verdict = "not measured here"
-        elif settings["paper"]["holds"]:
-            verdict = "holds" + (" within rounding" if settings["paper"]["within_rounding"] else "")
-        elif settings.get("rule", {}).get("holds"):
-            verdict = "holds with the threshold rule" + (" within rounding" if settings["rule"]["within_rounding"]
-                                                          else "")
-        else:
-            verdict = "does not hold"
+        verdict = _combine(settings["paper"], settings.get("rule"))
+        for reading in settings["paper"].get("readings", []):  # e.g. the textbook HKS beside the published one
+            paper = _judge(claim, prepared, claim.method, subset, reading=reading)
+            rule = _judge(claim, prepared, claim.method_rule, subset, reading=reading) if uses_method else None
+            settings[f"reading:{reading}"] = {**paper, "verdict": _combine(paper, rule)}
         out.append(Verdict(claim, subset, verdict, settings))
     return out
+
+
+def _combine(paper: dict, rule: dict | None) -> str:
+    """The verdict from the paper's setting and the threshold rule's (see the module doc)."""
+    if paper["holds"] is None and (rule is None or rule["holds"] is None):
+        return "not measured here"
+    if paper["holds"]:
+        return "holds" + (" within rounding" if paper["within_rounding"] else "")
+    if rule is not None and rule.get("holds"):
+        return "holds with the threshold rule" + (" within rounding" if rule["within_rounding"] else "")
+    return "does not hold"
+
+
+def reading_verdicts(v: "Verdict") -> dict:
+    """``{reading: verdict}`` of the family readings judged beside the run's (e.g. ``"textbook"``)."""
+    return {k.partition(":")[2]: s["verdict"] for k, s in v.settings.items() if k.startswith("reading:")}
 
 
 def _read(folder: Path) -> dict | None:
@@ -359,7 +400,8 @@ def format_table(verdicts: list[Verdict]) -> str:
         return "(no claim of the ledger is judged on this run alone; see the report)"
     rows = [("claim", "pairs", "verdict", "paper", "rule", "default", "evidence")]
     for v in verdicts:
-        rows.append((v.claim.id, v.subset if len(v.claim.subsets) > 1 else "", v.verdict, setting_mark(v, "paper"),
+        verdict = v.verdict + "".join(f" ({r} reading: {x})" for r, x in reading_verdicts(v).items())
+        rows.append((v.claim.id, v.subset if len(v.claim.subsets) > 1 else "", verdict, setting_mark(v, "paper"),
                      setting_mark(v, "rule"), setting_mark(v, "default"), v.evidence))
     w = [max(len(r[i]) for r in rows) for i in range(6)]
     return "\n".join("  ".join(f"{c:<{w[i]}}" for i, c in enumerate(r[:6])) + "  " + r[6] for r in rows)

@@ -7,6 +7,11 @@ span of the source basis. With a ground-truth map ``C`` of size ``(target_dim, s
 the source). The scale: the HKS time at position ``hks_scale`` ∈ [0, 1] of the log SOG09 range of
 the source basis (0: the smallest time, the most detailed HKS it resolves), the WKS energy at
 ``wks_scale`` of the ASC11 range; a sensitivity table reports three positions of each.
+
+HKS reading (``hks_weights``, :func:`prodmaps.experiments.families.hks_columns`): ``"reversed"``
+(the default: the reading of the paper's HKS numbers, :data:`~prodmaps.experiments.families.PUBLISHED_READINGS`)
+or ``"sog09"`` (the textbook HKS); the other one is reported beside it as ``"HKS (textbook)"`` /
+``"HKS (reversed pairing)"`` so the ledger judges the claim under both readings.
 """
 
 from __future__ import annotations
@@ -26,27 +31,35 @@ __all__ = ["SCALES", "spectral_descriptors", "hks_wks_convergence"]
 SCALES = (0.0, 0.5, 1.0)  # positions reported in the sensitivity table
 
 
-def spectral_descriptors(basis, s_hks: float, s_wks: float):
-    """One HKS and one WKS column ``(n, 2)`` from ``basis`` at relative positions ``s`` in [0, 1].
+def spectral_descriptors(basis, s_hks: float, s_wks: float, hks_weights=("reversed", "sog09")):
+    """HKS and WKS columns ``(n, 1 + len(hks_weights))`` from ``basis`` at relative positions ``s``
+    in [0, 1]: the HKS under the first reading, the WKS, then the HKS under the other readings.
 
     Returns ``(F, t, e)`` with the HKS time ``t`` and the WKS energy ``e`` used.
     """
+    from .families import hks_columns
+
     times = descriptors.hks_times(basis, 2)  # [t_min, t_max] of the SOG09 range
     t = float(np.exp(np.log(times[0]) + s_hks * (np.log(times[1]) - np.log(times[0]))))
     energies, sigma = descriptors.wks_energies(basis, 100)  # ASC11 grid (100,) and its sigma
     e = float(energies[0] + s_wks * (energies[-1] - energies[0]))
-    F = np.column_stack([descriptors.hks(basis, [t])[:, 0], descriptors.wks(basis, [e], sigma)[:, 0]])
+    hks = [hks_columns(basis, [t], w)[:, 0] for w in hks_weights]
+    F = np.column_stack([hks[0], descriptors.wks(basis, [e], sigma)[:, 0], *hks[1:]])
     return F, t, e
 
 
 def hks_wks_convergence(dataset: str, pairs, *, source_dim: int, target_dims, hks_scale: float = 0.0,
                         wks_scale: float = 0.5, rtol: float = 1e-3, pairs_convention: str = "ordered",
-                        verbose: bool = True) -> dict:
+                        hks_weights: str = "reversed", verbose: bool = True) -> dict:
     """Run Figure 11 (module doc) on ``pairs``; returns ``{"results": ..., "errors_raw": ...}``."""
     dims = sorted(int(d) for d in target_dims)
     if dims[0] < 2 or source_dim < 3:
         raise ValueError("need at least 2 target and 3 source basis columns")
-    names, methods = ("HKS", "WKS"), ("std", "prod")
+    readings = {"reversed": "reversed pairing", "sog09": "textbook"}
+    if hks_weights not in readings:
+        raise ValueError(f"hks_weights must be one of {list(readings)}, got {hks_weights!r}")
+    weights = (hks_weights, *[w for w in readings if w != hks_weights])
+    names, methods = ("HKS", "WKS", *[f"HKS ({readings[w]})" for w in weights[1:]]), ("std", "prod")
     err = {d: {m: np.zeros((len(pairs), len(dims))) for m in methods} for d in names}
     sens = {d: {m: {s: [] for s in SCALES} for m in methods} for d in names}
     approx_err = {d: {"std": [], "prod": []} for d in names}
@@ -57,7 +70,7 @@ def hks_wks_convergence(dataset: str, pairs, *, source_dim: int, target_dims, hk
         b1 = eigenbasis(m1, source_dim)  # (n1, k_M + 1)
         b2_full = eigenbasis(m2, max(dims))  # (n2, max target dim)
         p2p_21 = datasets.ground_truth(dataset, id1, id2)  # (n2,) target vertex -> source vertex
-        F, t, e = spectral_descriptors(b1, hks_scale, wks_scale)  # (n1, 2)
+        F, t, e = spectral_descriptors(b1, hks_scale, wks_scale, weights)  # (n1, 3)
         scale_values.append({"pair": f"{id1}->{id2}", "hks_time": t, "wks_energy": e})
         G = F[p2p_21]  # (n2, 2) ground-truth transfer
         ext1 = product_basis(b1, 2, pairs_convention)
@@ -70,16 +83,17 @@ def hks_wks_convergence(dataset: str, pairs, *, source_dim: int, target_dims, hk
             b2 = b2_full.truncate(d)
             C = fmap_from_p2p(p2p_21, b1, b2)  # (d, k_M + 1) ground-truth map
             for method in methods:
-                e_ = relative_error(transfer(F, C, b1, b2, method, **kw[method]), G, b2.mass)  # (2,)
-                err["HKS"][method][ip, jd], err["WKS"][method][ip, jd] = e_
+                e_ = relative_error(transfer(F, C, b1, b2, method, **kw[method]), G, b2.mass)  # (3,)
+                for j, name in enumerate(names):
+                    err[name][method][ip, jd] = e_[j]
         for s in SCALES:  # scale sensitivity at the largest target dimension
-            Fs, _, _ = spectral_descriptors(b1, s, s)
+            Fs, _, _ = spectral_descriptors(b1, s, s, weights)
             b2 = b2_full.truncate(dims[-1])
             C = fmap_from_p2p(p2p_21, b1, b2)
             for method in methods:
                 e_ = relative_error(transfer(Fs, C, b1, b2, method, **kw[method]), Fs[p2p_21], b2.mass)
-                sens["HKS"][method][s].append(e_[0])
-                sens["WKS"][method][s].append(e_[1])
+                for j, name in enumerate(names):
+                    sens[name][method][s].append(e_[j])
         if verbose:
             print(f"{id1} -> {id2}: {time.perf_counter() - t0:.1f} s")
     mean = {d: {m: err[d][m].mean(axis=0) for m in methods} for d in names}

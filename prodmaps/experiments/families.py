@@ -66,8 +66,9 @@ from ..basis import Basis, eigenbasis
 from ..cache import Cache
 from ..mesh import Mesh
 
-__all__ = ["FAMILIES", "PAPER_LABELS", "FamilySpec", "make_family", "pull_back", "family_names",
-           "descriptor_key", "family_seed"]
+__all__ = ["FAMILIES", "PAPER_LABELS", "READINGS", "PUBLISHED_READINGS", "READING_SETS", "resolve_reading",
+           "split_entry", "entry_label", "sort_entries", "hks_columns", "FamilySpec", "make_family", "pull_back",
+           "family_names", "descriptor_key", "family_seed"]
 
 
 @dataclass(frozen=True)
@@ -94,6 +95,94 @@ FAMILIES: dict[str, FamilySpec] = {
     ]
 }
 PAPER_LABELS = {name: spec.paper_label for name, spec in FAMILIES.items()}
+
+RANDOM_COEFFICIENTS_ = ("normal", "uniform")
+RANDOM_SCALINGS_ = ("columns", "unit_area")
+
+# ----------------------------------------------------------------------------- readings
+READINGS: dict[str, dict[str, dict]] = {
+    "hk_k": {"textbook": {}, "t=5e-4": {"t_rel": 5e-4}},
+    "hk_K": {"textbook": {}, "t=5e-4": {"t_rel": 5e-4}, "t=2.5e-4": {"t_rel": 2.5e-4}, "t=2e-3": {"t_rel": 2e-3}},
+    "HKS": {"textbook": {}, "SOG09, 200 eigenpairs": {"n_eig": 200},
+            "SOG09, times x10": {"factor": 40.0 * np.log(10.0)},
+            "reversed pairing": {"weights": "reversed"}, "growing": {"weights": "growing"}},
+    "WKS": {"textbook": {}, "grid 50": {"num_grid": 50}},
+    "Random": {"textbook": {}} | {  # textbook: normal, unique, columns
+        f"{c}, {p}, {sc}": {"coefficients": c, "pairs": p, "scaling": sc}
+        for c in RANDOM_COEFFICIENTS_ for p in ("unique", "ordered") for sc in RANDOM_SCALINGS_
+        if (c, p, sc) != ("normal", "unique", "columns")
+    },
+    "XYZ": {"textbook": {}},
+    "Indicator": {"textbook": {}, "area U[0.3, 0.5]": {"min_frac": 0.3, "max_frac": 0.5},
+                  "area 0.4": {"min_frac": 0.4, "max_frac": 0.4}, "area 0.25": {"min_frac": 0.25, "max_frac": 0.25}},
+    "SHOT": {"textbook": {}, "radius 0.075": {"radius_frac": 0.075}, "radius 0.05": {"radius_frac": 0.05}},
+    "AWFT": {"textbook": {}, "curvature only": {"functions": ("mean_curvature",)},
+             "small windows": {"taus": (0.001, 0.002, 0.005)}},
+}
+"""Plausible readings of every family's definition (Section 5.1 leaves the parameters open):
+``READINGS[family][reading] = options`` of :func:`make_family`. ``"textbook"`` is the definition
+as a reader of the cited papers would write it (this module's defaults: SOG09 HKS, ASC11 WKS,
+``N(0, 1)`` coefficients on unit-norm columns, balls of ``U[0.1, 0.5]`` of the area, SHOT of
+radius ``0.1·sqrt(area)``, heat kernels at ``t = 1e-3·area``). Every option is unit-free.
+``notebooks/study_family_readings.ipynb`` scores them all against the published tables."""
+
+PUBLISHED_READINGS: dict[str, str] = {
+    "hk_K": "t=5e-4",
+    "HKS": "reversed pairing",
+    "Random": "uniform, ordered, unit_area",
+    "Indicator": "area U[0.3, 0.5]",
+    "SHOT": "radius 0.05",
+}
+"""The readings that reproduce the paper's standard columns (the control no product method
+touches), chosen by :func:`prodmaps.experiments.family_readings.family_readings_study` on the
+eight public FAUST registrations and checked on the embedded humans; families not listed keep
+their textbook reading. HKS differs in kind from the textbook one (the published numbers fit only
+an HKS dominated by the squares of the highest eigenfunctions), so the tables also carry the
+textbook HKS (``"HKS:textbook"``) and the ledger judges its claims under both."""
+
+READING_SETS = ("textbook", "published")
+
+
+def split_entry(entry: str) -> tuple[str, str | None]:
+    """``"HKS:textbook"`` -> ``("HKS", "textbook")``; ``"HKS"`` -> ``("HKS", None)`` (the set's reading)."""
+    fam, _, reading = str(entry).partition(":")
+    if fam not in FAMILIES:
+        raise ValueError(f"unknown family {fam!r}; choose one of {list(FAMILIES)}")
+    if reading and reading not in READINGS[fam]:
+        raise ValueError(f"unknown reading {reading!r} of {fam}; choose one of {list(READINGS[fam])}")
+    return fam, (reading or None)
+
+
+def resolve_reading(entry: str, reading_set: str = "textbook") -> tuple[str, str, dict]:
+    """``(family, reading name, options)`` of a family entry (``"HKS"`` or ``"HKS:reversed pairing"``).
+
+    An entry without a reading takes the one of ``reading_set``: ``"textbook"`` (the module's
+    defaults) or ``"published"`` (:data:`PUBLISHED_READINGS`).
+    """
+    if reading_set not in READING_SETS:
+        raise ValueError(f"reading_set must be one of {READING_SETS}, got {reading_set!r}")
+    fam, reading = split_entry(entry)
+    if reading is None:
+        reading = PUBLISHED_READINGS.get(fam, "textbook") if reading_set == "published" else "textbook"
+    return fam, reading, dict(READINGS[fam][reading])
+
+
+def entry_label(entry: str, reading_set: str = "textbook") -> str:
+    """Row label of a family entry: the paper's label, with the reading when the entry names one
+    that differs from the set's (``"HKS:textbook"`` under ``"published"`` -> ``"HKS (textbook)"``)."""
+    fam, reading = split_entry(entry)
+    if reading is None or reading == resolve_reading(fam, reading_set)[1]:
+        return PAPER_LABELS[fam]
+    return f"{PAPER_LABELS[fam]} ({reading})"
+
+
+def sort_entries(entries) -> list[str]:
+    """Family entries in the paper's table order (a family's reading variants after it), unique."""
+    entries = list(dict.fromkeys(str(e) for e in entries))
+    for e in entries:
+        split_entry(e)
+    order = list(FAMILIES)
+    return sorted(entries, key=lambda e: (order.index(split_entry(e)[0]), ":" in e, e))
 
 
 def family_names() -> list[str]:
@@ -146,11 +235,48 @@ def _spectral_basis(ctx, n_eig):
     return _big_basis(ctx, int(n_eig))
 
 
-def _gen_hks(ctx, rng, m, *, factor: float = 4.0 * np.log(10.0), n_eig: int | None = None):
+HKS_WEIGHTS = ("sog09", "reversed", "growing")
+
+
+def _gen_hks(ctx, rng, m, *, factor: float = 4.0 * np.log(10.0), n_eig: int | None = None,
+             weights: str = "sog09", growth: tuple = (10.0, 30.0)):
+    """HKS-like sums of squared eigenfunctions ``Σ_i w_i(t) φ_i²`` at ``m`` random times.
+
+    ``weights="sog09"`` (the textbook HKS [SOG09]): ``w_i = exp(-λ_i t)``, ``i = 0..k``, times
+    log-uniform in ``[factor/λ_k, factor/λ_1]``. ``"reversed"``: the same times with the
+    eigenvalues paired in reverse order, ``Σ_{i=1..k} exp(-λ_{k-i} t) φ_i²`` (dominated by the
+    squares of the highest eigenfunctions). ``"growing"``: ``w_i = exp(+λ_i t)``, ``i = 0..k``,
+    with ``t·λ_k`` uniform in ``growth``. Every reading is free of the mesh's units (``λ t`` is).
+    """
+    if weights not in HKS_WEIGHTS:
+        raise ValueError(f"weights must be one of {HKS_WEIGHTS}, got {weights!r}")
     b = _spectral_basis(ctx, n_eig)
+    ev = b.evals  # (k+1,) ascending, ev[0] = 0
+    if weights == "growing":
+        lo, hi = (float(g) for g in growth)
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo <= hi):
+            raise ValueError(f"growth must be (lo, hi) with 0 < lo <= hi, got {growth!r}")
+        t = np.sort(rng.uniform(lo, hi, size=m)) / ev[-1]  # (m,)
+        return (b.vecs**2) @ np.exp(np.outer(ev, t))  # (n, m)
     lo_hi = _d.hks_times(b, 2, factor=factor)  # [t_min, t_max]
     t = np.sort(np.exp(rng.uniform(np.log(lo_hi[0]), np.log(lo_hi[1]), size=m)))
-    return _d.hks(b, t)
+    return hks_columns(b, t, weights)
+
+
+def hks_columns(basis: Basis, times, weights: str = "sog09") -> np.ndarray:
+    """HKS columns ``(n, len(times))`` from every eigenpair of ``basis`` under a reading.
+
+    ``"sog09"``: ``Σ_{i=0..k} exp(-λ_i t) φ_i²`` (:func:`prodmaps.descriptors.hks`);
+    ``"reversed"``: ``Σ_{i=1..k} exp(-λ_{k-i} t) φ_i²`` (the eigenvalues paired with the
+    eigenvectors in reverse order: the reading that reproduces the paper's HKS numbers).
+    """
+    if weights == "sog09":
+        return _d.hks(basis, times)
+    if weights != "reversed":
+        raise ValueError(f"weights must be 'sog09' or 'reversed' here, got {weights!r}")
+    t = np.atleast_1d(np.asarray(times, dtype=np.float64))
+    lam = basis.evals[:-1][::-1]  # (k,) λ_{k-1}, ..., λ_0 paired with φ_1, ..., φ_k
+    return (basis.vecs[:, 1:] ** 2) @ np.exp(-np.outer(lam, t))  # (n, T)
 
 
 def _gen_wks(ctx, rng, m, *, num_grid: int = 100, variance: float = 7.0, margin: float = 2.0,
@@ -161,14 +287,37 @@ def _gen_wks(ctx, rng, m, *, num_grid: int = 100, variance: float = 7.0, margin:
     return _d.wks(b, e, sigma, scaled=True)
 
 
-def _gen_random(ctx, rng, m):
-    from ..products import product_basis
+RANDOM_COEFFICIENTS = RANDOM_COEFFICIENTS_
+RANDOM_SCALINGS = RANDOM_SCALINGS_
 
+
+def _gen_random(ctx, rng, m, *, coefficients: str = "normal", pairs: str = "unique", scaling: str = "columns"):
+    """``B a``: random combinations of the order-2 extended basis ``B`` of the ``k_M + 1`` basis.
+
+    ``pairs``: ``"unique"`` (``φ_l φ_m``, ``l <= m``) or ``"ordered"`` (the paper's ``(l, m)`` and
+    ``(m, l)``). ``scaling``: ``"columns"`` (every column of ``B`` scaled to unit area norm) or
+    ``"unit_area"`` (the A-orthonormal eigenfunctions of the mesh scaled to unit area,
+    ``φ·sqrt(area)``, and their products as they come). ``coefficients``: i.i.d. ``N(0, 1)`` or
+    uniform on ``[0, 1]``. Every reading is free of the mesh's units.
+    """
+    from ..products import evaluate_products, product_basis
+
+    if coefficients not in RANDOM_COEFFICIENTS:
+        raise ValueError(f"coefficients must be one of {RANDOM_COEFFICIENTS}, got {coefficients!r}")
+    if scaling not in RANDOM_SCALINGS:
+        raise ValueError(f"scaling must be one of {RANDOM_SCALINGS}, got {scaling!r}")
     b = ctx["basis_k"]
-    B = product_basis(b, order=2, pairs="unique").matrix  # (n, K)
-    norms = np.sqrt(np.einsum("ij,ij->j", B, b.apply_mass(B)))  # (K,) area norms
-    B = B / norms[None, :]
-    a = rng.standard_normal((B.shape[1], m))  # (K, m)
+    ext = product_basis(b, order=2, pairs=pairs)
+    if scaling == "columns":
+        B = ext.matrix  # (n, K)
+        norms = np.sqrt(np.einsum("ij,ij->j", B, b.apply_mass(B)))  # (K,) area norms
+        B = B / norms[None, :]
+    else:
+        B = evaluate_products(b.vecs * np.sqrt(ctx["mesh"].area), ext.index)  # (n, K), unit-area eigenfunctions
+    if coefficients == "normal":
+        a = rng.standard_normal((B.shape[1], m))  # (K, m)
+    else:
+        a = rng.uniform(0.0, 1.0, size=(B.shape[1], m))  # (K, m)
     return B @ a
 
 

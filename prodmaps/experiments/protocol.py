@@ -63,16 +63,16 @@ class ProtocolSettings:
     k_M_family: int | None = None  # basis size of the basis-dependent families (default: largest k_M)
     noise: float = 0.25  # "perturbed": relative Frobenius size of the noise added to the ground-truth C
     normalization: str | None = None  # Approaches A/B (prodmaps.approx); None: the library's default
+    family_reading: str = "published"  # as the paper computed them; "textbook": as defined (families.READINGS)
 
     def __post_init__(self):
         self.sizes = [(int(a), int(b)) for a, b in self.sizes]
         bad = [m for m in self.methods if m not in METHODS and not str(m).startswith("B@")]
         if bad or "std" not in self.methods:
             raise ValueError(f"methods must contain 'std' and be among {METHODS} or 'B@<rtol>'; got {self.methods}")
-        unknown = set(self.families) - set(pfam.FAMILIES)
-        if unknown:
-            raise ValueError(f"unknown families {sorted(unknown)}; choose from {list(pfam.FAMILIES)}")
-        self.families = [f for f in pfam.FAMILIES if f in self.families]  # paper order
+        self.families = pfam.sort_entries(self.families)  # paper order; "name:reading" entries allowed
+        if self.family_reading not in pfam.READING_SETS:
+            raise ValueError(f"family_reading must be one of {pfam.READING_SETS}, got {self.family_reading!r}")
         if self.map_kind not in ("gt", "computed", "perturbed"):
             raise ValueError(f"map_kind must be 'gt', 'computed' or 'perturbed', got {self.map_kind!r}")
         if self.k_M_family is None:
@@ -171,7 +171,8 @@ def _protocol_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, s: Protocol
     t0 = time.perf_counter()
     prod_methods = [m for m in s.methods if m != "std"]
     gt = datasets.ground_truth(store.dataset, sid1, sid2)  # (n2,) target vertex -> source vertex
-    F, G, cols = store.family_functions(sid1, gt, ip, s.families, k_M=s.k_M_family, seed=s.seed)
+    F, G, cols = store.family_functions(sid1, gt, ip, s.families, k_M=s.k_M_family, seed=s.seed,
+                                          reading_set=s.family_reading)
     sizes = {}
     for (kM, kN) in s.sizes:
         rec = {"errors": {st: {} for st in STAGES}, "rank": None, "gain_rtol": None}
@@ -268,8 +269,8 @@ def family_means(result: ProtocolResult, table: str | None = None, pairs_mask=No
                     E = E[np.asarray(pairs_mask, dtype=bool)]
                 for fam in result.settings.families:
                     per = E[:, result.cols[fam]].mean(axis=1)  # (pairs,)
-                    out[(z[0], z[1], st, method_label(m, table), pfam.PAPER_LABELS[fam])] = (float(per.mean()),
-                                                                                           float(per.std()))
+                    label = pfam.entry_label(fam, result.settings.family_reading)
+                    out[(z[0], z[1], st, method_label(m, table), label)] = (float(per.mean()), float(per.std()))
     return out
 
 

@@ -143,55 +143,67 @@ class ShapeStore:
             raise ValueError(f"basis of {sid!r} has {full.k} columns (ShapeStore n_eig={self.n_eig}); asked for {k}")
         return full.truncate(int(k))
 
-    def descriptor(self, sid: str, name: str) -> np.ndarray:
-        """The full SHOT (``"shot"``) or AWFT (``"awft"``) matrix of ``sid`` with default options."""
+    def descriptor(self, sid: str, name: str, **options) -> np.ndarray:
+        """The full SHOT (``"shot"``) or AWFT (``"awft"``) matrix of ``sid``
+        (:func:`prodmaps.descriptors.shot` / :func:`~prodmaps.descriptors.awft` with ``options``)."""
         from .. import descriptors
 
         if name not in DESCRIPTOR_CODE:
             raise ValueError(f"descriptor must be 'shot' or 'awft', got {name!r}")
         fn = descriptors.shot if name == "shot" else descriptors.awft
         key = {"mesh": self.mesh_key(sid), "code": code_fingerprint(*DESCRIPTOR_CODE[name])}
-        return self.memo.get(("descriptor", sid, name),
-                             lambda: self.disk.get(name, key, lambda: {"D": fn(self.mesh(sid))})["D"])
+        if options:  # the defaults keep the key they always had
+            key["options"] = repr(pfam.descriptor_key(name, **options))
+        return self.memo.get(("descriptor", sid, name, pfam.descriptor_key(name, **options)),
+                             lambda: self.disk.get(name, key, lambda: {"D": fn(self.mesh(sid), **options)})["D"])
 
-    def family_cache(self, sid: str, families=()) -> Cache:
+    def family_cache(self, sid: str, families=(), options: dict | None = None) -> Cache:
         """The :class:`Cache` handed to :func:`prodmaps.experiments.families.make_family` for
-        source ``sid``, holding the SHOT/AWFT matrices the requested ``families`` need."""
+        source ``sid``, holding the SHOT/AWFT matrices the requested ``families`` need (computed
+        with ``options``, the family's options, when given)."""
         cache = self._family_cache.setdefault(sid, Cache(max_entries=16))
         for fam, name in (("SHOT", "shot"), ("AWFT", "awft")):
-            if fam in families and pfam.descriptor_key(name) not in cache:
-                cache.put(pfam.descriptor_key(name), self.descriptor(sid, name))
+            opts = dict(options or {}) if list(families) == [fam] else {}
+            if fam in families and pfam.descriptor_key(name, **opts) not in cache:
+                cache.put(pfam.descriptor_key(name, **opts), self.descriptor(sid, name, **opts))
         return cache
 
-    def family_functions(self, sid_1: str, p2p_21, pair_index: int, families, *, k_M: int, seed: int):
+    def family_functions(self, sid_1: str, p2p_21, pair_index: int, families, *, k_M: int, seed: int,
+                         reading_set: str = "published"):
         """All ``families`` on source ``sid_1`` (columns stacked) and their ground truth.
 
-        Returns ``(F (n1, m), G (n2, m), cols)`` with ``G = F[p2p_21]`` and ``cols[family]`` the
-        column slice of each family. Seeds: :func:`prodmaps.experiments.families.family_seed`.
+        ``families`` holds family entries: a family name (its reading in ``reading_set``,
+        ``"textbook"`` or ``"published"``) or ``"name:reading"``
+        (:data:`prodmaps.experiments.families.READINGS`). Returns ``(F (n1, m), G (n2, m), cols)``
+        with ``G = F[p2p_21]`` and ``cols[entry]`` the column slice of each entry. Seeds:
+        :func:`prodmaps.experiments.families.family_seed` of the family, so every reading of a
+        family draws the same random numbers.
         """
-        fams = [f for f in pfam.FAMILIES if f in families]
-        unknown = set(families) - set(pfam.FAMILIES)
-        if unknown:
-            raise ValueError(f"unknown families {sorted(unknown)}; choose from {list(pfam.FAMILIES)}")
+        entries = pfam.sort_entries(families)
         Fs, cols, start = [], {}, 0
-        for fam in fams:
-            F1 = self.family(sid_1, fam, k_M=k_M, seed=pfam.family_seed(seed, pair_index, fam))
+        for entry in entries:
+            fam, _, options = pfam.resolve_reading(entry, reading_set)
+            F1 = self.family(sid_1, fam, k_M=k_M, seed=pfam.family_seed(seed, pair_index, fam), options=options)
             Fs.append(F1)
-            cols[fam] = slice(start, start + F1.shape[1])
+            cols[entry] = slice(start, start + F1.shape[1])
             start += F1.shape[1]
         F = np.hstack(Fs)  # (n1, m)
         return F, pfam.pull_back(F, p2p_21), cols
 
-    def family(self, sid_1: str, name: str, *, k_M: int, seed: int) -> np.ndarray:
+    def family(self, sid_1: str, name: str, *, k_M: int, seed: int, options: dict | None = None) -> np.ndarray:
         """The functions ``(n1, m)`` of family ``name`` on ``sid_1``
-        (:func:`prodmaps.experiments.families.make_family` with its default options), stored on
+        (:func:`prodmaps.experiments.families.make_family` with ``options``, default none), stored on
         disk: the tables, Figure 8 and the studies draw the same families on the same pairs."""
+        options = dict(options or {})
         key = {"mesh": self.mesh_key(sid_1), "n_eig": self.n_eig, "kind": self.kind, "family": name,
                "k_M": int(k_M), "seed": int(seed), "code": code_fingerprint(*FAMILY_CODE)}
+        if options:
+            key["options"] = repr(sorted(options.items()))
 
         def compute():
-            cache = self.family_cache(sid_1, [name])
-            F1, _ = pfam.make_family(name, self.mesh(sid_1), self.basis(sid_1), k_M=k_M, seed=seed, cache=cache)
+            cache = self.family_cache(sid_1, [name], options)
+            F1, _ = pfam.make_family(name, self.mesh(sid_1), self.basis(sid_1), k_M=k_M, seed=seed, cache=cache,
+                                     **options)
             return {"F": F1}
 
         return self.disk.get("family", key, compute)["F"]

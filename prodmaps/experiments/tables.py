@@ -51,10 +51,10 @@ def resolve_table(table: str | None, params: dict) -> dict:
         P[key] = [int(v) for v in np.atleast_1d(P[key])]
     if len(P["k_M"]) != len(P["k_N"]):
         raise ValueError(f"k_M and k_N must have the same length, got {P['k_M']} and {P['k_N']}")
-    bad = set(P["families"]) - set(pfam.FAMILIES)
-    if bad:
-        raise ValueError(f"unknown families {sorted(bad)}; choose from {list(pfam.FAMILIES)}")
-    P["families"] = [f for f in pfam.FAMILIES if f in P["families"]]  # paper order
+    P["families"] = pfam.sort_entries(P["families"])  # paper order; "name:reading" entries allowed
+    P["family_reading"] = P.get("family_reading") or "published"
+    if P["family_reading"] not in pfam.READING_SETS:
+        raise ValueError(f"family_reading must be one of {pfam.READING_SETS}, got {P['family_reading']!r}")
     P["extra_rtol"] = [float(r) for r in (P.get("extra_rtol") or []) if float(r) != float(P["rtol"])]
     return P
 
@@ -81,14 +81,15 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
     settings = ProtocolSettings(
         sizes=list(zip(P["k_M"], P["k_N"])), map_kind=P["map_kind"], families=P["families"], methods=methods,
         rtol=P["rtol"], eps_ridge=P["eps_ridge"], eps_lasso=P["eps_lasso"], lasso_max_iter=P["lasso_max_iter"],
-        pairs_convention=P["pairs_convention"], max_gain=P["max_gain"], no17_k_descr=P["no17_k_descr"], seed=seed)
+        pairs_convention=P["pairs_convention"], max_gain=P["max_gain"], no17_k_descr=P["no17_k_descr"], seed=seed,
+        family_reading=P["family_reading"])
     res = run_protocol(store, pairs, settings, progress=progress)
     means = family_means(res, table)
     ours = {k: v[0] for k, v in means.items()}
     spread = {k: v[1] for k, v in means.items()}
     fmap = FMAP_NAMES[P["map_kind"]]
     pub = published_values(table, fmap) if table else {}
-    sizes, rows = settings.sizes, [pfam.PAPER_LABELS[f] for f in settings.families]
+    sizes, rows = settings.sizes, [pfam.entry_label(f, settings.family_reading) for f in settings.families]
     prod_methods = [m for m in methods if m != "std"]
 
     def skey(s):

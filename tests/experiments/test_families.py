@@ -152,3 +152,150 @@ def test_bad_input(src):
         PF.make_family("HKS", mesh, pm.Basis(basis.vecs[:100], basis.evals, basis.mass[:100]), k_M=1, seed=0)
     with pytest.raises(TypeError):
         PF.make_family("HKS", mesh, basis.vecs, k_M=9, seed=0)
+
+
+# ----------------------------------------------------------------------------- readings
+def test_readings_registry_is_complete_and_resolves():
+    assert set(PF.READINGS) == set(PF.FAMILIES)
+    for fam, readings in PF.READINGS.items():
+        assert next(iter(readings)) == "textbook" and readings["textbook"] == {}  # textbook first: the defaults
+    for fam, reading in PF.PUBLISHED_READINGS.items():
+        assert reading in PF.READINGS[fam]
+    assert PF.resolve_reading("HKS", "textbook") == ("HKS", "textbook", {})
+    fam, name, opts = PF.resolve_reading("HKS", "published")
+    assert (fam, name, opts) == ("HKS", PF.PUBLISHED_READINGS["HKS"], PF.READINGS["HKS"][name])
+    assert PF.resolve_reading("XYZ", "published")[1] == "textbook"  # families not listed keep the textbook
+    assert PF.resolve_reading("HKS:textbook", "published")[2] == {}
+    assert PF.entry_label("HKS:textbook", "published") == "HKS (textbook)"
+    assert PF.entry_label(f"HKS:{PF.PUBLISHED_READINGS['HKS']}", "published") == "HKS"
+    assert PF.sort_entries(["XYZ", "HKS:textbook", "hk_k", "HKS", "XYZ"]) == ["hk_k", "HKS", "HKS:textbook", "XYZ"]
+    with pytest.raises(ValueError, match="unknown reading"):
+        PF.resolve_reading("HKS:nope")
+    with pytest.raises(ValueError, match="unknown family"):
+        PF.split_entry("nope:textbook")
+    with pytest.raises(ValueError, match="reading_set"):
+        PF.resolve_reading("HKS", "metres")
+
+
+def test_reversed_hks_is_the_formula_and_in_the_product_span(src):
+    mesh, basis, _ = src
+    F, _ = make("HKS", src, weights="reversed")
+    b = basis.truncate(K_M + 1)
+    ev, V = b.evals, b.vecs
+    # the same times as the textbook reading (same seed, same SOG09 range)
+    lo, hi = D.hks_times(b, 2)
+    t = np.sort(np.exp(np.random.default_rng(0).uniform(np.log(lo), np.log(hi), size=10)))
+    direct = sum(np.exp(-ev[K_M - i] * t)[None, :] * V[:, [i]] ** 2 for i in range(1, K_M + 1))  # (n, 10)
+    np.testing.assert_allclose(F, direct, rtol=1e-12)
+    # dominated by the squares of the highest eigenfunctions: the standard basis misses most of it
+    ext = pm.product_basis(b, order=2, pairs="unique")
+    fit = ext.evaluate(ext.operator("svd", rtol=1e-10).coefficients(F))
+    assert pm.relative_error(fit, F, b.mass).max() < 1e-8
+    std = pm.relative_error(V @ b.project(F), F, b.mass)
+    textbook = pm.relative_error(V @ b.project(make("HKS", src)[0]), make("HKS", src)[0], b.mass)
+    assert std.min() > 0.3 > textbook.max()
+
+
+def test_growing_hks_and_bad_weights(src):
+    F, _ = make("HKS", src, weights="growing")
+    assert F.shape == (src[0].n_vertices, 10) and np.all(np.isfinite(F)) and np.all(F > 0)
+    with pytest.raises(ValueError, match="weights"):
+        make("HKS", src, weights="decreasing")
+    with pytest.raises(ValueError, match="growth"):
+        make("HKS", src, weights="growing", growth=(0.0, 1.0))
+
+
+def test_random_readings(src):
+    mesh, basis, _ = src
+    b = basis.truncate(K_M + 1)
+    F, _ = make("Random", src, coefficients="uniform", pairs="ordered", scaling="unit_area")
+    # the same draw by hand: U[0, 1] coefficients on [φ0 … φk, φl φm] of the unit-area eigenfunctions
+    V = b.vecs * np.sqrt(mesh.area)  # A-orthonormal on the mesh scaled to unit area
+    cols = [V[:, 0]] + [V[:, l] for l in range(1, K_M + 1)]
+    cols += [V[:, l] * V[:, m] for l in range(1, K_M + 1) for m in range(1, K_M + 1)]
+    B = np.column_stack(cols)  # (n, 1 + k + k²)
+    a = np.random.default_rng(0).uniform(0.0, 1.0, size=(B.shape[1], 10))
+    np.testing.assert_allclose(F, B @ a, rtol=1e-10, atol=1e-12)
+    with pytest.raises(ValueError, match="coefficients"):
+        make("Random", src, coefficients="cauchy")
+    with pytest.raises(ValueError, match="scaling"):
+        make("Random", src, scaling="metres")
+
+
+@pytest.fixture(scope="module")
+def scaled():
+    """The test mesh at scales 1, 0.01 and 100, with its eigenbasis."""
+    mesh = pm.load_mesh(SHAPES / "anny_000.ply")
+    out = []
+    for s in (1.0, 0.01, 100.0):
+        m = pm.Mesh(mesh.vertices * s, mesh.faces)
+        out.append((m, pm.eigenbasis(m, 60)))
+    return out
+
+
+@pytest.mark.parametrize("fam,reading", [(f, r) for f, rs in PF.READINGS.items() for r in rs
+                                         if f in ("HKS", "Random", "hk_K", "Indicator") and r != "textbook"])
+def test_readings_are_free_of_the_units(scaled, fam, reading):
+    """A reading's functions on the mesh scaled by 0.01 and 100 are the same up to one factor per column."""
+    opts = {**OPTS.get(fam, {}), **PF.READINGS[fam][reading]}
+    out = []
+    for m, b in scaled:
+        F, _ = PF.make_family(fam, m, b, k_M=K_M, seed=3, **opts)
+        out.append(F / np.linalg.norm(F, axis=0, keepdims=True))
+    for F in out[1:]:
+        np.testing.assert_allclose(F, out[0], rtol=1e-6, atol=1e-9)
+
+
+def test_store_draws_each_reading_with_the_familys_seed(tmp_path, monkeypatch):
+    """Every reading of a family takes the family's seed (the same random draws), and the store
+    keys the functions by their options."""
+    from prodmaps.experiments.store import ShapeStore
+
+    monkeypatch.setenv("PRODMAPS_CACHE", str(tmp_path))
+    store = ShapeStore("anny_humans", 30)
+    gt = np.arange(store.mesh("anny_000").n_vertices)
+    F, G, cols = store.family_functions("anny_000", gt, 0, ["Indicator", "Indicator:area 0.4"], k_M=9, seed=0,
+                                        reading_set="textbook")
+    assert list(cols) == ["Indicator", "Indicator:area 0.4"] and F.shape[1] == 20
+    a, b = F[:, cols["Indicator"]], F[:, cols["Indicator:area 0.4"]]
+    assert not np.array_equal(a, b)
+    # same centres: each ball of one reading contains the other's (nested balls around one vertex)
+    assert np.all((a * b).sum(axis=0) == np.minimum(a.sum(axis=0), b.sum(axis=0)))
+    F2, _, cols2 = store.family_functions("anny_000", gt, 0, ["Indicator"], k_M=9, seed=0, reading_set="published")
+    direct, _ = PF.make_family("Indicator", store.mesh("anny_000"), store.basis("anny_000"), k_M=9,
+                               seed=PF.family_seed(0, 0, "Indicator"),
+                               **PF.READINGS["Indicator"][PF.PUBLISHED_READINGS["Indicator"]])
+    np.testing.assert_array_equal(F2, direct)
+
+
+def test_family_readings_choice_ignores_approach_b():
+    from prodmaps.experiments.family_readings import choose
+
+    def sc(std_within, std_mean, b_within):
+        return {"std": {"cells": 8, "within": std_within, "mean_abs": std_mean, "max_abs": 1.0},
+                "our_B": {"cells": 7, "within": b_within, "mean_abs": 0.01, "max_abs": 0.02}}
+
+    # B favours "b" everywhere: the choice follows the control
+    assert choose({"textbook": sc(2, 0.05, 7), "a": sc(6, 0.02, 0), "b": sc(5, 0.01, 7)}) == "a"
+    # a tie at the paper's two decimals goes to the reading listed first (closest to the text)
+    assert choose({"textbook": sc(3, 0.05, 0), "a": sc(6, 0.0287, 1), "b": sc(6, 0.0290, 7)}) == "a"
+    assert choose({"textbook": sc(6, 0.0166, 0), "a": sc(6, 0.0170, 7)}) == "textbook"
+
+
+def test_family_readings_study_runs_every_reading_on_the_same_pairs():
+    import prodmaps.experiments.family_readings as FR
+    from prodmaps.experiments.store import ShapeStore
+
+    store = ShapeStore("anny_humans", 30, disk_cache=False)
+    pairs = [("anny_000", "anny_013")]
+    readings = {"HKS": ["reversed pairing", "textbook"], "XYZ": ["textbook"]}
+    res = FR.family_readings_study(store, pairs, readings=readings, groups={"T1": [(9, 9)]}, progress=False)
+    assert list(res["errors"]["HKS"]) == ["textbook", "reversed pairing"]  # READINGS order
+    for fam in ("HKS", "XYZ"):
+        for r, sc in res["scores"][fam].items():
+            assert sc["std"]["cells"] == 2 and sc["our_B"]["cells"] == 1  # T1: approx + transfer std, transfer B
+    e = res["errors"]["HKS"]
+    # the control: the textbook HKS is nearly in the standard span, the reversed one is not
+    assert e["textbook"]["k9_9"]["transfer"]["std"] < 0.2 < e["reversed pairing"]["k9_9"]["transfer"]["std"]
+    assert res["chosen"]["XYZ"] == "textbook" and res["agrees"]["XYZ"]
+    assert "|" not in FR.summary_text(res) and len(FR.summary_rows(res)) == 2

@@ -1,0 +1,201 @@
+"""Which reading of each function family is the paper's? A study with the standard columns as the control.
+
+Section 5.1 names its function families (heat kernels, HKS, WKS, random combinations of the
+extended basis, indicators of random regions, SHOT, AWFT) without their parameters: times,
+region sizes, coefficient laws, support radii. The standard transfer (``std``) uses no products,
+so its published columns are a **control**: if our functions were the paper's, our ``std``
+columns would match the published ones whatever the product methods do. This study runs the
+ground-truth tables (1, 3, 5, 6) with every reading of every family
+(:data:`prodmaps.experiments.families.READINGS`), all readings on the same pairs with the same
+random draws (a family's seed does not depend on its reading), and scores each by the published
+cells it reproduces within ±0.02, ``std`` first, then Approach B (``our_B``).
+
+**Choice rule** (:func:`choose`): per family, the reading with the most ``std`` cells within
+±0.02, ties broken by the smaller mean ``|diff|`` of the ``std`` cells (at two decimals), then by
+the closeness to the definition's text (the order of the readings). Approach B's cells never
+enter the choice; they are reported beside it.
+
+Conventions: ``k_M``, ``k_N`` are the paper's counts (non-constant functions); the maps are the
+ground truth ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]``; errors are the paper's area-weighted relative L2,
+averaged over a family's functions, then over pairs.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from . import families as pfam
+from .normalization_study import WITHIN, score_cells
+from .protocol import ProtocolSettings, run_protocol
+from .published import published_values
+
+__all__ = ["GROUPS", "family_readings_study", "choose", "score_table", "summary_rows", "summary_text", "figure"]
+
+# the ground-truth tables, grouped by the basis size of the basis-dependent families (the largest
+# k_M of each table, as the tables compute them)
+GROUPS = {"T1": [(9, 9)], "T3": [(6, 7), (27, 35)], "T5+T6": [(29, 29), (29, 39)]}
+_TABLE_OF = {(9, 9): "T1", (6, 7): "T3", (27, 35): "T3", (29, 29): "T5", (29, 39): "T6"}
+METHODS = ("std", "our_B")
+
+
+def _published_cells(sizes) -> dict:
+    """``{(k_M, k_N, stage, method, label): value}`` of the ground-truth tables at ``sizes``."""
+    out = {}
+    for z in sizes:
+        t = _TABLE_OF[tuple(z)]
+        out.update({c: v for c, v in published_values(t, "ground_truth").items()
+                    if (c[0], c[1]) == tuple(z) and c[3] in METHODS})
+    return out
+
+
+def family_readings_study(store, pairs, *, readings: dict | None = None, groups: dict | None = None,
+                          seed: int = 0, progress: bool = True) -> dict:
+    """Run the ground-truth tables with every reading of every family; returns the results document.
+
+    Parameters
+    ----------
+    store : :class:`prodmaps.experiments.store.ShapeStore` of the dataset.
+    pairs : list of ``(source id, target id)``.
+    readings : ``{family: [reading name, ...]}`` (default: every reading of
+        :data:`prodmaps.experiments.families.READINGS`).
+    groups : ``{name: [(k_M, k_N), ...]}`` sizes run together (default :data:`GROUPS`); a group's
+        basis-dependent families use its largest ``k_M``.
+    seed : the experiment seed (:func:`prodmaps.experiments.families.family_seed`).
+
+    Returns
+    -------
+    dict
+        ``errors[family][reading]["k{k_M}_{k_N}"][stage][method]`` (means over pairs),
+        ``scores[family][reading][method]`` (published cells, within ±0.02, mean and largest
+        |diff|), ``chosen[family]`` (:func:`choose`), ``published_readings`` (the library's
+        :data:`~prodmaps.experiments.families.PUBLISHED_READINGS` with the textbook defaults),
+        ``agrees`` (whether the study's choice is the library's), ``seconds``.
+    """
+    readings = {f: list(pfam.READINGS[f]) for f in pfam.FAMILIES} if readings is None else dict(readings)
+    readings = {f: [r for r in pfam.READINGS[f] if r in readings[f]] for f in pfam.FAMILIES if f in readings}
+    groups = dict(GROUPS if groups is None else groups)
+    entries = [f"{fam}:{r}" for fam, names in readings.items() for r in names]
+    t0 = time.perf_counter()
+    errors: dict = {}
+    for gname, sizes in groups.items():
+        s = ProtocolSettings(sizes=[tuple(z) for z in sizes], map_kind="gt", families=entries, methods=["std", "B"],
+                             seed=seed, k_M_family=max(a for a, _ in sizes))
+        res = run_protocol(store, pairs, s, progress=False)
+        for z in s.sizes:
+            key = f"k{z[0]}_{z[1]}"
+            for st, by_m in res.errors[z].items():
+                for m, per_pair in by_m.items():
+                    E = np.array(per_pair)  # (pairs, columns)
+                    for entry, sl in res.cols.items():
+                        fam, reading = pfam.split_entry(entry)
+                        lab = "std" if m == "std" else "our_B"
+                        (errors.setdefault(fam, {}).setdefault(reading, {}).setdefault(key, {})
+                         .setdefault(st, {}))[lab] = float(E[:, sl].mean(axis=1).mean())
+        if progress:
+            print(f"{gname}: {len(pairs)} pairs, {len(entries)} family readings, "
+                  f"{time.perf_counter() - t0:.0f} s", flush=True)
+    all_sizes = [tuple(z) for v in groups.values() for z in v]
+    pub = _published_cells(all_sizes)
+    errors = {fam: {r: errors[fam][r] for r in readings[fam] if r in errors.get(fam, {})}  # READINGS order
+              for fam in pfam.FAMILIES if fam in errors}
+    scores = {fam: {r: score_table(errors[fam][r], pub, pfam.PAPER_LABELS[fam]) for r in errors[fam]}
+              for fam in errors}
+    chosen = {fam: choose(sc) for fam, sc in scores.items()}
+    library = {fam: pfam.PUBLISHED_READINGS.get(fam, "textbook") for fam in errors}
+    return {"pairs": [list(p) for p in pairs], "groups": {g: [list(z) for z in v] for g, v in groups.items()},
+            "readings": {fam: {r: _jsonable_options(pfam.READINGS[fam][r]) for r in names}
+                         for fam, names in readings.items()},
+            "errors": errors, "scores": scores, "chosen": chosen, "published_readings": library,
+            "agrees": {fam: chosen[fam] == library[fam] for fam in errors},
+            "seconds": time.perf_counter() - t0}
+
+
+def _jsonable_options(options: dict) -> dict:
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in options.items()}
+
+
+def score_table(errors_by_size: dict, published: dict, label: str) -> dict:
+    """Scores of one family reading: ``{method: {"cells", "within", "mean_abs", "max_abs"}}``.
+
+    ``errors_by_size["k{k_M}_{k_N}"][stage][method]`` are our means; ``published`` the published
+    cells ``{(k_M, k_N, stage, method, label): value}``; only the family's ``label`` counts.
+    """
+    ours = {}
+    for key, by_stage in errors_by_size.items():
+        kM, kN = (int(v) for v in key[1:].split("_"))
+        for st, by_m in by_stage.items():
+            for m, v in by_m.items():
+                ours[(kM, kN, st, m, label)] = v
+    return score_cells(ours, {c: v for c, v in published.items() if c[4] == label}, methods=METHODS)
+
+
+def choose(scores_by_reading: dict) -> str:
+    """The reading with the most ``std`` cells within ±0.02; ties: the smaller mean |diff| of the
+    ``std`` cells at the paper's two decimals (smaller differences are draw noise), then the order
+    of :data:`~prodmaps.experiments.families.READINGS` (the textbook first, then the readings
+    closest to the definition's text). Approach B's cells are not used."""
+    order = list(scores_by_reading)
+
+    def key(name):
+        sc = scores_by_reading[name].get("std", {"within": 0, "mean_abs": np.inf})
+        return (-sc["within"], round(float(sc["mean_abs"]), 2), order.index(name))
+
+    return min(order, key=key)
+
+
+def summary_rows(results: dict) -> list:
+    """One row per family: textbook and chosen reading, with their ``std`` and ``our_B`` scores."""
+    rows = []
+    for fam, by_r in results["scores"].items():
+        ch = results["chosen"][fam]
+
+        def cell(r, m):
+            v = by_r[r].get(m)
+            return "—" if v is None else f"{v['within']}/{v['cells']} ({v['mean_abs']:.3f})"
+
+        tb = "textbook" if "textbook" in by_r else next(iter(by_r))
+        both_within = lambda r: sum(by_r[r][m]["within"] for m in METHODS if m in by_r[r])  # noqa: E731
+        both_cells = lambda r: sum(by_r[r][m]["cells"] for m in METHODS if m in by_r[r])  # noqa: E731
+        rows.append([pfam.PAPER_LABELS[fam], ch, cell(tb, "std"), cell(ch, "std"), cell(tb, "our_B"), cell(ch, "our_B"),
+                     f"{both_within(tb)}/{both_cells(tb)} → {both_within(ch)}/{both_cells(ch)}",
+                     "yes" if results["agrees"][fam] else f"no (library: {results['published_readings'][fam]})"])
+    return rows
+
+
+SUMMARY_HEADER = ["family", "chosen reading (std control)", "std textbook", "std chosen", "B textbook", "B chosen",
+                  "cells within ±0.02", "library's reading"]
+
+
+def summary_text(results: dict) -> str:
+    """:func:`summary_rows` as a plain-text table (for the notebook)."""
+    rows = [SUMMARY_HEADER] + summary_rows(results)
+    w = [max(len(str(r[i])) for r in rows) for i in range(len(SUMMARY_HEADER))]
+    return "\n".join("  ".join(f"{str(c):<{w[i]}}" for i, c in enumerate(r)) for r in rows)
+
+
+def figure(results: dict):
+    """Per family, ``std`` cells within ±0.02 for every reading (bars), the chosen one marked;
+    Approach B's count beside it (hatched) for information."""
+    import matplotlib.pyplot as plt
+
+    fams = list(results["scores"])
+    fig, axes = plt.subplots(1, len(fams), figsize=(2.1 * len(fams), 4.2), sharey=True)
+    for ax, fam in zip(np.atleast_1d(axes), fams):
+        by_r = results["scores"][fam]
+        names = list(by_r)
+        std = [by_r[r].get("std", {}).get("within", 0) / max(by_r[r].get("std", {}).get("cells", 1), 1) for r in names]
+        b = [by_r[r].get("our_B", {}).get("within", 0) / max(by_r[r].get("our_B", {}).get("cells", 1), 1)
+             for r in names]
+        x = np.arange(len(names))
+        cols = ["tab:green" if r == results["chosen"][fam] else "0.6" for r in names]
+        ax.bar(x - 0.2, std, 0.4, color=cols, label="std (control)")
+        ax.bar(x + 0.2, b, 0.4, color="none", edgecolor="tab:blue", hatch="//", label="B")
+        ax.set_xticks(x, names, rotation=60, ha="right", fontsize=6)
+        ax.set_title(pfam.PAPER_LABELS[fam], fontsize=9)
+        ax.set_ylim(0, 1)
+    np.atleast_1d(axes)[0].set_ylabel(f"published cells within ±{WITHIN:g}")
+    np.atleast_1d(axes)[0].legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    return fig
