@@ -2,9 +2,19 @@
 
 A functional map ``C_12`` of shape ``(k_target, k_source)`` (the paper's 40×30: 40 columns of the
 target basis, 30 of the source basis, constants included) is converted to ``p2p_21`` (for every
-target vertex a source vertex) by :func:`prodmaps.p2p.from_fmap`, ``"std"`` (nearest neighbours of
-``Φ2`` among ``Φ1 C_12ᵀ``) or ``"extended"`` (squared heat kernels compared through canonical
-coefficients of the extended basis). Maps: ground truth (Figure 12) or NO17 (Figure 13,
+target vertex a source vertex) by :func:`prodmaps.p2p.from_fmap`, three conversions:
+
+``"std"``                   nearest neighbours of ``Φ2`` among ``Φ1 C_12ᵀ`` [OBCS*12];
+``"extended"``              Section 4.4: each point a squared heat kernel on the mesh from the store's
+                            big basis (200 eigenpairs in the paper profile), fitted by the extended
+                            basis' Approach B operator (rtol 1e-3, "euclidean"), sources through ``C̃``,
+                            compared through canonical coefficients; ``t = 1/λ`` of the source's
+                            last basis function;
+``"extended_closed_form"``  the same kernel built in closed form from the map's own eigenpairs
+                            (the conversion before issue 33; it cannot beat ``"std"``, see
+                            :mod:`prodmaps.p2p`).
+
+Maps: ground truth (Figure 12) or NO17 (Figure 13,
 :mod:`prodmaps.experiments.maps`). Error (Kim et al. 2011): heat-method geodesic distance on the
 source between ``p2p_21[y]`` and the true image, divided by ``sqrt(area)``, on ``n_eval`` seeded
 random target vertices per pair.
@@ -24,9 +34,9 @@ from .maps import no17_demo_map
 from .parallel import map_by_source
 from .store import ShapeStore
 
-__all__ = ["subject_pairs", "point_map_recovery", "CONVERSIONS"]
+__all__ = ["subject_pairs", "point_map_recovery", "point_map_sweep", "CONVERSIONS"]
 
-CONVERSIONS = ("std", "extended")
+CONVERSIONS = ("std", "extended", "extended_closed_form")
 
 
 def subject_pairs(dataset: str, subject, n_pairs=None, seed: int = 0) -> list:
@@ -54,7 +64,7 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
         raise ValueError(f"maps must be a subset of ['gt', 'no17'], got {list(maps)}")
     rng = np.random.default_rng(seed)
     errs = {m: {c: [] for c in CONVERSIONS} for m in maps}  # per pair: (n_eval,) arrays
-    per_pair, timing = [], {"std": 0.0, "extended": 0.0, "no17": 0.0}
+    per_pair, timing = [], {**dict.fromkeys(CONVERSIONS, 0.0), "no17": 0.0}
     items = []  # (source id, (target id, evaluated target vertices)) per pair, drawn here in the pairs' order
     for s1, s2 in pairs:
         n2 = store.mesh(s2).n_vertices
@@ -71,7 +81,7 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
             print(f"{row['pair']}: " + "  ".join(f"{k} {v:.4f}" for k, v in row.items() if k != "pair")
                   + f"   [{t_pair:.1f} s]")
     thr = np.linspace(0.0, float(thresholds_max), 101)
-    curves, means, wins = {}, {}, {}
+    curves, means, wins, wins_closed = {}, {}, {}, {}
     for m in maps:
         curves[m], means[m] = {}, {}
         for method in CONVERSIONS:
@@ -79,13 +89,22 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
             curves[m][method] = geodesics.error_curve(allv, thr)
             means[m][method] = float(allv.mean())
         wins[m] = count_outcomes((r[f"{m}_extended"], r[f"{m}_std"]) for r in per_pair)  # extended vs std
+        wins_closed[m] = count_outcomes((r[f"{m}_extended_closed_form"], r[f"{m}_std"]) for r in per_pair)
     results = {
         "error_definition": "geodesic distance on the source between recovered and true image "
         "/ sqrt(area of source); heat method",
         "map_size": {"k_target": k_target, "k_source": k_source, "C_shape": [k_target, k_source]},
         "pairs": [r["pair"] for r in per_pair],
         "mean_error": means,
+        "conversions": {"std": "nearest neighbours of Φ2 among Φ1 Cᵀ [OBCS*12]",
+                        "extended": "Section 4.4: squared heat kernel on the mesh from the basis' eigenpairs "
+                                    "(store n_eig), Approach B rtol 1e-3 'euclidean', C~, canonical coefficients, "
+                                    "t = 1/λ of the source's last basis function",
+                        "extended_closed_form": "closed-form squared heat kernel from min(k1, k2) eigenpairs "
+                                                "(before issue 33)"},
+        "kernel_eigenpairs": int(store.n_eig),
         "extended_vs_std_pairs": wins,
+        "closed_form_vs_std_pairs": wins_closed,
         "per_pair": per_pair,
         "curves": {m: {"thresholds": thr, **curves[m]} for m in curves},
     }
@@ -95,11 +114,14 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
 def _recovery_pair(store: ShapeStore, ip: int, s1: str, item, k_target: int, k_source: int, maps,
                    no17_k_descr: int) -> tuple:
     """One pair ``s1 -> item[0]``, evaluated at the target vertices ``item[1]``: ``(row,
-    {(map, conversion): errors (n_eval,)}, seconds, {"std"|"extended"|"no17": seconds})``."""
+    {(map, conversion): errors (n_eval,)}, seconds, {conversion|"no17": seconds})``. The conversions
+    get the store's whole bases: ``C`` uses their first ``k_source``/``k_target`` columns, the
+    extended conversion's heat kernel all of them."""
     s2, ev = item
     t0 = time.perf_counter()
-    timing = {"std": 0.0, "extended": 0.0, "no17": 0.0}
-    b1, b2 = store.basis(s1, k_source), store.basis(s2, k_target)
+    timing = {**dict.fromkeys(CONVERSIONS, 0.0), "no17": 0.0}
+    B1, B2 = store.basis(s1), store.basis(s2)  # (n, n_eig) each
+    b1, b2 = B1.truncate(k_source), B2.truncate(k_target)
     gt = datasets.ground_truth(store.dataset, s1, s2)  # (n2,) target vertex -> source vertex
     row, recovered = {"pair": f"{s1}->{s2}"}, {}
     for m in maps:
@@ -111,7 +133,7 @@ def _recovery_pair(store: ShapeStore, ip: int, s1: str, item, k_target: int, k_s
             timing["no17"] += time.perf_counter() - t1
         for method in CONVERSIONS:
             t1 = time.perf_counter()
-            recovered[m, method] = from_fmap(C, b1, b2, method, vertices=ev)  # (n_eval,) target -> source vertex
+            recovered[m, method] = from_fmap(C, B1, B2, method, vertices=ev)  # (n_eval,) target -> source vertex
             timing[method] += time.perf_counter() - t1
     # all maps of the pair against the same truth: geodesics from the true images computed once
     E = geodesics.map_error(store.mesh(s1), np.stack(list(recovered.values())), gt[ev],
@@ -119,3 +141,44 @@ def _recovery_pair(store: ShapeStore, ip: int, s1: str, item, k_target: int, k_s
     for (m, method), e in zip(recovered, E):
         row[f"{m}_{method}"] = float(e.mean())
     return row, dict(zip(recovered, E)), time.perf_counter() - t0, timing
+
+
+def point_map_sweep(store: ShapeStore, pairs, *, sizes=((40, 30),), t_scales=(1.0,), rtols=(1e-3,), n_eval=None,
+                    seed: int = 0, workers: int | None = None) -> dict:
+    """How far the extended conversion's gain depends on ``t``, ``rtol`` and the map's size.
+
+    Ground-truth maps only. For every size ``(k_target, k_source)`` the standard conversion and
+    the extended one at every ``t_scale`` (``t = t_scale / λ`` of the source's last basis
+    function) with ``rtol`` 1e-3, and at every ``rtol`` with ``t_scale = 1``. Returns
+    ``{"rows": [{"size", "setting", "mean_error", "better_than_std": {"better", "tie", "worse"}}],
+    "pairs": [...]}`` (mean geodesic error / sqrt(area) over the pairs' evaluated vertices).
+    """
+    rng = np.random.default_rng(seed)
+    items = []
+    for s1, s2 in pairs:
+        n2 = store.mesh(s2).n_vertices
+        ev = np.arange(n2) if n_eval is None else np.sort(rng.choice(n2, int(n_eval), replace=False))
+        items.append((s1, (s2, ev)))
+    settings = [("std", "std", {})]
+    settings += [(f"extended t x{ts:g}", "extended", {"t_scale": float(ts)}) for ts in t_scales]
+    settings += [(f"extended rtol {r:g}", "extended", {"rtol": float(r)}) for r in rtols if float(r) != 1e-3]
+    rows = []
+    for kt, ks in sizes:
+        per = {name: [] for name, _, _ in settings}
+        for _, means in map_by_source(_sweep_pair, store, items, int(kt), int(ks), settings, workers=workers):
+            for name, v in means.items():
+                per[name].append(v)
+        for name, _, _ in settings:
+            rows.append({"size": [int(kt), int(ks)], "setting": name, "mean_error": float(np.mean(per[name])),
+                         "better_than_std": count_outcomes(zip(per[name], per["std"]))})
+    return {"rows": rows, "pairs": [f"{a}->{b}" for a, b in pairs]}
+
+
+def _sweep_pair(store: ShapeStore, ip: int, s1: str, item, k_target: int, k_source: int, settings) -> dict:
+    s2, ev = item
+    B1, B2 = store.basis(s1), store.basis(s2)
+    gt = datasets.ground_truth(store.dataset, s1, s2)
+    C = fmap_from_p2p(gt, B1.truncate(k_source), B2.truncate(k_target))  # (k_target, k_source)
+    P = np.stack([from_fmap(C, B1, B2, method, vertices=ev, **kw) for _, method, kw in settings])
+    E = geodesics.map_error(store.mesh(s1), P, gt[ev], rows=store.distance_rows(s1))  # (settings, n_eval)
+    return {name: float(e.mean()) for (name, _, _), e in zip(settings, E)}
