@@ -15,16 +15,19 @@ PROFILE ?= paper
 JOBS   ?= 1
 DOCS_RUNS ?=
 ALLOW_PARTIAL ?=
+PYTEST_ARGS ?=
 
 .PHONY: reproduce reproduce-smoke update-baselines report publish claims test lint bench bench-quick venv clean-venv \
 	strip-notebooks docs
 
 venv: $(VENV)/.installed
 
-$(VENV)/.installed: pyproject.toml
+# requirements-lock.txt: the exact versions that made the baselines, as constraints over
+# pyproject.toml's ranges (a library install, `pip install .`, takes the ranges only)
+$(VENV)/.installed: pyproject.toml requirements-lock.txt
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[test,bench,docs]"
+	$(PY) -m pip install --quiet -c requirements-lock.txt -e ".[test,bench,docs]"
 	$(PY) -m ipykernel install --sys-prefix --name python3 >/dev/null
 	@touch $@
 
@@ -54,7 +57,7 @@ docs: venv
 	PRODMAPS_DOCS_RUNS="$(DOCS_RUNS)" $(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
 
 test: venv lint
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q $(PYTEST_ARGS)
 
 bench: venv
 	$(PY) benchmarks/run.py --out benchmarks/results

@@ -47,3 +47,15 @@ def test_workflow_runs_the_tests_the_smoke_diff_and_the_docs():
     assert "actions/upload-artifact" in failure
     for what in ("results/diff/", "executed.ipynb", "executed.html", "REPORT."):
         assert what in failure, what
+
+
+def test_ci_uploads_junit_and_executed_notebooks_and_tests_both_ends_of_the_ranges():
+    text = WORKFLOW.read_text()
+    test_job = text.split("\n  test:", 1)[1].split("\n  compat:", 1)[0]
+    assert "--junitxml=results/junit.xml" in test_job and "results/smoke_tests/*/executed.ipynb" in test_job
+    assert "if: always()" in test_job
+    compat = text.split("\n  compat:", 1)[1].split("\n  smoke:", 1)[0]
+    for python, resolution in (("3.11", "lowest-direct"), ("3.13", "highest")):
+        assert f'python: "{python}"\n            resolution: {resolution}' in compat
+    assert "requirements-lock" not in compat  # the ranges, not the lock
+    assert "requirements-lock.txt" in (ROOT / "Makefile").read_text()  # make venv installs the lock
