@@ -304,7 +304,10 @@ SYSTEMATIC_DIFFERENCES = [
 
 
 def _verdict_cell(v) -> str:
-    return f"**{v.verdict}**" if v.verdict == "does not hold" else v.verdict
+    """The verdict, then the verdict under each other family reading the run carries (the
+    textbook HKS beside the published one: ``"holds (textbook families: does not hold)"``)."""
+    head = f"**{v.verdict}**" if v.verdict == "does not hold" else v.verdict
+    return head + "".join(f" ({r} families: {x})" for r, x in ledger.reading_verdicts(v).items())
 
 
 def _link(path: Path, base: Path, text: str) -> str:
@@ -462,6 +465,21 @@ def _study_section(d: "_Doc", infos, base: Path, copy_figures: bool) -> None:
 METHOD_NAMES = {"our_B": "paper B (rtol 1e-3)", "our_B_gainrule": "B with the gain rule", "our_default": "default"}
 
 
+def _family_readings_section(d: "_Doc", infos, base: Path, copy_figures: bool, dataset: str | None = None) -> None:
+    """The family-readings study's own section (:func:`prodmaps.experiments.family_readings.report_blocks`)."""
+    info = next((i for i in infos if i.name == "study_family_readings" and i.doc
+                 and i.doc.get("results", {}).get("scores")), None)
+    if info is None:
+        return
+    from ..experiments.family_readings import report_blocks
+
+    res = info.doc["results"]
+    ds = dataset or res.get("dataset", "")
+    for kind, *args in report_blocks(res, DATASET_NAMES.get(ds, ds)):
+        getattr(d, kind)(*args)
+    _figures(d, info, base, copy_figures, prefix=f"{dataset}/" if dataset else "")
+
+
 def _default_study_section(d: "_Doc", infos, base: Path, copy_figures: bool, dataset: str | None = None) -> None:
     study = next((i for i in infos if i.name == "study_default" and i.doc), None)
     if study is None:
@@ -549,6 +567,7 @@ def _dataset_section(d: "_Doc", ds: str, folder: Path, infos, published_rows, ba
             d.h(3, f"{i.name} on {name}" + (f" — {i.reproduces}" if i.reproduces else ""))
             _figures(d, i, base, copy_figures, prefix=f"{ds}/")
     _default_study_section(d, present, base, copy_figures, dataset=ds)
+    _family_readings_section(d, present, base, copy_figures, dataset=ds)
     if norm is not None:
         _normalization_section(d, norm, base, copy_figures, ds)
 
@@ -684,6 +703,7 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
         _normalization_section(d, norm, base, copy_figures, norm.doc.get("results", {}).get("dataset", "anny_humans"))
     _study_section(d, infos, base, copy_figures)
     _default_study_section(d, infos, base, copy_figures)
+    _family_readings_section(d, infos, base, copy_figures)
 
     d.h(2, "Runs")
     rows = []
