@@ -3,8 +3,11 @@
 This is *not* the paper's Figure 14 pipeline (which designs consistent cross fields through the
 functional map and quadrangulates each surface along its own field, never using a point map; see
 :mod:`prodmaps.fields`). It answers a simpler question with the same ``k = 5`` map: how well does a
-point map recovered from ``C`` (standard or extended conversion, :func:`prodmaps.p2p.from_fmap`)
-carry a coarse quad mesh of the source onto the target?
+point map recovered from ``C`` carry a coarse quad mesh of the source onto the target? Conversions
+(:func:`prodmaps.p2p.from_fmap`): ``"std"`` [OBCS*12], ``"extended"`` (Section 4.4: squared heat
+kernels on the mesh from 200 eigenpairs, the experiments store's big basis, fitted in the extended
+basis of the map's ``k + 1`` functions) and ``"extended_closed_form"`` (the kernel from the map's own
+eigenpairs, the conversion before issue 33).
 
 Steps: :func:`coarse_remesh` (pymeshlab quadric decimation, then isotropic remeshing),
 :func:`pair_triangles` (greedy pairing of adjacent triangles into quads), snapping the quad vertices
@@ -19,10 +22,11 @@ import time
 import numpy as np
 
 from .. import datasets, geodesics
-from ..basis import eigenbasis
 from ..mapping import fmap_from_p2p
 from ..mesh import Mesh
-from ..p2p import from_fmap
+from ..p2p import DEFAULT_KERNEL_EIG, from_fmap
+from .pointmaps import CONVERSIONS
+from .store import ShapeStore
 
 __all__ = ["coarse_remesh", "corner_angles", "pair_triangles", "quad_measures", "polygon_soup",
            "point_map_quad_transport"]
@@ -145,7 +149,8 @@ def polygon_soup(Vq: np.ndarray, quads: np.ndarray, tris: np.ndarray, values: np
 def point_map_quad_transport(dataset: str, source_id: str, target_id: str, ks, *, edge_length: float = 0.06,
                              target_faces: int = 800, verbose: bool = True) -> dict:
     """Transport a coarse quad-dominant mesh of the source to the target through point maps
-    recovered from the ground-truth ``C_21`` of size ``(k+1, k+1)``, standard and extended conversion.
+    recovered from the ground-truth ``C_21`` of size ``(k+1, k+1)``, by every conversion of
+    :data:`prodmaps.experiments.pointmaps.CONVERSIONS` (module doc).
 
     Sending source points to the target needs, for each *source* vertex, a target vertex ``p2p_12``
     ``(n1,)``: ``from_fmap(C_21, basis_2, basis_1)`` with ``C_21 = Φ1ᵀ A1 Φ2[p2p_12]`` (the map from
@@ -165,7 +170,9 @@ def point_map_quad_transport(dataset: str, source_id: str, target_id: str, ks, *
             f"+ {tris.shape[0]} triangles; snapping {dist_snap.mean() * 1000:.1f} mm mean"
         )
     p2p_12_true = datasets.ground_truth(dataset, target_id, source_id)  # (n1,) source vertex -> target vertex
-    B1, B2 = eigenbasis(mesh_1, max(ks) + 1), eigenbasis(mesh_2, max(ks) + 1)
+    # the big bases: C uses their first k + 1 columns, the extended conversion's heat kernel all of them
+    store = ShapeStore(dataset, max(max(ks) + 1, DEFAULT_KERNEL_EIG))
+    B1, B2 = store.basis(source_id), store.basis(target_id)
     V_true = mesh_2.vertices[p2p_12_true[src_v]]  # ground-truth transfer of the quad vertices
     measures = {"source": {"angle_dev_mean": float(np.abs(corner_angles(mesh_1.vertices[src_v][quads]) - 90).mean())},
                 "truth": {"angle_dev_mean": float(np.abs(corner_angles(V_true[quads]) - 90).mean())}}
@@ -173,9 +180,9 @@ def point_map_quad_transport(dataset: str, source_id: str, target_id: str, ks, *
     for kk in ks:
         b1, b2 = B1.truncate(kk + 1), B2.truncate(kk + 1)
         C_21 = fmap_from_p2p(p2p_12_true, b2, b1)  # (k1, k2): target -> source, ground truth
-        for method in ("std", "extended"):
+        for method in CONVERSIONS:
             t0 = time.perf_counter()
-            tv = from_fmap(C_21, b2, b1, method, vertices=src_v)  # target vertex of each quad vertex
+            tv = from_fmap(C_21, B2, B1, method, vertices=src_v)  # target vertex of each quad vertex
             verr = geodesics.map_error(mesh_2, tv, p2p_12_true[src_v])  # (m,) on the target
             m_, _, _ = quad_measures(mesh_2.vertices, tv, V_true, quads)
             m_.update({"vertex_error_mean": float(verr.mean()), "vertex_error_median": float(np.median(verr)),

@@ -19,7 +19,9 @@ def icp_refine(C_12, basis_1: Basis, basis_2: Basis, n_iter: int = 5, *, orthogo
     """Refine ``C_12`` ``(k2, k1)`` by alternating point-map conversion and map re-estimation.
 
     Each of the ``n_iter`` iterations converts the current map to a point map with the standard
-    nearest-neighbour rule (:func:`prodmaps.p2p.from_fmap`, ``p2p_21`` ``(n2,)``), sets
+    nearest-neighbour rule (:func:`prodmaps.p2p.from_fmap` with ``method="std"`` [OBCS*12], ``p2p_21``
+    ``(n2,)``; the NO17 demo's refinement is defined on spectral embeddings, so the extended
+    conversion of Section 4.4 is not used here), sets
     ``W = Φ2ᵀ A2 Φ1[p2p_21]`` (the map that point map induces, at the same size) and, with
     ``orthogonal`` (the refinement of the NO17 authors' demo), replaces ``C_12`` by the closest
     partial isometry ``U I_{k2×k1} Vᵀ`` of ``W = U Σ Vᵀ``; otherwise by ``W`` itself. The size

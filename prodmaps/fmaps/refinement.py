@@ -46,7 +46,9 @@ def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return
     """ZoomOut refinement (Melzi et al. 2019, "ZoomOut: spectral upsampling for efficient shape correspondence").
 
     Starting from ``C_12`` ``(k2, k1)``, repeat: convert the current map to a point map with
-    the standard nearest-neighbour rule (:func:`prodmaps.p2p.from_fmap`, ``p2p_21`` ``(n2,)``),
+    the standard nearest-neighbour rule (:func:`prodmaps.p2p.from_fmap` with ``method="std"``, ``p2p_21``
+    ``(n2,)``; ZoomOut is defined on spectral embeddings, so the extended conversion of Section 4.4
+    is not used here),
     grow both sizes by ``step`` (each clipped at its target) and set
     ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` at the new size. Stops when the size reaches ``k_final``.
 
