@@ -75,7 +75,7 @@ def test_family_functions_are_seeded_by_family_not_by_subset(store):
     F2, _, cols2 = store.family_functions("anny_000", gt, 0, ["XYZ"], k_M=9, seed=0)
     assert np.array_equal(F[:, cols["XYZ"]], F2[:, cols2["XYZ"]])
     assert np.array_equal(G, F[gt]) and F.shape == (5002, 13)
-    with pytest.raises(ValueError, match="unknown families"):
+    with pytest.raises(ValueError, match="unknown family"):
         store.family_functions("anny_000", gt, 0, ["hks"], k_M=9, seed=0)
 
 
