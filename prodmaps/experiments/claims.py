@@ -151,7 +151,8 @@ class Verdict:
 
     @property
     def evidence(self) -> str:
-        gate = self.settings.get("oracle", {}).get("evidence")
+        oracle = self.settings.get("oracle", {})
+        gate = oracle.get("evidence") if oracle.get("holds") is not None else None  # missing: said once below
         for s in ("paper", "rule", "default"):
             e = self.settings.get(s, {}).get("evidence")
             if e:
