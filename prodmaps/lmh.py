@@ -8,7 +8,7 @@ Formulation (as implemented here)
 Given a region ``R`` of the surface described by a (soft) indicator ``u: V -> [0, 1]``
 (``u = 1`` inside), and the first ``k_global`` global Laplace–Beltrami eigenfunctions
 ``Φ`` ``(n, k_global)`` (A-orthonormal, constant included), the ``k`` localized harmonics
-``Ψ`` ``(n, k)`` minimise
+``Ψ`` ``(n, k)`` minimise::
 
     E(Ψ) = trace(Ψᵀ W Ψ)                        Dirichlet energy (smoothness)
          + μ_R · trace(Ψᵀ A diag(1 - u) Ψ)      region penalty: L² mass outside R
@@ -17,7 +17,7 @@ Given a region ``R`` of the surface described by a (soft) indicator ``u: V -> [0
 
 ``W`` is the PSD cotangent stiffness and ``A`` the lumped mass (see
 :func:`prodmaps.laplacian`). All three terms are quadratic forms, so the minimisers are the
-eigenvectors of the ``k`` smallest eigenvalues of the generalised symmetric problem
+eigenvectors of the ``k`` smallest eigenvalues of the generalised symmetric problem::
 
     Q ψ = λ A ψ,   Q = W + μ_R · diag(A (1 - u)) + μ_⊥ · (A Φ)(A Φ)ᵀ.
 

@@ -159,3 +159,23 @@ def test_docs_runs_is_resolved_from_the_project_root(tmp_path):
     r = subprocess.run([sys.executable, "-c", code], cwd=ROOT / "docs", env=env, capture_output=True, text=True,
                        timeout=300)
     assert r.returncode != 0 and "no executed notebooks" in r.stderr
+
+
+def test_api_reference_has_a_page_per_module_and_one_parameters_block_per_entry(site):
+    out, _ = site
+    pages = {p.stem for p in (out / "api").glob("*.html")}
+    for mod in ("mesh", "io", "basis", "products", "approx", "mapping", "p2p", "fmaps", "descriptors", "geodesics",
+                "metrics", "lmh", "fields"):
+        assert mod in pages, mod
+    wanted = {"p2p": ["prodmaps.p2p.from_fmap"], "geodesics": ["prodmaps.geodesics"],
+              "mesh": ["prodmaps.mesh.repair", "prodmaps.mesh.remove_unreferenced_vertices",
+                       "prodmaps.mesh.remove_degenerate_faces", "prodmaps.mesh.largest_component"],
+              "io": ["prodmaps.io.load_mesh_repaired"]}
+    for page, ids in wanted.items():
+        text = (out / "api" / f"{page}.html").read_text()
+        for i in ids:
+            assert f'id="{i}' in text, (page, i)
+    api = (out / "api.html").read_text()
+    for name in ("transfer", "eigenbasis", "product_basis"):  # types come from the docstring, not a second block
+        entry = api.split(f'id="prodmaps.{name}"', 1)[1].split('<dl class="py', 1)[0]
+        assert entry.count(">Parameters<") == 1, name
