@@ -865,7 +865,9 @@ def kept_dataset(report, dataset: str) -> KeptDataset | None:
                 cells = _split_cells(line)
                 if len(cells) == len(header):
                     column[cells[0].strip("`")] = cells[col]
-    m = re.search(r"code at commit `([^`]+)`", text)
+    # the commit of the run the section came from: an earlier kept note's, else the report's own
+    m = (re.search(rf"{re.escape(name)} was not rerun for this report.*?published at commit `([^`]+)`", text)
+         or re.search(r"code at commit `([^`]+)`", text))
     return KeptDataset(dataset, m.group(1) if m else "unknown", column, _blocks_from_markdown("".join(mine)))
 
 

@@ -757,4 +757,8 @@ def test_publish_keeps_the_faust_section_when_faust_was_not_rerun(tmp_path, monk
     assert "kept from the report published at commit" in second
     assert re.search(r"On FAUST \(kept from the report published at commit `[^`]+`\): \d+ ", second)
     assert kept_png.is_file()  # a kept dataset's figures stay
+    first_commit = k.commit
+    md, _, _ = publish(paper, registry=reg)  # kept again: still names the commit of the FAUST run's report
+    assert kept_dataset(md, "faust").commit == first_commit
+    assert faust_part(md.read_text(encoding="utf-8")) == faust_part(first)
     assert "<h2>On FAUST</h2>" in html.read_text(encoding="utf-8") and "<h2>On FAUST</h2>" in first_html
