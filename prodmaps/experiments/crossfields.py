@@ -63,7 +63,7 @@ __all__ = ["figure14_experiment", "figure14_study", "dataset_pair", "summary_row
            "graph_distances", "surface_ground_truth", "low_curvature_vertices", "pair_measures",
            "figure14_joint_pair", "summarize_pairs", "summarize_quads", "figure14_joint_study", "quad_meshes_pair",
            "quad_mesh_of",
-           "study_lines", "verdict_table", "setting_summary", "SETTINGS", "PAIRS",
+           "study_lines", "verdict_table", "verdict_lines", "setting_summary", "SETTINGS", "PAIRS",
            "DEFAULTS", "JOINT_DEFAULTS", "JOINT_KINDS", "BASELINES"]
 
 DEFAULTS = {
@@ -773,6 +773,27 @@ def verdict_table(study: dict, ks, measures=("angle_regular_deg", "angle_mean_de
                              **{f"{kd}_beats_std": r[kd]["n_better"] for kd in ("ext", "default", "p2p", "no_map")},
                              **{f"{kd}_mean": r[kd]["mean"] for kd in ("std", "ext", "default", "p2p", "no_map")}})
     return rows
+
+
+def verdict_lines(study: dict, ks) -> list[str]:
+    """Text lines of :func:`verdict_table` (per setting, measure and k: the pairs on which C~, the
+    oracle, the default transfer and no map beat C) and of the instability diagnostics per pair
+    (smallest singular value of C, largest transfer gain of C~'s kept source directions)."""
+    lines = ["per setting, measure and k: pairs on which each design beats C (lower angle to the ground-truth "
+             "push-forward)"]
+    for r in verdict_table(study, ks):
+        n = r["n_pairs"]
+        lines.append(f"{r['setting']:>8} {r['measure']:<17} k = {r['k']:>2}: C~ {r['ext_beats_std']}/{n}, "
+                     f"oracle {r['p2p_beats_std']}/{n}, default {r['default_beats_std']}/{n}, "
+                     f"no map {r['no_map_beats_std']}/{n}; means C {r['std_mean']:.2f}, C~ {r['ext_mean']:.2f}, "
+                     f"oracle {r['p2p_mean']:.2f}, no map {r['no_map_mean']:.2f}")
+    lines.append("C~ instability: smallest singular value of the ground-truth C and the largest transfer gain of a "
+                 "kept source direction (||B2 C~ q||_A for unit q; 1 = products preserved)")
+    for name, p in study["pairs"].items():
+        lines.append(f"  {name}: " + "; ".join(
+            f"k = {k}: σ_min(C) {p['map'][f'k{k}']['C_sigma_min']:.3f}, gain {p[f'k{k}']['ext']['gain_max']:.1f}"
+            for k in ks))
+    return lines
 
 
 def study_lines(study: dict, ks) -> list[str]:
