@@ -88,12 +88,17 @@ def test_fig12_13_measurements_well_formed(smoke_results):
     assert r["map_size"]["C_shape"][0] > r["map_size"]["C_shape"][1]   # k_N > k_M (target rows)
     for m in ("gt", "no17"):
         c = r["curves"][m]
-        for method in ("std", "extended"):
+        for method in ("std", "extended", "extended_closed_form"):
             y = np.asarray(c[method])
             assert np.all(np.diff(y) >= 0) and 0.0 <= y[0] and y[-1] <= 1.0
             assert 0.0 < r["mean_error"][m][method] < 0.5
-        assert set(r["extended_vs_std_pairs"][m]) == {"better", "tie", "worse"}
-        assert sum(r["extended_vs_std_pairs"][m].values()) == len(r["pairs"])
+        for key in ("extended_vs_std_pairs", "closed_form_vs_std_pairs"):
+            assert set(r[key][m]) == {"better", "tie", "worse"}
+            assert sum(r[key][m].values()) == len(r["pairs"])
+    # the sensitivity sweep: the standard conversion and the extended one per setting and size
+    rows = r["sweep"]["rows"]
+    assert {row["setting"] for row in rows} >= {"std", "extended t x1"}
+    assert all(0.0 < row["mean_error"] < 1.0 for row in rows)
     # the ground-truth map is better than the computed one with the standard conversion
     assert r["mean_error"]["gt"]["std"] < r["mean_error"]["no17"]["std"]
     assert (d / "fig12_13_p2p.png").is_file()
