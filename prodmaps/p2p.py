@@ -30,8 +30,12 @@ Extended conversion (``method="extended"``, Sections 4.4 and 5.3)
     Section 4.4). Each target vertex is matched to its exact nearest transferred source point.
 
     ``t`` (the paper gives none): default ``t_scale / λ_{k1−1}``, the eigenvalue of the source's
-    last basis function (``t_scale = 1``; measured on FAUST by a reviewer: 3x larger still better
-    than the standard conversion, 10x worse). Shape 2 uses the same time relative to its area.
+    last basis function (``t_scale = 1``). Shape 2 uses the same time relative to its area.
+    Measured (ground-truth 40 × 30 maps, 6 pairs, mean geodesic error / sqrt(area), std 0.0147
+    on FAUST, 0.0118 on the embedded humans): ``t_scale`` 0.3 → 0.0101 / 0.0112, 1 → 0.0099 /
+    0.0085, 3 → 0.0175 / 0.0126, 10 → 0.041 / 0.029: the gain needs a small ``t``. It also needs
+    the larger basis on the target (30 × 40: 0.041 / 0.046, worse than std on every pair) and
+    the truncation (``rtol`` 1e-6: 0.17 / 0.35; 1e-2: 0.0118 / 0.0088).
 
     Cost and memory: the point functions are evaluated ``KERNEL_BLOCK_BYTES`` (64 MB) of
     ``(n, b)`` columns at a time and reduced to ``(K, b)`` coefficients at once, so no ``n × n``
