@@ -45,7 +45,7 @@ def _check_howto(res):
     """howto_own_meshes: the dirty mesh is repaired back to mesh 1; broken ones get clear messages."""
     c = res["cleaning_demo"]
     assert c["identical_to_mesh_1"] and (c["vertices_in_file"], c["faces_in_file"]) == (5006, 10003)
-    assert "degenerate faces" in c["load_message"] and "remove_degenerate_faces" in c["load_message"]
+    assert "degenerate faces" in c["load_message"] and "prodmaps.mesh.repair" in c["load_message"]
     b = res["broken_demo"]
     assert "cannot be repaired automatically: non-manifold edges" in b["non_manifold.ply"]
     assert "truncated" in b["truncated.ply"]
