@@ -222,13 +222,7 @@ def _gate(claim: Claim, results: dict, subset: str) -> dict:
         margin = eval(claim.demonstrable_margin, scope) if claim.demonstrable_margin else None  # noqa: S307
     except (KeyError, NameError, TypeError, ZeroDivisionError, ValueError) as exc:
         return {"holds": None, "evidence": f"not measured: rule.demonstrable failed ({type(exc).__name__}: {exc})"}
-    fmt = {k: v for k, v in env.items() if k not in _FUNCS}
-    fmt.update({f"n_{k}": len(v) for k, v in fmt.items() if isinstance(v, dict)})
-    try:
-        ev = claim.demonstrable_evidence.format(margin=margin, **fmt) if claim.demonstrable_evidence else ""
-    except (KeyError, IndexError, ValueError, TypeError) as exc:
-        ev = f"(evidence template failed: {exc})"
-    return {"holds": holds, "margin": margin, "evidence": ev}
+    return {"holds": holds, "margin": margin, "evidence": _evidence(claim.demonstrable_evidence, margin, env)}
 
 
 def _flatten(obj, prefix: str = "") -> dict:
@@ -263,6 +257,16 @@ def _lookup(path: str, results: dict):
     if not hits:
         raise _Missing(f"{run}:{key} matches nothing in the results")
     return hits
+
+
+def _evidence(template: str, margin, env: dict) -> str:
+    """``template`` filled with the margin, the values and ``n_<name>`` (their sizes)."""
+    fmt = {k: v for k, v in env.items() if k not in _FUNCS}
+    fmt.update({f"n_{k}": len(v) for k, v in fmt.items() if isinstance(v, dict)})
+    try:
+        return template.format(margin=margin, **fmt) if template else ""
+    except (KeyError, IndexError, ValueError, TypeError) as exc:
+        return f"(evidence template failed: {exc})"
 
 
 def _reading_rows(values: dict, reading: str | None) -> tuple[dict, set]:
@@ -312,12 +316,7 @@ def _judge(claim: Claim, results: dict, method: str, subset: str, reading: str |
         return {"holds": None, "evidence": f"not measured: rule failed on these results ({type(exc).__name__}: {exc})"}
     holds = ways["optimistic"]
     within_rounding = ways["optimistic"] != ways["pessimistic"]
-    fmt = {k: v for k, v in env.items() if k not in _FUNCS}
-    fmt.update({f"n_{k}": len(v) for k, v in fmt.items() if isinstance(v, dict)})
-    try:
-        ev = claim.evidence.format(margin=margin, **fmt) if claim.evidence else ""
-    except (KeyError, IndexError, ValueError, TypeError) as exc:
-        ev = f"(evidence template failed: {exc})"
+    ev = _evidence(claim.evidence, margin, env)
     if within_rounding:
         ev += f" (decided by a margin under {ROUNDING_REL:g} relative: within rounding)"
     return {"holds": holds, "margin": margin, "evidence": ev, "within_rounding": within_rounding,
