@@ -36,6 +36,7 @@ __all__ = [
     "check_vertex_indices",
     "edges",
     "boundary_edges",
+    "mean_edge_length",
     "largest_component",
     "remove_unreferenced_vertices",
     "remove_degenerate_faces",
@@ -126,6 +127,30 @@ def boundary_edges(faces: np.ndarray) -> np.ndarray:
     """Edges used by exactly one face, ``(b, 2)``."""
     e, c = edges(faces)
     return e[c == 1]
+
+
+def mean_edge_length(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """Mean length of the unique edges (mesh units): the mesh's resolution.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float array
+    faces : (m, 3) int array
+
+    Returns
+    -------
+    float, the mean over :func:`edges` (each edge counted once however many faces share it).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from prodmaps.mesh import mean_edge_length
+    >>> mean_edge_length(np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))  # (1 + 1 + √2) / 3
+    1.1380711874576983
+    """
+    e, _ = edges(np.asarray(faces))
+    vertices = np.asarray(vertices)
+    return float(np.linalg.norm(vertices[e[:, 1]] - vertices[e[:, 0]], axis=1).mean())
 
 
 def _components(n: int, faces: np.ndarray) -> tuple[int, np.ndarray]:

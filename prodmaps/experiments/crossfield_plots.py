@@ -1,10 +1,9 @@
-"""Small matplotlib helpers for cross fields and quad textures (orthographic views, no GL).
+"""Small matplotlib helpers for cross fields and quad meshes (orthographic views, no GL).
 
 Views are orthographic projections with a depth test on a coarse screen grid, so crosses and
 singularities on hidden parts are not drawn. ``VIEWS`` follow :mod:`prodmaps.experiments.render`: the
 embedded humans are z-up and face -y. All functions return matplotlib objects and draw
-deterministically (fixed sub-sampling seed). For pyvista renders of a quad texture use
-:func:`render_quad_texture` (call ``probe_rendering()`` first).
+deterministically (fixed sub-sampling seed).
 """
 
 from __future__ import annotations
@@ -14,8 +13,8 @@ import numpy as np
 from ..fields.crossfield import field_vectors, singularities
 from ..fields.frames import tangent_frames
 
-__all__ = ["VIEWS", "plot_cross_field", "plot_quad_texture", "render_quad_texture", "figure14_figure", "joint_figure",
-           "pairs_figure", "quads_pairs_figure", "plot_quad_mesh", "quad_figure"]
+__all__ = ["VIEWS", "plot_cross_field", "joint_figure", "pairs_figure", "quads_pairs_figure", "plot_quad_mesh",
+           "quad_figure"]
 
 VIEWS = {
     "front": ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)),
@@ -100,65 +99,6 @@ def plot_cross_field(V, F, z, *, ax=None, view="front", n_glyphs=1500, glyph_sca
             ax.scatter(P[v[keep], 0], P[v[keep], 1], s=10, c=np.where(ind[keep] > 0, "red", "blue"),
                        zorder=3, linewidths=0)
     return ax
-
-
-def plot_quad_texture(V, F, q, *, ax=None, view="front", binary=True, cmap="gray"):
-    """Shaded mesh coloured by the quad texture ``q`` ``(n,)`` (face mean; its sign if ``binary``)."""
-    import matplotlib.pyplot as plt
-    from matplotlib import colormaps
-
-    V = np.asarray(V, float)
-    F = np.asarray(F, np.int64)
-    if ax is None:
-        _, ax = plt.subplots(figsize=(3, 5))
-    qf = np.asarray(q, float)[F].mean(1)
-    val = 0.5 * (1 + (np.sign(qf) * 0.8 if binary else np.clip(qf, -1, 1)))
-    _shaded_mesh(ax, V, F, view, facecolors=colormaps[cmap](val))
-    return ax
-
-
-def render_quad_texture(V, F, q, **kwargs) -> np.ndarray:
-    """pyvista render of a quad texture (grey, ``clim = (-1, 1)``); returns an RGB image.
-
-    Uses :func:`prodmaps.experiments.render.render_mesh`;
-    call ``probe_rendering()`` first, VTK crashes instead of raising without a GL backend.
-    """
-    from .render import render_mesh
-    kwargs.setdefault("cmap", "gray")
-    return render_mesh(V, F, np.asarray(q, float), clim=(-1.0, 1.0), **kwargs)
-
-
-def figure14_figure(mesh_1, mesh_2, result: dict, names=("reference", "std", "ext"), *, view="front",
-                    n_glyphs=500, titles=None, suptitle=None):
-    """Figure-14-like panel: crosses (top) and quad textures (bottom) for the source and targets.
-
-    ``result`` is a :func:`~prodmaps.experiments.crossfields.figure14_experiment` output; ``titles``
-    maps a field name to its column title. Returns the figure.
-    """
-    import matplotlib.pyplot as plt
-
-    names = [n for n in names if n in result["fields"]]
-    cols = ["source"] + names
-    fig, axes = plt.subplots(2, len(cols), figsize=(2.6 * len(cols), 8.0), squeeze=False)
-    for c, name in enumerate(cols):
-        mesh = mesh_1 if name == "source" else mesh_2
-        plot_cross_field(mesh.vertices, mesh.faces, result["fields"][name], ax=axes[0, c], view=view,
-                         n_glyphs=n_glyphs)
-        if name in result.get("layouts", {}):
-            plot_quad_texture(mesh.vertices, mesh.faces, result["layouts"][name], ax=axes[1, c], view=view)
-        else:
-            axes[1, c].axis("off")
-        m = result["metrics"].get(name)
-        t = (titles or {}).get(name, name)
-        if m is not None and name != "reference":
-            t += f"\n{m['angle_mean_deg']:.1f}° mean, {m['angle_p90_deg']:.1f}° p90"
-        if m is not None and "layout_agreement" in m:
-            t += f"\nlayout {m['layout_agreement']:.2f}"
-        axes[0, c].set_title(t, fontsize=8)
-    if suptitle:
-        fig.suptitle(suptitle, fontsize=9)
-    fig.tight_layout(rect=(0, 0, 1, 0.97) if suptitle else None)
-    return fig
 
 
 def joint_figure(mesh_1, mesh_2, fields: dict, names, *, titles=None, view="front", n_glyphs=400, suptitle=None):

@@ -9,12 +9,10 @@ subpackage implements the pieces on plain arrays:
 * :mod:`.crossfield` — ``N``-direction fields as power fields: connection Laplacian, smoothest
   and curvature-aligned fields [KCPS13], singularities and indices, angles modulo ``2π/N``,
   push-forward through a point map (evaluation only).
-* :mod:`.operators` — vector fields as derivations in a basis and the Leibniz extension to the
-  extended basis; the degree-N action of a cross field on functions.
+* :mod:`.operators` — the degree-N action of a cross field on functions, and the span Approach B
+  keeps in an extended basis.
 * :mod:`.consistency` — the consistency energy through ``C`` or ``C~`` and the design of a
   target field (or both) by linear least squares.
-* :mod:`.stripes` — two coupled stripe patterns per cross field [KCPS15], the quad texture and
-  the layout-consistency score.
 * :mod:`.quadmesh` — an integer-grid parametrisation along a cross field (libigl's comb,
   mismatch and cut, consistent rounding along the tree of cut chains, scipy solves) and its quad
   mesh: the cells of the integer iso-lines, one polygon closing each hole next to a singularity
@@ -66,19 +64,8 @@ from .frames import (
     to_vectors,
     vertex_holonomy,
 )
-from .operators import (
-    SpanProjector,
-    commutator_energy,
-    derivation_in,
-    derivation_matrix,
-    field_action,
-    leibniz_extension,
-    powered_gradients,
-    reduced_derivation,
-    span_projector,
-)
+from .operators import SpanProjector, field_action, powered_gradients, span_projector
 from .quadmesh import extract_quads, quad_mesh_stats, seamless_parametrization
-from .stripes import layout_consistency, quad_texture, stripe_patterns
 
 __all__ = [
     "Frames", "tangent_frames", "mesh_frames", "as_frames", "to_complex", "to_vectors", "complex_gradient",
@@ -87,9 +74,7 @@ __all__ = [
     "normalize_field", "rotate_field", "field_vectors", "cross_angle", "angle_stats", "singularity_index",
     "singularities", "vertex_power_field", "pushforward_field",
     "pushforward_field_barycentric", "closest_point_correspondence",
-    "derivation_matrix", "reduced_derivation", "leibniz_extension", "SpanProjector", "span_projector",
-    "derivation_in", "field_action", "powered_gradients", "commutator_energy",
+    "SpanProjector", "span_projector", "field_action", "powered_gradients",
     "ConsistencyProblem", "consistency_problem", "design_consistent_field", "design_joint",
-    "stripe_patterns", "quad_texture", "layout_consistency",
     "seamless_parametrization", "extract_quads", "quad_mesh_stats",
 ]

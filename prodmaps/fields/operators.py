@@ -1,23 +1,11 @@
-"""Tangent fields acting on functions, in a basis and in the extended (product) basis.
+"""Cross fields acting on functions, and the span Approach B keeps in an extended basis.
 
-Vector fields as derivations [ABCO13]
--------------------------------------
-A tangent vector field ``X`` (complex per face, frames of :mod:`prodmaps.fields.frames`) acts
-on functions by ``D_X f = <X, ∇f>``: with ``g(f) = G f`` the complex gradient,
-``<X, ∇f> = Re(conj(X) g(f))`` per face, pushed to the vertices with the area-weighted average
-``S`` (:func:`~prodmaps.fields.frames.face_to_vertex`). :func:`derivation_matrix` is that
-``(n, n)`` sparse operator. In a basis, ``D = Φᵀ A (D_X Φ)`` ``(k, k)`` (:func:`reduced_derivation`);
-since ``A S`` is the weak form, ``D_ij = ∫ φ_i <X, ∇φ_j>`` with the barycentric quadrature.
-
-A derivation obeys the Leibniz rule ``D(fg) = f D(g) + g D(f)``. In the extended basis
-``B = [φ0, φ_l, φ_l φ_m]`` its action on the product columns is therefore determined by its
-action on the base functions: :func:`leibniz_extension` builds that ``(K, K)`` operator ``D~``
-from a ``(k, k)`` ``D`` (the derivative of a degree-≤1 function is kept in the base span, so
-products stay products). If ``C D_1 = D_2 C`` then ``C~ D~_1 = D~_2 C~`` exactly (``C~`` is
-the product-preserving extension of :func:`prodmaps.extend_fmap`), so the Leibniz extension
-adds no information of its own: what the extended basis adds is the **representation of the
-derivatives** ``D_X φ_j``, which are higher-frequency than ``φ_j``: :func:`derivation_in` gives
-``D^B = Π_B (D_X Φ)`` ``(K, k)``, the base functions' derivatives expressed in ``B``.
+The consistency of two fields through a map compares their actions on functions
+(:mod:`prodmaps.fields.consistency`). A vector field would act as a derivation, whose Leibniz
+extension to the product columns is fixed by its action on the base functions and so adds no
+information of its own ([ABCO13]); what the extended basis adds is the **representation** of
+high-frequency functions such as the actions below, hence :class:`SpanProjector`: the span
+that the library's Approach B keeps, in which those functions are expressed.
 
 Cross fields: the degree-N action
 ---------------------------------
@@ -50,93 +38,11 @@ processing. SGP 2013.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..basis import Basis
 from ..products import ProductBasis
-from .frames import Frames, as_frames, complex_gradient, face_to_vertex
 
-__all__ = [
-    "derivation_matrix", "reduced_derivation", "leibniz_extension", "SpanProjector",
-    "span_projector", "derivation_in", "powered_gradients", "field_action", "commutator_energy",
-]
-
-
-def _field(X, fr: Frames) -> np.ndarray:
-    X = np.asarray(X)
-    if X.shape == (fr.n_faces, 3):
-        return np.einsum("ij,ij->i", X, fr.u) + 1j * np.einsum("ij,ij->i", X, fr.v)
-    if X.shape != (fr.n_faces,):
-        raise ValueError(f"the field must be complex (m,) or 3D (m, 3) with m = {fr.n_faces}; got {X.shape}")
-    return X.astype(np.complex128)
-
-
-def derivation_matrix(fr: Frames, X) -> sp.csr_matrix:
-    """``D_X`` ``(n, n)`` sparse: ``(D_X f)`` at the vertices = area-weighted average of ``<X, ∇f>``.
-
-    ``X`` is a face vector field, complex ``(m,)`` in the face frames or 3D ``(m, 3)``.
-    """
-    fr = as_frames(fr)
-    Xc = _field(X, fr)
-    G = complex_gradient(fr)  # (m, n)
-    per_face = (sp.diags(np.conj(Xc)) @ G).real  # (m, n): Re(conj(X) g(f))
-    return (face_to_vertex(fr) @ per_face).tocsr()
-
-
-def reduced_derivation(basis: Basis, D: sp.spmatrix) -> np.ndarray:
-    """``Φᵀ A D Φ`` ``(k, k)``: the derivation in an A-orthonormal basis (column j = coefficients of D φ_j)."""
-    if D.shape != (basis.n, basis.n):
-        raise ValueError(f"D must be ({basis.n}, {basis.n}); got {D.shape}")
-    return basis.project(D @ basis.vecs)
-
-
-def _pair_table(index: np.ndarray, k: int) -> np.ndarray:
-    """``col[a, b]`` ``(k+1, k+1)``: column of ``φ_a φ_b`` in a unique order-2 index (-1 for a or b = 0)."""
-    col = -np.ones((k + 1, k + 1), dtype=np.int64)
-    for c, (i, j) in enumerate(np.sort(index[:, :2], axis=1)):
-        if i > 0:
-            col[i, j] = col[j, i] = c
-    return col
-
-
-def leibniz_extension(D: np.ndarray, index: np.ndarray, phi0: float) -> np.ndarray:
-    """Extend a ``(k, k)`` derivation to the unique order-2 extended basis by the Leibniz rule.
-
-    Parameters
-    ----------
-    D : ``(k, k)`` reduced derivation (constant in column/row 0), e.g. :func:`reduced_derivation`.
-    index : ``ProductBasis.index`` of ``product_basis(basis, order=2, pairs="unique")`` ``(K, 2)``.
-    phi0 : value of the constant basis function (``basis.phi0``).
-
-    Returns ``D~`` ``(K, K)``: ``D~ e_l = D e_l`` (zero-padded) and ``D~ e_(a,b)`` = coefficients
-    of ``φ_a D φ_b + φ_b D φ_a``, ``D φ_b = Σ_c D[c, b] φ_c`` and ``φ_a φ_0 = φ0 · (column a)``.
-    """
-    D = np.asarray(D, dtype=np.float64)
-    k1 = D.shape[0]
-    if D.shape != (k1, k1):
-        raise ValueError(f"D must be square (k, k); got {D.shape}")
-    index = np.asarray(index)
-    if index.ndim != 2 or index.shape[1] != 2:
-        raise ValueError("index must be the (K, 2) index of an order-2 product basis")
-    k = k1 - 1
-    K = index.shape[0]
-    if K != 1 + k + k * (k + 1) // 2:
-        raise ValueError(f"index has {K} columns; a unique order-2 basis on {k} functions has "
-                         f"{1 + k + k * (k + 1) // 2} (use pairs='unique')")
-    col = _pair_table(index, k)
-    Dt = np.zeros((K, K))
-    Dt[:k1, :k1] = D
-    pa = np.array([(c, *sorted(r)) for c, r in enumerate(index[:, :2]) if min(r) > 0])  # (P, 3)
-    cols, a, b = pa[:, 0], pa[:, 1], pa[:, 2]
-    for first, second in ((a, b), (b, a)):  # φ_first · D φ_second
-        coef = D[:, second]  # (k1, P): D φ_second = Σ_c coef[c] φ_c
-        # c = 0: φ_first φ_0 = φ0 · column `first`
-        np.add.at(Dt, (first, cols), phi0 * coef[0])
-        # c >= 1: product column (first, c)
-        cc = np.arange(1, k1)
-        tgt = col[first[None, :], cc[:, None]]  # (k, P)
-        np.add.at(Dt, (tgt.ravel(), np.broadcast_to(cols, tgt.shape).ravel()), coef[1:].ravel())
-    return Dt
+__all__ = ["SpanProjector", "span_projector", "powered_gradients", "field_action"]
 
 
 class SpanProjector:
@@ -206,11 +112,6 @@ def span_projector(basis, rtol: float = 1e-3, normalization: str | None = None) 
     raise TypeError(f"span_projector takes a ProductBasis or a Basis, got {type(basis).__name__}")
 
 
-def derivation_in(proj: SpanProjector, D: sp.spmatrix, Phi: np.ndarray) -> np.ndarray:
-    """Coordinates in ``proj``'s span of the derivatives of the columns of ``Phi``: ``Qᵀ A D Φ``."""
-    return proj.coefficients(D @ Phi)
-
-
 def powered_gradients(G: np.ndarray, N: int = 4, power: float | None = None, eps: float = 1e-3) -> np.ndarray:
     """``g^N |g|^(p - N)`` for complex gradients ``G`` ``(m,)`` or ``(m, J)``: the ``N``-th power of
     the gradient direction times the magnitude to the ``p = power`` (default ``p = N``: ``g^N``).
@@ -243,18 +144,3 @@ def field_action(G: np.ndarray, z: np.ndarray, N: int = 4, power: float | None =
     if z.shape != (G.shape[0],):
         raise ValueError(f"z must be (m,) with m = {G.shape[0]}; got {z.shape}")
     return np.real(np.conj(z)[:, None] * powered_gradients(G, N, power))
-
-
-def commutator_energy(C_12: np.ndarray, D_1: np.ndarray, D_2: np.ndarray, *, relative: bool = True) -> float:
-    """``||C D_1 - D_2 C||_F²`` (optionally over ``||C D_1||_F²``).
-
-    ``C_12`` ``(k2, k1)`` maps coefficients on shape 1 to shape 2; ``D_1`` ``(k1, k1)``,
-    ``D_2`` ``(k2, k2)``. Works as well with ``C~`` and Leibniz-extended operators.
-    """
-    C = np.asarray(C_12, dtype=np.float64)
-    if D_1.shape != (C.shape[1],) * 2 or D_2.shape != (C.shape[0],) * 2:
-        raise ValueError(f"shapes: C {C.shape} needs D_1 ({C.shape[1]},)*2 and D_2 ({C.shape[0]},)*2; "
-                         f"got {D_1.shape}, {D_2.shape}")
-    R = C @ D_1 - D_2 @ C
-    e = float(np.sum(R ** 2))
-    return e / max(float(np.sum((C @ D_1) ** 2)), 1e-300) if relative else e

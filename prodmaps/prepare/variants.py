@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..mesh import mean_edge_length
 from .archive import PrepareError, argument_parser, default_data_root, run_cli
 
 RECIPES = ("remesh_iso", "remesh_nonuniform", "thin")
@@ -43,13 +44,6 @@ def triangle_quality(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     s = 0.5 * (a + b + c)
     area2 = np.maximum(s * (s - a) * (s - b) * (s - c), 0.0)  # Heron, squared area
     return 8.0 * area2 / np.maximum(s * a * b * c, np.finfo(float).tiny)
-
-
-def _mean_edge(v, f):
-    from prodmaps.mesh import edges
-
-    e, _ = edges(f)
-    return float(np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1).mean())
 
 
 def _meshset(v, f):
@@ -67,7 +61,7 @@ def _current(ms):
 
 def _iso(v, f, scale, iterations=10):
     ms, pml = _meshset(v, f)
-    ms.meshing_isotropic_explicit_remeshing(targetlen=pml.PureValue(scale * _mean_edge(v, f)),
+    ms.meshing_isotropic_explicit_remeshing(targetlen=pml.PureValue(scale * mean_edge_length(v, f)),
                                             iterations=iterations)
     return _current(ms)
 

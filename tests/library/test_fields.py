@@ -1,4 +1,4 @@
-"""Tests of prodmaps.fields: frames, cross fields, operators, consistency, stripes."""
+"""Tests of prodmaps.fields: frames, cross fields, operators, consistency."""
 
 import numpy as np
 import pytest
@@ -6,7 +6,6 @@ import pytest
 import prodmaps as pm
 from prodmaps import fields as pf
 from prodmaps.fields import crossfield as cf
-from prodmaps.fields import stripes as st
 from prodmaps.fields.consistency import consistency_problem, design_consistent_field, design_joint
 from prodmaps.mesh import ellipsoid, icosphere
 
@@ -226,54 +225,7 @@ def test_pushforward_through_rigid_relabelled_copy_is_exact(pair3):
         pf.pushforward_field(fr1, z1, fr2, p[:-1])
 
 
-# ----------------------------------------------------------------------------- operators
-def test_leibniz_extension_is_the_product_rule(ico2):
-    b = pm.eigenbasis(ico2, 6)
-    ext = pm.product_basis(b, 2, pairs="unique")
-    rng = np.random.default_rng(0)
-    D = rng.normal(size=(6, 6))
-    D[:, 0] = 0
-    Dt = pf.leibniz_extension(D, ext.index, b.phi0)
-    assert Dt.shape == (ext.K, ext.K)
-    B, Phi = ext.matrix, b.vecs
-    for c, (i, j) in enumerate(ext.index):
-        if min(i, j) > 0:
-            rhs = Phi[:, i] * (Phi @ D[:, j]) + Phi[:, j] * (Phi @ D[:, i])
-            np.testing.assert_allclose(B @ Dt[:, c], rhs, atol=1e-12 * np.abs(rhs).max())
-    # a derivation conjugated by a map commutes with the product-preserving C~
-    C = np.eye(6)
-    C[1:, 1:] = rng.normal(size=(5, 5))
-    C[0, 1:] = rng.normal(size=5)
-    D2 = C @ D @ np.linalg.inv(C)
-    Ct = pm.extend_fmap(C, b, b, order=2, pairs="unique")
-    D2t = pf.leibniz_extension(D2, ext.index, b.phi0)
-    np.testing.assert_allclose(Ct @ Dt, D2t @ Ct, atol=1e-12 * np.abs(Ct @ Dt).max())
-    with pytest.raises(ValueError, match="unique"):
-        pf.leibniz_extension(D, pm.product_basis(b, 2, pairs="ordered").index, b.phi0)
-
-
-def test_discrete_derivation_of_killing_field(pair3):
-    m, fr = pair3["m1"], pair3["fr1"]
-    X = np.cross([0.0, 0.0, 1.0], fr.centroids)  # rotation about z, tangent to the sphere
-    X -= np.einsum("ij,ij->i", X, fr.normal)[:, None] * fr.normal
-    D = pf.derivation_matrix(fr, X)
-    np.testing.assert_allclose(D @ np.ones(m.n_vertices), 0.0, atol=1e-12)
-    b = pair3["b1"].truncate(9)  # complete l <= 2 bands of the sphere: their span is machine independent
-    # Leibniz up to discretisation, for all products f g of the l = 1 eigenspace at once. The three
-    # eigenvectors the eigensolver returns there are any orthonormal basis of it (machine dependent), so
-    # the test sums over all pairs: the sum is the same for every orthonormal basis of the span.
-    f = b.vecs[:, 1:4]  # (n, 3)
-    lhs = np.stack([D @ (f[:, a] * f[:, c]) for a in range(3) for c in range(3)], axis=1)  # (n, 9)
-    rhs = np.stack([f[:, a] * (D @ f[:, c]) + f[:, c] * (D @ f[:, a]) for a in range(3) for c in range(3)], axis=1)
-    assert np.linalg.norm(lhs - rhs) < 0.05 * np.linalg.norm(rhs)
-    Dr = pf.reduced_derivation(b, D)
-    assert np.linalg.norm(Dr + Dr.T) < 0.05 * np.linalg.norm(Dr)  # Killing: skew-adjoint
-    # N = 1 degree-N action is the derivation per face
-    G = pf.complex_gradient(fr) @ b.vecs
-    action = pf.face_to_vertex(fr) @ pf.field_action(G, pf.to_complex(X, fr), 1)
-    np.testing.assert_allclose(action, D @ b.vecs, atol=1e-12)
-
-
+# ----------------------------------------------------------------------------- the action on functions
 def test_field_action_is_frame_independent_and_symmetric():
     rng = np.random.default_rng(3)
     g = rng.normal(size=(40, 5)) + 1j * rng.normal(size=(40, 5))
@@ -286,22 +238,12 @@ def test_field_action_is_frame_independent_and_symmetric():
     np.testing.assert_allclose(pf.field_action(g, pf.rotate_field(z, np.pi / 4), 4), -a, atol=1e-12)
 
 
-def test_commutator_vanishes_for_exact_map_with_complete_bases():
+def test_consistency_energy_vanishes_for_the_pushed_field_with_complete_bases():
     ico1 = icosphere(1)  # 42 vertices: complete bases, and 903 extended columns
     m2, p, R = relabelled_copy(ico1, seed=2)
     fr1, fr2 = pf.mesh_frames(ico1), pf.mesh_frames(m2)
     b1, b2 = complete_basis(ico1), complete_basis(m2)
     C = pm.fmap_from_p2p(p, b1, b2)
-    X1 = np.cross([0.2, 0.3, 1.0], fr1.centroids)
-    X1 -= np.einsum("ij,ij->i", X1, fr1.normal)[:, None] * fr1.normal
-    tri1 = {tuple(sorted(f)): i for i, f in enumerate(ico1.faces.tolist())}
-    src = np.array([tri1[tuple(sorted(f))] for f in p[m2.faces].tolist()])
-    X2 = X1[src] @ R.T
-    D1 = pf.reduced_derivation(b1, pf.derivation_matrix(fr1, X1))
-    D2 = pf.reduced_derivation(b2, pf.derivation_matrix(fr2, X2))
-    assert pf.commutator_energy(C, D1, D2) < 1e-18
-    D2_wrong = pf.reduced_derivation(b2, pf.derivation_matrix(fr2, np.cross(fr2.normal, X2)))
-    assert pf.commutator_energy(C, D1, D2_wrong) > 0.1
     # the cross-field consistency energy, standard and extended, vanishes for the pushed field
     z1 = pf.aligned_field(fr1, direction_guide(fr1), scale=0.1)
     z2, _ = pf.pushforward_field(fr1, z1, fr2, p)
@@ -385,62 +327,6 @@ def test_consistency_problem_rejects_bad_input(pair3):
         design_consistent_field(P, d["z1"][:-1])
     with pytest.raises(ValueError, match="N"):
         pf.connection_laplacian(d["fr1"], 0)
-
-
-# ----------------------------------------------------------------------------- stripes, layouts
-def test_stripe_patterns_follow_the_field(pair3):
-    fr, z = pair3["fr1"], pair3["z1"]
-    psi, info = pf.stripe_patterns(fr, z, return_info=True)
-    assert psi.shape == (fr.n_vertices, 2)
-    E, mm, om = info["edges"], info["mismatch"], info["omega"]
-    i, j = E[:, 0], E[:, 1]
-    x = np.stack([psi.real, psi.imag], axis=2).reshape(-1, 4)  # (n, 4)
-    xj = np.einsum("eab,eb->ea", st._S[mm], x[j])  # j's values in i's labelling
-    res = []
-    for c in range(2):
-        pj = xj[:, 2 * c] + 1j * xj[:, 2 * c + 1]
-        res.append(np.abs(np.angle(pj * np.conj(psi[i, c]) * np.exp(-1j * om[:, c]))))
-    strong = np.abs(psi).min(axis=1)
-    ok = (strong[i] > 0.3 * np.median(strong)) & (strong[j] > 0.3 * np.median(strong))
-    assert ok.mean() > 0.5
-    assert np.median(np.concatenate(res)[np.tile(ok, 2)]) < 0.1
-    with pytest.raises(ValueError, match="cross field"):
-        pf.stripe_patterns(fr, z, N=2)
-
-
-def test_quad_texture_is_labelling_invariant():
-    rng = np.random.default_rng(0)
-    psi = rng.normal(size=(30, 2)) + 1j * rng.normal(size=(30, 2))
-    q = pf.quad_texture(psi)
-    for S in st._S:
-        x = np.stack([psi.real, psi.imag], axis=2).reshape(-1, 4) @ S.T
-        np.testing.assert_allclose(pf.quad_texture(x[:, [0, 2]] + 1j * x[:, [1, 3]]), q, atol=1e-14)
-
-
-def test_layout_consistency_scores():
-    rng = np.random.default_rng(0)
-    n = 4000
-    q = rng.uniform(-1, 1, n)
-    A = rng.uniform(0.5, 1.5, n)
-    ident = np.arange(n)
-    assert pf.layout_consistency(q, q, ident, A) == pytest.approx({"agreement": 1.0, "correlation": 1.0})
-    assert pf.layout_consistency(q, -q, ident, A)["agreement"] == pytest.approx(1.0)
-    r = pf.layout_consistency(q, rng.uniform(-1, 1, n), ident, A)
-    assert 0.5 <= r["agreement"] < 0.56 and r["correlation"] < 0.1
-    with pytest.raises(ValueError):
-        pf.layout_consistency(q, q, ident[:-1], A)
-
-
-def test_layout_of_relabelled_copy_agrees(pair3):
-    d = pair3
-    z2, _ = pf.pushforward_field(d["fr1"], d["z1"], d["fr2"], d["p"])
-    per = 10 * st.mean_edge_length(d["m1"].vertices, d["m1"].faces)
-    q1 = pf.quad_texture(pf.stripe_patterns(d["fr1"], d["z1"], period=per))
-    q2 = pf.quad_texture(pf.stripe_patterns(d["fr2"], z2, period=per))
-    W, A2 = pm.laplacian(d["m2"])
-    assert pf.layout_consistency(q1, q2, d["p"], A2)["agreement"] > 0.95
-    q_rot = pf.quad_texture(pf.stripe_patterns(d["fr2"], pf.rotate_field(z2, np.pi / 4), period=per))
-    assert pf.layout_consistency(q1, q_rot, d["p"], A2)["agreement"] < 0.8
 
 
 # ----------------------------------------------------------------------------- surface ground truth

@@ -160,3 +160,10 @@ def test_repair_advice_names_functions_that_exist_and_do_the_whole_fix():
             fixed, kept = prodmaps.mesh.repair(v, f)  # the advice works on its own: a valid mesh
             assert fixed.n_vertices == kept.size
     assert prodmaps.io.load_mesh_repaired is pm.io.load_mesh_repaired
+
+
+def test_mean_edge_length_counts_each_edge_once_and_scales_with_the_mesh():
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
+    F = np.array([[0, 1, 2], [0, 2, 3]])  # a unit square: 4 sides and 1 shared diagonal
+    assert pmesh.mean_edge_length(V, F) == pytest.approx((4 + np.sqrt(2)) / 5, rel=1e-15)
+    assert pmesh.mean_edge_length(2.5 * V, F) == pytest.approx(2.5 * (4 + np.sqrt(2)) / 5, rel=1e-15)
