@@ -32,6 +32,8 @@ __all__ = [
     "validate",
     "face_areas",
     "face_normals",
+    "face_mean_ratio",
+    "face_radius_ratio",
     "vertex_normals",
     "check_vertex_indices",
     "edges",
@@ -92,6 +94,50 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
         np.add.at(vn, faces[:, c], fn)
     norm = np.linalg.norm(vn, axis=1, keepdims=True)
     return vn / np.where(norm > 0, norm, 1.0)
+
+
+def face_mean_ratio(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Triangle quality ``4·sqrt(3)·area / Σ edge²`` per face, ``(m,)``: 1 equilateral, 0 degenerate.
+
+    The mean-ratio measure, from the area and the squared edge lengths; Figure 9 plots it.
+    :func:`face_radius_ratio` is the other common measure (a different number for the same face).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from prodmaps.mesh import face_mean_ratio
+    >>> V = np.array([[0.0, 0, 0], [1, 0, 0], [0.5, np.sqrt(3) / 2, 0], [2, 0, 0]])
+    >>> np.round(face_mean_ratio(V, np.array([[0, 1, 2], [0, 3, 1]])), 6)  # equilateral, degenerate
+    array([1., 0.])
+    """
+    V, F = np.asarray(vertices, dtype=np.float64), np.asarray(faces)
+    e2 = sum(np.sum((V[F[:, i]] - V[F[:, (i + 1) % 3]]) ** 2, axis=1) for i in range(3))
+    return 4 * np.sqrt(3) * face_areas(V, F) / e2
+
+
+def face_radius_ratio(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Triangle quality ``2 r / R`` per face (inradius over circumradius), ``(m,)``: 1 equilateral,
+    0 degenerate.
+
+    The radius-ratio measure, from the edge lengths (Heron's formula); the variant recipes of
+    :mod:`prodmaps.prepare.variants` count their thin triangles with it. :func:`face_mean_ratio` is
+    the other common measure.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from prodmaps.mesh import face_radius_ratio
+    >>> V = np.array([[0.0, 0, 0], [1, 0, 0], [0.5, np.sqrt(3) / 2, 0], [2, 0, 0]])
+    >>> np.round(face_radius_ratio(V, np.array([[0, 1, 2], [0, 3, 1]])), 6)  # equilateral, degenerate
+    array([1., 0.])
+    """
+    vertices, faces = np.asarray(vertices), np.asarray(faces)
+    a = np.linalg.norm(vertices[faces[:, 1]] - vertices[faces[:, 2]], axis=1)
+    b = np.linalg.norm(vertices[faces[:, 2]] - vertices[faces[:, 0]], axis=1)
+    c = np.linalg.norm(vertices[faces[:, 0]] - vertices[faces[:, 1]], axis=1)
+    s = 0.5 * (a + b + c)
+    area2 = np.maximum(s * (s - a) * (s - b) * (s - c), 0.0)  # Heron, squared area
+    return 8.0 * area2 / np.maximum(s * a * b * c, np.finfo(float).tiny)
 
 
 def check_vertex_indices(idx, n: int, name: str = "indices") -> np.ndarray:

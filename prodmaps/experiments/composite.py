@@ -32,14 +32,13 @@ from .. import datasets
 from ..basis import eigenbasis
 from ..default_transfer import safe_operator
 from ..mapping import fmap_from_p2p, transfer
-from ..mesh import face_areas
 from ..metrics import relative_error
 from ..operators import laplacian
 from ..products import product_basis
 from ..truncation import select_rtol
 from .compare import compare
 
-__all__ = ["composite_function", "triangle_quality", "function_transfer", "remeshing_transfer"]
+__all__ = ["composite_function", "function_transfer", "remeshing_transfer"]
 
 
 def composite_function(mesh):
@@ -67,13 +66,6 @@ def composite_function(mesh):
     anchors = {"foot_left": int(foot_l), "foot_right": int(foot_r), "hand_left": hand_l,
                "head_top": head_top, "gaussian_centre": centre}
     return indicator + gaussian + sine + ramp, parts, anchors
-
-
-def triangle_quality(mesh) -> np.ndarray:
-    """Per-face quality ``4·sqrt(3)·area / Σ edge²`` ``(m,)``: 1 equilateral, 0 degenerate."""
-    V, F = mesh.vertices, mesh.faces
-    e2 = sum(np.sum((V[F[:, i]] - V[F[:, (i + 1) % 3]]) ** 2, axis=1) for i in range(3))
-    return 4 * np.sqrt(3) * face_areas(V, F) / e2
 
 
 def function_transfer(dataset: str, source_id: str, target_id: str, sizes, *, rtol: float = 1e-3,

@@ -30,20 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..mesh import mean_edge_length
+from ..mesh import face_radius_ratio, mean_edge_length
 from .archive import PrepareError, argument_parser, default_data_root, run_cli
 
 RECIPES = ("remesh_iso", "remesh_nonuniform", "thin")
-
-
-def triangle_quality(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """``2 r / R`` per face (1 for equilateral, 0 for degenerate), ``(m,)``."""
-    a = np.linalg.norm(vertices[faces[:, 1]] - vertices[faces[:, 2]], axis=1)
-    b = np.linalg.norm(vertices[faces[:, 2]] - vertices[faces[:, 0]], axis=1)
-    c = np.linalg.norm(vertices[faces[:, 0]] - vertices[faces[:, 1]], axis=1)
-    s = 0.5 * (a + b + c)
-    area2 = np.maximum(s * (s - a) * (s - b) * (s - c), 0.0)  # Heron, squared area
-    return 8.0 * area2 / np.maximum(s * a * b * c, np.finfo(float).tiny)
 
 
 def _meshset(v, f):
@@ -116,7 +106,7 @@ def make_variant(mesh, recipe: str, **params):
     v, f = _FUNCS[recipe](np.asarray(mesh.vertices), np.asarray(mesh.faces), **params)
     out, _ = repair(v, f, name=f"{mesh.name}_{recipe}")  # drops slivers/debris the remesher may leave
     dist, gt = cKDTree(mesh.vertices).query(out.vertices)
-    q = triangle_quality(out.vertices, out.faces)
+    q = face_radius_ratio(out.vertices, out.faces)
     stats = {"n_vertices": out.n_vertices, "n_faces": out.n_faces,
              "gt_distance_mean": float(dist.mean()), "gt_distance_max": float(dist.max()),
              "thin_fraction_q_lt_0.1": float(np.mean(q < 0.1)),

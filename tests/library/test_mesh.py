@@ -167,3 +167,13 @@ def test_mean_edge_length_counts_each_edge_once_and_scales_with_the_mesh():
     F = np.array([[0, 1, 2], [0, 2, 3]])  # a unit square: 4 sides and 1 shared diagonal
     assert pmesh.mean_edge_length(V, F) == pytest.approx((4 + np.sqrt(2)) / 5, rel=1e-15)
     assert pmesh.mean_edge_length(2.5 * V, F) == pytest.approx(2.5 * (4 + np.sqrt(2)) / 5, rel=1e-15)
+
+
+def test_the_two_triangle_qualities_agree_at_the_ends_and_differ_between():
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [0.5, np.sqrt(3) / 2, 0], [2, 0, 0], [0, 1, 0]])
+    F = np.array([[0, 1, 2], [0, 3, 1], [0, 1, 4]])  # equilateral, degenerate, right isosceles
+    for quality, right_isosceles in ((pmesh.face_mean_ratio, np.sqrt(3) / 2),  # 4√3 (1/2) / (1 + 1 + 2)
+                                     (pmesh.face_radius_ratio, 2 * (np.sqrt(2) - 1))):  # 2r/R, R = √2/2
+        q = quality(V, F)
+        np.testing.assert_allclose(q, [1.0, 0.0, right_isosceles], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(quality(7.0 * V, F), q, rtol=1e-12, atol=1e-12)  # free of units
