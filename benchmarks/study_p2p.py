@@ -126,7 +126,7 @@ def part_b(out):
         b1, b2 = B1.truncate(30), B2.truncate(40)
         lm = fmaps.farthest_point_landmarks(m1.vertices, 5)
         d1, d2 = fmaps.no17_demo_descriptors(B1, B2, lm, n_descr=100, subsample_step=5, k_descr=128)
-        maps = {"ground truth": fmaps.ground_truth(np.arange(m2.n_vertices), b1, b2),
+        maps = {"ground truth": pm.fmap_from_p2p(np.arange(m2.n_vertices), b1, b2),
                 "computed (NO17)": fmaps.fit_no17(b1, b2, d1, d2, **W)}
         gt = maps["ground truth"]
         for nz in NOISES:

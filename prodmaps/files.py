@@ -1,7 +1,8 @@
-"""File helpers shared by the whole package: SHA-256 digests and atomic writes.
+"""File helpers shared by the whole package: SHA-256 digests, atomic writes, TOML.
 
 One implementation each: dataset checksums (:func:`prodmaps.datasets.verify_checksums`), the
-preparation scripts, the pipeline's run hashes and every writer of results or caches use them.
+preparation scripts, the pipeline's run hashes and every writer of results or caches use them;
+the claims ledger and the run registry read their TOML with :func:`parse_toml`.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ import hashlib
 import os
 from pathlib import Path
 
-__all__ = ["sha256_file", "sha256_bytes", "atomic_path"]
+__all__ = ["sha256_file", "sha256_bytes", "atomic_path", "parse_toml"]
 
 _CHUNK = 1 << 20
 
@@ -48,3 +49,23 @@ def atomic_path(path, suffix: str | None = None):
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+def parse_toml(text: str) -> dict:
+    """The TOML document ``text`` as a dict (``tomllib``; ``tomli`` on Python 3.10).
+
+    Examples
+    --------
+    >>> from prodmaps.files import parse_toml
+    >>> parse_toml('fig02 = {notebook = "fig02.ipynb", params = {}}')
+    {'fig02': {'notebook': 'fig02.ipynb', 'params': {}}}
+    """
+    try:
+        import tomllib  # Python >= 3.11
+    except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+        try:
+            import tomli as tomllib
+        except ModuleNotFoundError as exc:
+            raise ModuleNotFoundError("reading TOML (paper/runs.toml, the claims ledger) on Python 3.10 needs "
+                                      "`pip install tomli`") from exc
+    return tomllib.loads(text)

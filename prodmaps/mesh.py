@@ -38,6 +38,7 @@ __all__ = [
     "check_vertex_indices",
     "edges",
     "boundary_edges",
+    "graph_components",
     "mean_edge_length",
     "largest_component",
     "remove_unreferenced_vertices",
@@ -199,11 +200,27 @@ def mean_edge_length(vertices: np.ndarray, faces: np.ndarray) -> float:
     return float(np.linalg.norm(vertices[e[:, 1]] - vertices[e[:, 0]], axis=1).mean())
 
 
-def _components(n: int, faces: np.ndarray) -> tuple[int, np.ndarray]:
-    rows = np.concatenate([faces[:, 0], faces[:, 1], faces[:, 2]])
-    cols = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])
-    adj = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
+def graph_components(n: int, a: np.ndarray, b: np.ndarray) -> tuple[int, np.ndarray]:
+    """Connected components of the undirected graph on ``n`` nodes with edges ``a[i] - b[i]``.
+
+    Returns ``(count, labels (n,))`` as :func:`scipy.sparse.csgraph.connected_components`: a
+    mesh's components (its vertices joined by the face edges), the quad extraction's chains.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from prodmaps.mesh import graph_components
+    >>> graph_components(5, np.array([0, 3]), np.array([1, 4]))
+    (3, array([0, 0, 1, 2, 2], dtype=int32))
+    """
+    adj = sp.coo_matrix((np.ones(np.size(a)), (a, b)), shape=(n, n))
     return connected_components(adj, directed=False)
+
+
+def _components(n: int, faces: np.ndarray) -> tuple[int, np.ndarray]:
+    """:func:`graph_components` of the vertices joined by the face edges."""
+    return graph_components(n, np.concatenate([faces[:, 0], faces[:, 1], faces[:, 2]]),
+                            np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]]))
 
 
 def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -> None:

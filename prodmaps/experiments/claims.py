@@ -73,6 +73,7 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..files import parse_toml
 from . import compare
 from .compare import ROUNDING_REL
 
@@ -164,17 +165,9 @@ class Verdict:
                 "settings": {k: {kk: vv for kk, vv in v.items()} for k, v in self.settings.items()}}
 
 
-def _toml():
-    try:
-        import tomllib
-    except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-        import tomli as tomllib
-    return tomllib
-
-
 def load_ledger(path=None) -> dict[str, Claim]:
     """The claims of the ledger, in file order."""
-    doc = _toml().loads(Path(path or LEDGER).read_text(encoding="utf-8"))
+    doc = parse_toml(Path(path or LEDGER).read_text(encoding="utf-8"))
     out = {}
     for cid, e in doc.get("claims", {}).items():
         rule = e.get("rule", {})

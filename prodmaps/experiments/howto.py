@@ -15,7 +15,7 @@ import numpy as np
 from ..io import file_to_mesh_index, save_mesh
 from ..sampling import farthest_point_landmarks
 
-__all__ = ["write_dirty_copy", "write_broken_examples", "landmark_pairs", "user_function", "resolve_path"]
+__all__ = ["write_dirty_copy", "write_broken_examples", "user_landmark_pairs", "user_function", "resolve_path"]
 
 
 def write_dirty_copy(mesh, path) -> tuple[int, int]:
@@ -43,12 +43,14 @@ def write_broken_examples(mesh, folder, valid_file) -> dict:
     return {"non_manifold.ply": folder / "non_manifold.ply", "truncated.ply": folder / "truncated.ply"}
 
 
-def landmark_pairs(landmarks, mesh_2, p2p_21, kept_1, kept_2, n_file_1: int, n_file_2: int) -> np.ndarray:
-    """``(q, 2)`` landmark pairs ``[mesh 1 vertex, mesh 2 vertex]`` in the meshes' numbering.
+def user_landmark_pairs(landmarks, mesh_2, p2p_21, kept_1, kept_2, n_file_1: int, n_file_2: int) -> np.ndarray:
+    """``(q, 2)`` the user's landmark pairs ``[mesh 1 vertex, mesh 2 vertex]`` in the meshes' numbering.
 
-    ``landmarks=None``: a stand-in for clicked points — 6 farthest points of mesh 2 and their
-    ground-truth images (none without a ground truth); else the user's pairs in the files'
-    numbering, translated through the repairs (a landmark on a dropped vertex raises).
+    ``landmarks``: the user's pairs in the files' numbering, translated through the repairs (a
+    landmark on a dropped vertex raises). ``landmarks=None``: a stand-in for clicked points — 6
+    farthest points of mesh 2 and their ground-truth images (none without a ground truth); the
+    studies' landmarks from a ground truth are :func:`prodmaps.experiments.maps.landmark_pairs`
+    (chosen on the source).
     """
     if landmarks is None:
         if p2p_21 is None:

@@ -22,13 +22,14 @@ import time
 import numpy as np
 
 from .. import datasets, geodesics
+from ..fields.frames import polygon_corner_degrees
 from ..mapping import fmap_from_p2p
 from ..mesh import Mesh
 from ..p2p import DEFAULT_KERNEL_EIG, from_fmap
 from .pointmaps import CONVERSIONS
 from .store import ShapeStore
 
-__all__ = ["coarse_remesh", "corner_angles", "pair_triangles", "quad_measures", "polygon_soup",
+__all__ = ["coarse_remesh", "pair_triangles", "quad_measures", "polygon_soup",
            "point_map_quad_transport"]
 
 
@@ -57,13 +58,6 @@ def coarse_remesh(mesh: Mesh, edge_length: float, target_faces: int = 800, itera
     return Mesh(out.vertex_matrix(), out.face_matrix().astype(np.int64), name=mesh.name + "_coarse")
 
 
-def corner_angles(P: np.ndarray) -> np.ndarray:
-    """Interior angles (degrees) ``(m, c)`` at the corners of polygons ``P`` ``(m, c, 3)`` in cyclic order."""
-    prev, nxt = np.roll(P, 1, axis=1) - P, np.roll(P, -1, axis=1) - P  # (m, c, 3)
-    cos = np.einsum("mcd,mcd->mc", prev, nxt) / (np.linalg.norm(prev, axis=2) * np.linalg.norm(nxt, axis=2) + 1e-300)
-    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
-
-
 def pair_triangles(V: np.ndarray, F: np.ndarray, max_deviation: float = 40.0, max_dihedral: float = 40.0):
     """Greedy pairing of adjacent triangles into quads (a quad-dominant mesh).
 
@@ -84,7 +78,7 @@ def pair_triangles(V: np.ndarray, F: np.ndarray, max_deviation: float = 40.0, ma
     fa, fb = face[h1], face[h2]
     u, v = half[h1, 0], half[h1, 1]  # in face a: a -> u -> v
     quads = np.stack([opp[h1], u, opp[h2], v], axis=1)  # (E, 4) a, u, b, v
-    score = np.abs(corner_angles(V[quads]) - 90.0).max(axis=1)  # (E,)
+    score = np.abs(polygon_corner_degrees(V[quads]) - 90.0).max(axis=1)  # (E,)
     n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
     n /= np.linalg.norm(n, axis=1, keepdims=True)
     dihedral = np.degrees(np.arccos(np.clip(np.einsum("ed,ed->e", n[fa], n[fb]), -1, 1)))
@@ -127,11 +121,11 @@ def quad_measures(target_vertices: np.ndarray, tv: np.ndarray, V_ref: np.ndarray
     collapsed = (ids[:, i] == ids[:, j]).any(axis=1)
     degenerate = collapsed | (aq < 0.1 * ar)
     flipped = (np.einsum("qd,qd->q", nq, nr) < 0) & ~degenerate
-    ang = corner_angles(Q)
+    ang = polygon_corner_degrees(Q)
     ok = ~collapsed
     res = {"flipped": int(flipped.sum()), "degenerate": int(degenerate.sum()),
            "angle_dev_mean": float(np.abs(ang[ok] - 90).mean()) if ok.any() else 0.0,
-           "angle_diff_to_truth": float(np.abs(ang[ok] - corner_angles(R)[ok]).mean()) if ok.any() else 0.0}
+           "angle_diff_to_truth": float(np.abs(ang[ok] - polygon_corner_degrees(R)[ok]).mean()) if ok.any() else 0.0}
     return res, flipped, degenerate
 
 
@@ -174,8 +168,8 @@ def point_map_quad_transport(dataset: str, source_id: str, target_id: str, ks, *
     store = ShapeStore(dataset, max(max(ks) + 1, DEFAULT_KERNEL_EIG))
     B1, B2 = store.basis(source_id), store.basis(target_id)
     V_true = mesh_2.vertices[p2p_12_true[src_v]]  # ground-truth transfer of the quad vertices
-    measures = {"source": {"angle_dev_mean": float(np.abs(corner_angles(mesh_1.vertices[src_v][quads]) - 90).mean())},
-                "truth": {"angle_dev_mean": float(np.abs(corner_angles(V_true[quads]) - 90).mean())}}
+    measures = {side: {"angle_dev_mean": float(np.abs(polygon_corner_degrees(P) - 90).mean())}
+                for side, P in (("source", mesh_1.vertices[src_v][quads]), ("truth", V_true[quads]))}
     placed = {}
     for kk in ks:
         b1, b2 = B1.truncate(kk + 1), B2.truncate(kk + 1)

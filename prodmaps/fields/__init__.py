@@ -59,6 +59,7 @@ from .frames import (
     complex_gradient,
     face_to_vertex,
     mesh_frames,
+    polygon_corner_degrees,
     tangent_frames,
     to_complex,
     to_vectors,
@@ -70,6 +71,7 @@ from .quadmesh import extract_quads, quad_mesh_stats, seamless_parametrization
 __all__ = [
     "Frames", "tangent_frames", "mesh_frames", "as_frames", "to_complex", "to_vectors", "complex_gradient",
     "face_to_vertex", "angle_defect", "vertex_holonomy",
+    "polygon_corner_degrees",
     "connection_laplacian", "smoothest_field", "curvature_guide", "aligned_field", "cross_field",
     "normalize_field", "rotate_field", "field_vectors", "cross_angle", "angle_stats", "singularity_index",
     "singularities", "vertex_power_field", "pushforward_field",

@@ -37,8 +37,8 @@ from ..mesh import Mesh
 
 __all__ = [
     "Frames", "tangent_frames", "mesh_frames", "as_frames", "to_complex", "to_vectors", "halfedges", "dual_edges",
-    "transport_angles", "corner_angles", "angle_defect", "vertex_holonomy", "complex_gradient",
-    "face_to_vertex", "wrap_angle",
+    "transport_angles", "corner_angles", "polygon_corner_degrees", "angle_defect", "vertex_holonomy",
+    "complex_gradient", "face_to_vertex", "wrap_angle",
 ]
 
 
@@ -181,7 +181,8 @@ def transport_angles(fr: Frames) -> np.ndarray:
 
 
 def corner_angles(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Interior angle at each corner ``(m, 3)`` (corner ``c`` of face ``f`` at ``F[f, c]``)."""
+    """Interior angle in radians at each corner ``(m, 3)`` (corner ``c`` of face ``f`` at ``F[f, c]``);
+    :func:`polygon_corner_degrees` is the polygons' (any corner count, degrees)."""
     P = V[F]  # (m, 3, 3)
     out = np.empty(F.shape)
     for c in range(3):
@@ -189,6 +190,18 @@ def corner_angles(V: np.ndarray, F: np.ndarray) -> np.ndarray:
         e2 = P[:, (c + 2) % 3] - P[:, c]
         out[:, c] = np.arctan2(np.linalg.norm(np.cross(e1, e2), axis=1), np.einsum("ij,ij->i", e1, e2))
     return out
+
+
+def polygon_corner_degrees(P: np.ndarray) -> np.ndarray:
+    """Interior angles in **degrees** ``(m, c)`` at the corners of polygons ``P`` ``(m, c, 3)``
+    (corners in cyclic order, any ``c``): the quad measures of Figure 14.
+
+    Unlike :func:`corner_angles` (triangles of a mesh, radians, by ``arctan2``), by ``arccos`` of
+    the normalised dot product of the two edges at each corner.
+    """
+    prev, nxt = np.roll(P, 1, axis=1) - P, np.roll(P, -1, axis=1) - P  # (m, c, 3)
+    cos = np.einsum("mcd,mcd->mc", prev, nxt) / (np.linalg.norm(prev, axis=2) * np.linalg.norm(nxt, axis=2) + 1e-300)
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
 def angle_defect(V: np.ndarray, F: np.ndarray) -> np.ndarray:

@@ -48,7 +48,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
-from ..mesh import Mesh
+from ..mesh import Mesh, graph_components
 from .crossfield import field_vectors
 from .frames import mesh_frames
 
@@ -57,12 +57,6 @@ __all__ = ["seamless_parametrization", "extract_quads", "quad_mesh_stats"]
 # rotation by k·90° counter-clockwise, k = 0..3
 _ROT = np.array([[[1, 0], [0, 1]], [[0, -1], [1, 0]], [[-1, 0], [0, -1]], [[0, 1], [-1, 0]]], dtype=np.float64)
 _CORNERS = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.int64)  # unit-square corners, ccw
-
-
-def _components(n: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Connected-component labels ``(n,)`` of the graph with edges ``a[i] - b[i]``."""
-    G = sp.csr_matrix((np.ones(a.size), (a, b)), shape=(n, n))
-    return connected_components(G, directed=False)[1]
 
 
 def _seam_edges(TT, TTi, cuts, mismatch):
@@ -103,7 +97,7 @@ class _Seams:
             ends = np.concatenate([self.x, self.y])
             eid = np.concatenate([np.arange(ne), np.arange(ne)])
             link = ~node[ends]
-            lab = _components(ne + n, eid[link], ne + ends[link])[:ne]
+            lab = graph_components(ne + n, eid[link], ne + ends[link])[1][:ne]
             _, chain = np.unique(lab, return_inverse=True)
             nch = int(chain.max()) + 1 if ne else 0
             # a closed loop of regular vertices has no node: make its first vertex one
@@ -124,7 +118,7 @@ class _Seams:
             keep = ~node[v]
             a.append(sid[keep])
             b.append(2 * ne + cp[keep])
-        side = _components(2 * ne + nc, np.concatenate(a), np.concatenate(b))[:2 * ne]
+        side = graph_components(2 * ne + nc, np.concatenate(a), np.concatenate(b))[1][:2 * ne]
         ref = np.full(nch, np.iinfo(np.int64).max)
         np.minimum.at(ref, self.chain, np.minimum(side[:ne], side[ne:]))
         self.fwd = side[:ne] == ref[self.chain]
@@ -569,7 +563,7 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
     ia, ib = cells.find(f_, sij), cells.find(g_, gij)
     good = (ia >= 0) & (ib >= 0)
     ia, ib, r_, t_ = ia[good], ib[good], r_[good], t_[good]
-    n_cls, cls = connected_components(sp.csr_matrix((np.ones(ia.size), (ia, ib)), shape=(nfr, nfr)), directed=False)
+    n_cls, cls = graph_components(nfr, ia, ib)
 
     # -- chart of every cell fragment relative to its class's first fragment: p_root = R^k p + tau
     kk = np.full(nfr, -1)
@@ -621,7 +615,7 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
         la_.append(on[j >= 0])
         lb_.append(j[j >= 0])
     la_, lb_ = np.concatenate(la_), np.concatenate(lb_)
-    n_pts, pid = connected_components(sp.csr_matrix((np.ones(la_.size), (la_, lb_)), shape=(npi, npi)), directed=False)
+    n_pts, pid = graph_components(npi, la_, lb_)
     first = np.unique(pid, return_index=True)[1]
     lam_c = np.clip(lam[first], 0.0, None)
     lam_c /= lam_c.sum(axis=1, keepdims=True)

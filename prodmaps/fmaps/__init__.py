@@ -14,7 +14,6 @@ from .no17 import (
                    energy_and_gradient,
                    first_column,
                    fit_no17,
-                   ground_truth,
                    laplacian_mask,
                    multiplication_operators,
                    no17_terms,
@@ -22,6 +21,6 @@ from .no17 import (
 )
 from .refinement import zoomout
 
-__all__ = ["ground_truth", "first_column", "laplacian_mask", "multiplication_operators", "NO17Terms",
+__all__ = ["first_column", "laplacian_mask", "multiplication_operators", "NO17Terms",
            "no17_terms", "energy_and_gradient", "quadratic_form", "fit_no17", "zoomout", "icp_refine",
            "no17_demo_descriptors", "farthest_point_landmarks"]

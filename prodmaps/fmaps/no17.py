@@ -9,7 +9,7 @@ Conventions (the same everywhere in prodmaps)
   ``T f ≈ Φ2 C_12 Φ1ᵀ A1 f``.
 * A point map ``p2p_21`` has shape ``(n2,)``: for every vertex of shape 2 a vertex of shape 1
   (the pull-back direction, ``(T f)(y) = f(p2p_21[y])``). Its functional map is
-  ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` (:func:`ground_truth`).
+  ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` (:func:`prodmaps.fmap_from_p2p`).
 
 The NO17 energy (Nogneng & Ovsjanikov 2017, "Informative descriptor preservation via
 commutativity for shape matching")
@@ -77,10 +77,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..basis import Basis, check_basis
-from ..mapping import fmap_from_p2p
 
 __all__ = [
-    "ground_truth",
     "first_column",
     "laplacian_mask",
     "multiplication_operators",
@@ -97,18 +95,6 @@ DESCR_NORMALIZATIONS = (True, False, "source")
 
 
 # ---------------------------------------------------------------------------- helpers
-
-
-def ground_truth(p2p_21, basis_1: Basis, basis_2: Basis) -> np.ndarray:
-    """Functional map ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` ``(k2, k1)`` induced by a point map.
-
-    ``p2p_21`` ``(n2,)`` gives for each vertex of shape 2 its image on shape 1 (pull-back
-    direction). The projection uses the area inner product of shape 2 (``Φ2ᵀA2Φ2 = I``).
-    Equal to :func:`prodmaps.fmap_from_p2p`.
-    """
-    check_basis(basis_1, "basis_1")
-    check_basis(basis_2, "basis_2")
-    return fmap_from_p2p(p2p_21, basis_1, basis_2)  # (k2, k1)
 
 
 def first_column(basis_1: Basis, basis_2: Basis, k2: int | None = None) -> np.ndarray:

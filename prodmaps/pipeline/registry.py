@@ -28,6 +28,8 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..files import parse_toml
+
 __all__ = ["PROFILES", "REGISTRY", "Run", "RegistryError", "find_project_root", "registry_path",
            "project_root", "load_registry", "parse_param", "parse_params", "BareWord"]
 
@@ -59,17 +61,6 @@ class Run:
 
 
 # ------------------------------------------------------------------------------ registry
-def _toml():
-    try:
-        import tomllib  # Python >= 3.11
-    except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-        try:
-            import tomli as tomllib
-        except ModuleNotFoundError as exc:
-            raise ModuleNotFoundError("reading paper/runs.toml on Python 3.10 needs `pip install tomli`") from exc
-    return tomllib
-
-
 def find_project_root(start=None) -> Path:
     """The nearest folder at or above ``start`` (default: the working directory) holding
     ``paper/runs.toml``: the project whose notebooks are reproduced."""
@@ -96,7 +87,7 @@ def project_root(registry=None) -> Path:
     """The project root of a registry: its ``root = "..."`` key, else the parent of ``paper/``."""
     path = registry_path(registry)
     try:
-        doc = _toml().loads(path.read_text(encoding="utf-8"))
+        doc = parse_toml(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):
         doc = {}
     return (path.parent / doc.get("root", "..")).resolve()
@@ -108,7 +99,7 @@ def load_registry(path=None) -> dict[str, Run]:
     if not path.is_file():
         raise RegistryError(f"run registry {path} not found (set PRODMAPS_RUNS or pass --registry)")
     try:
-        doc = _toml().loads(path.read_text(encoding="utf-8"))
+        doc = parse_toml(path.read_text(encoding="utf-8"))
     except Exception as exc:  # tomllib.TOMLDecodeError
         raise RegistryError(f"{path}: not valid TOML: {exc}") from exc
     root = (path.parent / doc.get("root", "..")).resolve()
@@ -169,7 +160,7 @@ def parse_param(text: str):
     except ValueError:
         pass
     try:
-        return key, _toml().loads(f"v = {raw}")["v"]
+        return key, parse_toml(f"v = {raw}")["v"]
     except Exception:
         pass
     try:

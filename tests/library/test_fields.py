@@ -7,6 +7,7 @@ import prodmaps as pm
 from prodmaps import fields as pf
 from prodmaps.fields import crossfield as cf
 from prodmaps.fields.consistency import consistency_problem, design_consistent_field, design_joint
+from prodmaps.fields.frames import corner_angles
 from prodmaps.mesh import ellipsoid, icosphere
 
 
@@ -100,6 +101,15 @@ def test_to_complex_roundtrip_and_rotation(ico2):
     np.testing.assert_allclose(pf.to_complex(pf.to_vectors(z, fr), fr), z, atol=1e-14)
     # multiplying by i is the rotation n x X
     np.testing.assert_allclose(pf.to_vectors(1j * z, fr), np.cross(fr.normal, pf.to_vectors(z, fr)), atol=1e-14)
+
+
+def test_polygon_corner_degrees_of_squares_and_triangles(ico2):
+    square = np.array([[[0.0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0]]])  # (1, 4, 3)
+    np.testing.assert_allclose(pf.polygon_corner_degrees(square), [[90.0] * 4], atol=1e-12)
+    # on triangles: the mesh's corner angles (radians, another formula), in degrees
+    V, F = ico2.vertices, ico2.faces
+    np.testing.assert_allclose(pf.polygon_corner_degrees(V[F]), np.degrees(corner_angles(V, F)), atol=1e-9)
+    np.testing.assert_allclose(pf.polygon_corner_degrees(V[F]).sum(axis=1), 180.0, atol=1e-9)
 
 
 def test_holonomy_is_angle_defect_and_gauss_bonnet(ico2):

@@ -93,11 +93,10 @@ def test_first_column_from_area_ratio(human_0):
     b1, b2 = pm.eigenbasis(human_0, 12), pm.eigenbasis(big, 15)
     rng = np.random.default_rng(3)
     p2p = rng.integers(0, human_0.n_vertices, size=big.n_vertices)
-    C = fmaps.ground_truth(p2p, b1, b2)
+    C = pm.fmap_from_p2p(p2p, b1, b2)
     col = fmaps.first_column(b1, b2)
     assert col[0] == pytest.approx(2.0, rel=1e-12)
     assert np.allclose(C[:, 0], col, atol=1e-12)
-    assert np.allclose(fmaps.ground_truth(p2p, b1, b2), pm.fmap_from_p2p(p2p, b1, b2))
 
 
 def test_fit_fixes_first_column_and_is_rectangular(demo):
@@ -155,8 +154,6 @@ def test_bad_inputs(demo):
         fmaps.no17_terms(b1, b2, d1, d2, normalize="max")
     with pytest.raises(ValueError, match="init"):
         fmaps.fit_no17(b1.truncate(5), b2.truncate(5), d1, d2, init="random")
-    with pytest.raises(ValueError, match="p2p_21"):
-        fmaps.ground_truth(np.arange(b1.n - 1), b1, b2)
     with pytest.raises(ValueError, match="zero"):
         fmaps.no17_terms(b1, b2, np.zeros_like(d1), d2)
 
@@ -183,7 +180,7 @@ def test_demo_descriptors_layout(demo):
 
 def test_zoomout_keeps_exact_maps_and_grows(human_0):
     b = pm.eigenbasis(human_0, 30)
-    C = fmaps.ground_truth(np.arange(b.n), b.truncate(10), b.truncate(10))
+    C = pm.fmap_from_p2p(np.arange(b.n), b.truncate(10), b.truncate(10))
     C_zo, p2p = fmaps.zoomout(C, b, b, 25, step=3, return_p2p=True)
     assert C_zo.shape == (25, 25)
     assert np.array_equal(p2p, np.arange(b.n))
@@ -198,7 +195,7 @@ def test_zoomout_keeps_exact_maps_and_grows(human_0):
 
 def test_zoomout_reports_progress(human_0, capsys):
     b = pm.eigenbasis(human_0, 20)
-    C = fmaps.ground_truth(np.arange(b.n), b.truncate(10), b.truncate(10))
+    C = pm.fmap_from_p2p(np.arange(b.n), b.truncate(10), b.truncate(10))
     C_p = fmaps.zoomout(C, b, b, 20, step=5, progress=True)  # 10 -> 15 -> 20: three conversions
     err = capsys.readouterr().err
     assert "zoomout" in err and "3/3" in err

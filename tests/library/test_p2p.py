@@ -5,7 +5,6 @@ import pytest
 from scipy.spatial.distance import cdist
 
 import prodmaps as pm
-from prodmaps import fmaps
 from prodmaps.p2p import (
     NN_METHODS,
     extended_embeddings,
@@ -114,14 +113,14 @@ def test_std_matches_its_definition(basis_0, basis_13):
 @pytest.mark.parametrize("method", ["std", "extended", "extended_closed_form"])
 def test_ground_truth_identity_recovered_exactly(basis_0, method):
     k = 12
-    C = fmaps.ground_truth(np.arange(basis_0.n), basis_0.truncate(k), basis_0.truncate(k))
+    C = pm.fmap_from_p2p(np.arange(basis_0.n), basis_0.truncate(k), basis_0.truncate(k))
     assert np.array_equal(from_fmap(C, basis_0, basis_0, method=method), np.arange(basis_0.n))
 
 
 def test_closed_form_identity_rectangular(basis_0):
     """Ground-truth (k2, k1) = (16, 10) map on one shape: the closed form is exact (its kernels
     lie in the span of the first 10 eigenfunctions' products on both sides)."""
-    C = fmaps.ground_truth(np.arange(basis_0.n), basis_0.truncate(10), basis_0.truncate(16))
+    C = pm.fmap_from_p2p(np.arange(basis_0.n), basis_0.truncate(10), basis_0.truncate(16))
     assert C.shape == (16, 10)
     assert np.array_equal(from_fmap(C, basis_0, basis_0, method="extended_closed_form"), np.arange(basis_0.n))
 
@@ -158,7 +157,7 @@ def test_canonical_distances_are_area_distances(basis_0):
 def test_pairs_conventions_agree(basis_0, basis_13):
     """The closed form's canonical coefficients do not depend on the pair convention."""
     rng = np.random.default_rng(4)
-    C = fmaps.ground_truth(np.arange(basis_13.n), basis_0.truncate(8), basis_13.truncate(10))
+    C = pm.fmap_from_p2p(np.arange(basis_13.n), basis_0.truncate(8), basis_13.truncate(10))
     C = C + 0.05 * rng.normal(size=C.shape)
     pu = from_fmap(C, basis_0, basis_13, method="extended_closed_form", pairs="unique")
     po = from_fmap(C, basis_0, basis_13, method="extended_closed_form", pairs="ordered")
@@ -308,7 +307,7 @@ def test_extended_equals_dense_computation(point):
     b1, b2 = _ellipsoid_pair()
     k1, k2 = 9, 12
     rng = np.random.default_rng(1)
-    C = fmaps.ground_truth(np.arange(b2.n), b1.truncate(k1), b2.truncate(k2)) + 0.03 * rng.normal(size=(k2, k1))
+    C = pm.fmap_from_p2p(np.arange(b2.n), b1.truncate(k1), b2.truncate(k2)) + 0.03 * rng.normal(size=(k2, k1))
     r1, r2 = _dense_reference(C, b1, b2, k1, k2, 1e-3, point)
     e1, e2, info = extended_embeddings(C, b1, b2, point=point, dtype="float64", block_bytes=40_000)  # several blocks
     assert info["n_eig"] == 60 and info["dim"] == r1.shape[1]
@@ -344,7 +343,7 @@ def test_point_functions_kernel(basis_0):
 def test_extended_is_unit_free(basis_0, basis_13):
     """Scaling either mesh (or both) by 0.01 or 100 gives the same map."""
     rng = np.random.default_rng(0)
-    C = fmaps.ground_truth(np.arange(basis_13.n), basis_0.truncate(12), basis_13.truncate(16))
+    C = pm.fmap_from_p2p(np.arange(basis_13.n), basis_0.truncate(12), basis_13.truncate(16))
     C = C + 0.02 * rng.normal(size=C.shape)
     ev = np.sort(rng.choice(basis_13.n, 400, replace=False))
     p1 = from_fmap(C, basis_0, basis_13, "extended", vertices=ev)
@@ -363,7 +362,7 @@ def test_closed_form_is_the_mesh_reading_with_the_maps_own_eigenpairs():
     b1, b2 = _ellipsoid_pair()
     k = 10
     rng = np.random.default_rng(2)
-    C = fmaps.ground_truth(np.arange(b2.n), b1.truncate(k), b2.truncate(k)) + 0.05 * rng.normal(size=(k, k))
+    C = pm.fmap_from_p2p(np.arange(b2.n), b1.truncate(k), b2.truncate(k)) + 0.05 * rng.normal(size=(k, k))
     c1, c2, _ = extended_embeddings(C, b1, b2, point="closed_form", rtol=1e-10)
     with pytest.warns(UserWarning, match="closed form"):
         m1, m2, _ = extended_embeddings(C, b1, b2, n_eig=k, rtol=1e-10, dtype="float64")
@@ -383,7 +382,7 @@ def test_closed_form_reproduces_the_previous_release(basis_0, basis_13):
         return hashlib.sha256(np.asarray(p, dtype=np.int64).tobytes()).hexdigest()[:16]
 
     rng = np.random.default_rng(4)
-    C = fmaps.ground_truth(np.arange(basis_13.n), basis_0.truncate(12), basis_13.truncate(16))
+    C = pm.fmap_from_p2p(np.arange(basis_13.n), basis_0.truncate(12), basis_13.truncate(16))
     C = C + 0.05 * rng.normal(size=C.shape)
     assert digest(from_fmap(C, basis_0, basis_13, "extended_closed_form")) == "faff928a3646df91"
     C2 = np.random.default_rng(2).normal(size=(16, 12))
