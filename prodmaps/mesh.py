@@ -127,10 +127,10 @@ def face_radius_ratio(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     Examples
     --------
     >>> import numpy as np
-    >>> from prodmaps.mesh import face_radius_ratio
-    >>> V = np.array([[0.0, 0, 0], [1, 0, 0], [0.5, np.sqrt(3) / 2, 0], [2, 0, 0]])
-    >>> np.round(face_radius_ratio(V, np.array([[0, 1, 2], [0, 3, 1]])), 6)  # equilateral, degenerate
-    array([1., 0.])
+    >>> from prodmaps.mesh import face_mean_ratio, face_radius_ratio
+    >>> right = (np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))  # right isosceles
+    >>> print(f"{face_radius_ratio(*right)[0]:.4f} (2r/R) vs {face_mean_ratio(*right)[0]:.4f} (mean ratio)")
+    0.8284 (2r/R) vs 0.8660 (mean ratio)
     """
     vertices, faces = np.asarray(vertices), np.asarray(faces)
     a = np.linalg.norm(vertices[faces[:, 1]] - vertices[faces[:, 2]], axis=1)
