@@ -78,7 +78,8 @@ from .crossfield import _check_N, connection_laplacian
 from .frames import Frames, as_frames, complex_gradient, face_to_vertex
 from .operators import SpanProjector, powered_gradients, span_projector
 
-__all__ = ["ConsistencyProblem", "consistency_problem", "design_consistent_field", "design_joint",
+__all__ = ["ConsistencyProblem", "consistency_problem", "images_of_tests", "scaled_actions", "comparison_span",
+           "design_consistent_field", "design_joint",
            "KINDS", "TESTS"]
 
 KINDS = ("std", "ext", "default", "p2p")
@@ -164,10 +165,142 @@ class ConsistencyProblem:
 
 
 def _check_C(C, k1, k2):
+    """``C`` as a float ``(k2, k1)`` array no larger than the bases ``(k2, k1)`` allow."""
     C = np.asarray(C, dtype=np.float64)
     if C.ndim != 2 or C.shape[0] > k2 or C.shape[1] > k1:
         raise ValueError(f"C_12 must be (k2, k1) with k1 <= {k1}, k2 <= {k2}; got {np.shape(C)}")
     return C
+
+
+def _checked_inputs(basis_1: Basis, basis_2: Basis, fr_1: Frames, fr_2: Frames, C_12, kind: str, tests,
+                    p2p_21, span_k):
+    """Validate :func:`consistency_problem`'s inputs: ``(C (k2, k1) or None, b1, b2, tests, p2p_21)``
+    with the bases truncated to the map's sizes and ``tests`` defaulted for the kind."""
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+    if kind == "p2p":
+        if p2p_21 is None:
+            raise ValueError("kind='p2p' needs p2p_21 (n2,)")
+        p2p_21 = np.asarray(p2p_21, dtype=np.int64)
+        if p2p_21.shape != (basis_2.n,):
+            raise ValueError(f"p2p_21 must have shape (n2,) = ({basis_2.n},); got {p2p_21.shape}")
+    C = None
+    if C_12 is None:
+        if kind != "p2p":
+            raise ValueError(f"kind={kind!r} needs C_12 (k2, k1)")
+        k1 = k2 = span_k or basis_1.k
+    else:
+        C = _check_C(C_12, basis_1.k, basis_2.k)
+        k2, k1 = C.shape
+    b1, b2 = basis_1.truncate(k1), basis_2.truncate(k2)
+    if b1.n != fr_1.n_vertices or b2.n != fr_2.n_vertices:
+        raise ValueError("bases and frames describe different meshes")
+    if not (b1.mass_is_diagonal and b2.mass_is_diagonal):
+        raise ValueError("fields need lumped (diagonal) masses")
+    if kind == "default" and C_12 is None:
+        raise ValueError("kind='default' needs C_12 (k2, k1)")
+    if tests is None:
+        tests = "base" if kind in ("std", "default") else "products"
+    if tests not in TESTS:
+        raise ValueError(f"tests must be one of {TESTS}, got {tests!r}")
+    if tests == "products" and kind in ("std", "default"):
+        raise ValueError("tests='products' needs the extended basis (kind='ext' or 'p2p'): a (k2, k1) "
+                         "map does not transfer products")
+    if k1 < 2:
+        raise ValueError("need at least one non-constant basis function (k1 >= 2)")
+    return C, b1, b2, tests, p2p_21
+
+
+def images_of_tests(b1: Basis, b2: Basis, C, tests: str, p2p_21=None):
+    """The test functions on shape 1 and their images on shape 2: ``(F1 (n1, J), F2 (n2, J), Ct)``.
+
+    Through ``C`` ``(k2, k1)`` (``Φ2 C`` of the coefficients; for ``tests="products"`` the exact
+    products ``B2 C~``, ``Ct`` the extended map ``(K2, K1)``, else None), or, with ``C`` None,
+    pulled back through ``p2p_21``. ``tests`` as in :func:`consistency_problem`.
+    """
+    Ct = None
+    if tests == "products":
+        F1 = product_basis(b1, 2, "unique").matrix[:, 1:]  # (n1, K1-1)
+        if C is None:
+            F2 = F1[p2p_21]
+        else:
+            Ct = extend_fmap(C, b1, b2, order=2, pairs="unique")  # (K2, K1)
+            F2 = product_basis(b2, 2, "unique").evaluate(Ct[:, 1:])  # (n2, K1-1) exact products
+    else:
+        Tc = _test_functions(b1.k - 1, tests == "pairs")  # (k1, J)
+        F1 = b1.vecs @ Tc  # (n1, J)
+        F2 = F1[p2p_21] if C is None else b2.vecs @ (C @ Tc)  # (n2, J)
+    return F1, F2, Ct
+
+
+def scaled_actions(fr_1: Frames, fr_2: Frames, F1, F2, mass_1, N: int, power):
+    """The degree-N actions' factors ``(H1 (m1, J), H2 (m2, J))`` of the test functions ``F1`` and
+    their images ``F2``: ``g^N |g|^(p-N)`` of their complex gradients, each test scaled to unit
+    A-norm of its vertex-averaged ``|∇f|^p`` on shape 1 (``p = N`` when ``power`` is None)."""
+    g1 = complex_gradient(fr_1) @ F1  # (m1, J)
+    g2 = complex_gradient(fr_2) @ F2
+    p = N if power is None else float(power)
+    mag = face_to_vertex(fr_1) @ (np.abs(g1) ** p)  # (n1, J)
+    scale = 1.0 / np.sqrt(np.sum(mass_1[:, None] * mag ** 2, axis=0))  # (J,)
+    return powered_gradients(g1, N, p) * scale, powered_gradients(g2, N, p) * scale
+
+
+def _ext_transfer(C, Ct, b1: Basis, b2: Basis, ext2, proj2: SpanProjector, rtol: float, normalization):
+    """``"ext"``: ``Tr = canonical(C~ a(h))``, ``a(h)`` the library's Approach-B coefficients of ``h``
+    on shape 1, and the transfer gain of the kept source directions."""
+    ext1 = product_basis(b1, 2, "unique")
+    proj1 = span_projector(ext1, rtol, normalization)
+    if Ct is None:
+        Ct = extend_fmap(C, b1, b2, order=2, pairs="unique")  # (K2, K1)
+    P1 = proj1.coefficient_matrix()  # (K1, n1)
+    Tr = proj2.from_basis(Ct @ P1)  # (r, n1)
+    # transfer gain of the kept source directions (A-norm of B2 C~ q for unit q, no ground
+    # truth): ~1 when C~ preserves products there; large when C is far from orthogonal
+    gain = np.sqrt(np.max(b2.mass @ ext2.evaluate(Ct @ proj1.P) ** 2))
+    return Tr, {"K1": ext1.K, "K2": ext2.K, "rank_1": proj1.rank, "rank_2": proj2.rank, "gain_max": float(gain)}
+
+
+def _default_transfer(C, b1: Basis, b2: Basis, Q2):
+    """``"default"``: ``Tr = Q2ᵀ A2 S(h)``, ``S`` the default transfer (linear in ``h``), applied to
+    blocks of the identity."""
+    from ..default_transfer import safe_operator
+
+    op = safe_operator(C, b1, b2)
+    M2 = (Q2 * b2.mass[:, None]).T  # (r, n2)
+    Tr = np.empty((Q2.shape[1], b1.n))
+    step = 512
+    for s0 in range(0, b1.n, step):  # the operator applied to blocks of the identity
+        E = np.zeros((b1.n, min(step, b1.n - s0)))
+        E[np.arange(s0, s0 + E.shape[1]), np.arange(E.shape[1])] = 1.0
+        Tr[:, s0:s0 + E.shape[1]] = M2 @ op(E)
+    return Tr, {"kept_products": op.rank}
+
+
+def comparison_span(kind: str, C, Ct, b1: Basis, b2: Basis, *, rtol: float, normalization=None, p2p_21=None):
+    """The span on shape 2 in which the actions are compared and the transfer of source functions
+    into it: ``(Q2 (n2, r), Tr (r, n1), info)``.
+
+    ``"std"``: ``Q2 = Φ2``, ``Tr = C Φ1ᵀ A1``; every other kind compares in the span the library's
+    Approach B operator keeps in the target's extended basis (one truncation, its normalisation):
+    ``"ext"`` through ``C~``, ``"default"`` through the default transfer of ``C``, ``"p2p"``
+    through the point map (``Q2ᵀ A2 (h ∘ p2p)``).
+    """
+    A1, A2 = b1.mass, b2.mass
+    if kind == "std":
+        return b2.vecs, (C @ (b1.vecs.T * A1[None, :])), {}  # (n2, k2), (k2, n1) = C Φ1ᵀ A1
+    ext2 = product_basis(b2, 2, "unique") if b2.k > 1 else None
+    proj2: SpanProjector = span_projector(ext2 if ext2 else b2, rtol, normalization)
+    Q2 = proj2.Q  # (n2, r)
+    if kind == "ext":
+        Tr, info = _ext_transfer(C, Ct, b1, b2, ext2, proj2, rtol, normalization)
+        return Q2, Tr, info
+    if kind == "default":
+        Tr, info = _default_transfer(C, b1, b2, Q2)
+        return Q2, Tr, {"rank_2": proj2.rank, **info}
+    w = Q2 * A2[:, None]  # (n2, r)
+    Tr = np.zeros((Q2.shape[1], b1.n))
+    np.add.at(Tr.T, p2p_21, w)
+    return Q2, Tr, {"rank_2": proj2.rank}
 
 
 def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Basis, C_12=None, *,
@@ -204,106 +337,19 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
     p2p_21 : ``(n2,)`` point map, only for ``kind="p2p"``; ``span_k`` its basis size if ``C_12`` is None.
     power : magnitude exponent ``p`` of the action (:func:`~prodmaps.fields.operators.field_action`):
         0 (default) direction only; ``None`` for ``p = N``, the polynomial ``Re(conj(z) g^N)``.
+
+    The steps: the inputs checked, :func:`images_of_tests`, :func:`scaled_actions`,
+    :func:`comparison_span`; the problem's ``W_s`` push the comparison to the faces.
     """
     N = _check_N(N)
     fr_1, fr_2 = as_frames(fr_1), as_frames(fr_2)
-    if kind not in KINDS:
-        raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
-    if kind == "p2p":
-        if p2p_21 is None:
-            raise ValueError("kind='p2p' needs p2p_21 (n2,)")
-        p2p_21 = np.asarray(p2p_21, dtype=np.int64)
-        if p2p_21.shape != (basis_2.n,):
-            raise ValueError(f"p2p_21 must have shape (n2,) = ({basis_2.n},); got {p2p_21.shape}")
-    if C_12 is None:
-        if kind != "p2p":
-            raise ValueError(f"kind={kind!r} needs C_12 (k2, k1)")
-        k1 = k2 = span_k or basis_1.k
-    else:
-        C = _check_C(C_12, basis_1.k, basis_2.k)
-        k2, k1 = C.shape
-    b1, b2 = basis_1.truncate(k1), basis_2.truncate(k2)
-    if b1.n != fr_1.n_vertices or b2.n != fr_2.n_vertices:
-        raise ValueError("bases and frames describe different meshes")
-    if not (b1.mass_is_diagonal and b2.mass_is_diagonal):
-        raise ValueError("fields need lumped (diagonal) masses")
-    if kind == "default" and C_12 is None:
-        raise ValueError("kind='default' needs C_12 (k2, k1)")
-    if tests is None:
-        tests = "base" if kind in ("std", "default") else "products"
-    if tests not in TESTS:
-        raise ValueError(f"tests must be one of {TESTS}, got {tests!r}")
-    if tests == "products" and kind in ("std", "default"):
-        raise ValueError("tests='products' needs the extended basis (kind='ext' or 'p2p'): a (k2, k1) "
-                         "map does not transfer products")
-    if k1 < 2:
-        raise ValueError("need at least one non-constant basis function (k1 >= 2)")
-    # test functions and their images on shape 2
-    Ct = None
-    if tests == "products":
-        F1 = product_basis(b1, 2, "unique").matrix[:, 1:]  # (n1, K1-1)
-        if C_12 is None:
-            F2 = F1[p2p_21]
-        else:
-            Ct = extend_fmap(C, b1, b2, order=2, pairs="unique")  # (K2, K1)
-            F2 = product_basis(b2, 2, "unique").evaluate(Ct[:, 1:])  # (n2, K1-1) exact products
-    else:
-        Tc = _test_functions(k1 - 1, tests == "pairs")  # (k1, J)
-        F1 = b1.vecs @ Tc  # (n1, J)
-        F2 = F1[p2p_21] if C_12 is None else b2.vecs @ (C @ Tc)  # (n2, J)
-    G1 = complex_gradient(fr_1)
-    G2 = complex_gradient(fr_2)
-    S1 = face_to_vertex(fr_1)  # (n1, m1)
-    S2 = face_to_vertex(fr_2)
-    g1 = G1 @ F1  # (m1, J)
-    g2 = G2 @ F2
-    p = N if power is None else float(power)
-    mag = S1 @ (np.abs(g1) ** p)  # (n1, J)
-    scale = 1.0 / np.sqrt(np.sum(b1.mass[:, None] * mag ** 2, axis=0))  # (J,)
-    H1 = powered_gradients(g1, N, p) * scale
-    H2 = powered_gradients(g2, N, p) * scale
-    # comparison span on shape 2 and the transfer of source functions into it: Tr (r, n1)
-    A1, A2 = b1.mass, b2.mass
-    info = {"k": k1 - 1, "J": F1.shape[1], "tests": tests}
-    if kind == "std":
-        Q2 = b2.vecs  # (n2, k2)
-        Tr = (C @ (b1.vecs.T * A1[None, :]))  # (k2, n1) = C Φ1ᵀ A1
-    else:
-        ext2 = product_basis(b2, 2, "unique") if k2 > 1 else None
-        # the span the library's Approach B operator keeps (one truncation, its normalisation)
-        proj2: SpanProjector = span_projector(ext2 if ext2 else b2, rtol, normalization)
-        Q2 = proj2.Q  # (n2, r)
-        if kind == "ext":
-            ext1 = product_basis(b1, 2, "unique")
-            proj1 = span_projector(ext1, rtol, normalization)
-            if Ct is None:
-                Ct = extend_fmap(C, b1, b2, order=2, pairs="unique")  # (K2, K1)
-            # a(h): the library's Approach-B coefficients of h on shape 1; coords = canonical(C~ a(h))
-            P1 = proj1.coefficient_matrix()  # (K1, n1)
-            Tr = proj2.from_basis(Ct @ P1)  # (r, n1)
-            # transfer gain of the kept source directions (A-norm of B2 C~ q for unit q, no ground
-            # truth): ~1 when C~ preserves products there; large when C is far from orthogonal
-            gain = np.sqrt(np.max(A2 @ ext2.evaluate(Ct @ proj1.P) ** 2))
-            info.update(K1=ext1.K, K2=ext2.K, rank_1=proj1.rank, rank_2=proj2.rank, gain_max=float(gain))
-        elif kind == "default":  # coords = Q2ᵀ A2 S(h), S the default transfer (linear in h)
-            from ..default_transfer import safe_operator
-
-            op = safe_operator(C, b1, b2)
-            M2 = (Q2 * A2[:, None]).T  # (r, n2)
-            Tr = np.empty((Q2.shape[1], b1.n))
-            step = 512
-            for s0 in range(0, b1.n, step):  # the operator applied to blocks of the identity
-                E = np.zeros((b1.n, min(step, b1.n - s0)))
-                E[np.arange(s0, s0 + E.shape[1]), np.arange(E.shape[1])] = 1.0
-                Tr[:, s0:s0 + E.shape[1]] = M2 @ op(E)
-            info.update(rank_2=proj2.rank, kept_products=op.rank)
-        else:  # p2p oracle: coords = Q2ᵀ A2 (h ∘ p2p)
-            w = Q2 * A2[:, None]  # (n2, r)
-            Tr = np.zeros((Q2.shape[1], b1.n))
-            np.add.at(Tr.T, p2p_21, w)
-            info.update(rank_2=proj2.rank)
-    W1 = S1.T @ Tr.T  # (m1, r): W1ᵀ h_face = Tr (S1 h_face)
-    W2 = S2.T @ (Q2 * A2[:, None])  # (m2, r): W2ᵀ h_face = Q2ᵀ A2 S2 h_face
+    C, b1, b2, tests, p2p_21 = _checked_inputs(basis_1, basis_2, fr_1, fr_2, C_12, kind, tests, p2p_21, span_k)
+    F1, F2, Ct = images_of_tests(b1, b2, C, tests, p2p_21)
+    H1, H2 = scaled_actions(fr_1, fr_2, F1, F2, b1.mass, N, power)
+    Q2, Tr, extra = comparison_span(kind, C, Ct, b1, b2, rtol=rtol, normalization=normalization, p2p_21=p2p_21)
+    info = {"k": b1.k - 1, "J": F1.shape[1], "tests": tests, **extra}
+    W1 = face_to_vertex(fr_1).T @ Tr.T  # (m1, r): W1ᵀ h_face = Tr (S1 h_face)
+    W2 = face_to_vertex(fr_2).T @ (Q2 * b2.mass[:, None])  # (m2, r): W2ᵀ h_face = Q2ᵀ A2 S2 h_face
     info["r"] = Q2.shape[1]
     lam1 = float(b1.evals[1]) if b1.k > 1 else 1.0 / fr_1.area.sum()
     lam2 = float(b2.evals[1]) if b2.k > 1 else 1.0 / fr_2.area.sum()

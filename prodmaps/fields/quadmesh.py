@@ -43,6 +43,8 @@ so quads come out counter-clockwise seen from outside.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -52,7 +54,8 @@ from ..mesh import Mesh, graph_components
 from .crossfield import field_vectors
 from .frames import mesh_frames
 
-__all__ = ["seamless_parametrization", "extract_quads", "quad_mesh_stats"]
+__all__ = ["seamless_parametrization", "extract_quads", "quad_mesh_stats", "comb_and_cut", "continuous_system",
+           "integer_solve"]
 
 # rotation by k·90° counter-clockwise, k = 0..3
 _ROT = np.array([[[1, 0], [0, 1]], [[0, -1], [1, 0]], [[-1, 0], [0, -1]], [[0, 1], [-1, 0]]], dtype=np.float64)
@@ -286,8 +289,181 @@ def _gradient_system(Vc, Fc, P1, P2, h):
 
 
 def _solve_normal(A, b):
+    """Least squares ``min ||A x - b||`` by the normal equations (sparse LU, COLAMD ordering)."""
     M = (A.T @ A).tocsc()
     return spla.splu(M, permc_spec="COLAMD").solve(A.T @ b)
+
+
+def comb_and_cut(mesh: Mesh, z: np.ndarray) -> dict:
+    """Step 1 (module doc): comb the cross field ``z`` and cut the mesh through its singularities.
+
+    Returns a dict: ``V``, ``F`` (the mesh), ``P1``, ``P2`` ``(m, 3)`` (the combed directions
+    ``d_0``, ``d_1``), ``mismatch`` ``(m, 3)`` (quarter turns across every edge), ``singular``
+    (mesh vertex ids), ``cuts`` ``(m, 3)`` (the seam edges), the cut mesh ``Vc``, ``Fc``, ``I``
+    (the mesh vertex of each cut vertex) and igl's triangle-triangle adjacency ``TT``, ``TTi``.
+    """
+    import igl
+
+    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
+    F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    fr = mesh_frames(mesh)
+    d = field_vectors(z, fr, 4)
+    P1, P2 = igl.comb_cross_field(V, F, np.ascontiguousarray(d[:, 0]), np.ascontiguousarray(d[:, 1]))
+    mm = igl.cross_field_mismatch(V, F, P1, P2, True)
+    is_sing, _ = igl.find_cross_field_singularities(V, F, mm)
+    sing = np.flatnonzero(np.asarray(is_sing).ravel())
+    cuts = igl.cut_mesh_from_singularities(V, F, mm)
+    Vc, Fc, I = igl.cut_mesh(V, F, cuts)
+    I = np.asarray(I, dtype=np.int64).ravel()
+    TT, TTi = igl.triangle_triangle_adjacency(F)
+    return {"V": V, "F": F, "P1": P1, "P2": P2, "mismatch": mm, "singular": sing, "cuts": cuts, "Vc": Vc,
+            "Fc": Fc, "I": I, "TT": TT, "TTi": TTi}
+
+
+def _transition_rows(rot, a_f, a_g, b_f, b_g, nc: int) -> sp.csr_matrix:
+    """Rows of ``(p_g(x) - R p_f(x)) - (p_g(y) - R p_f(y))`` ``(2 ne, 2 nc)``: the transition of every
+    seam edge holds with the same translation at its two ends ``x``, ``y`` (copies ``a``, ``b``)."""
+    ne = rot.size
+    R = _ROT[rot]
+    rr, cc, vv = [], [], []
+    for i in range(2):
+        row = np.arange(ne) + i * ne
+        for cp, sgn in ((a_g, 1.0), (b_g, -1.0)):
+            rr.append(row)
+            cc.append(cp + i * nc)
+            vv.append(np.full(ne, sgn))
+        for j in range(2):
+            for cp, sgn in ((a_f, -1.0), (b_f, 1.0)):
+                rr.append(row)
+                cc.append(cp + j * nc)
+                vv.append(sgn * R[:, i, j])
+    return sp.csr_matrix((np.concatenate(vv), (np.concatenate(rr), np.concatenate(cc))), shape=(2 * ne, 2 * nc))
+
+
+def continuous_system(A, b, seams, nc: int, weight: float):
+    """Step 2 (module doc): the continuous problem ``(A0, b0, pin)``: the field alignment ``(A, b)``
+    plus, with ``weight``, the seam transitions as soft constraints with free translations per
+    edge, and ``pin`` fixing the first cut vertex at the origin (the solution's translation)."""
+    pin = sp.csr_matrix(([1.0, 1.0], ([0, 1], [0, nc])), shape=(2, 2 * nc))
+    if seams is None:
+        return sp.vstack([A, pin]).tocsr(), np.concatenate([b, np.zeros(2)]), pin
+    S = seams
+    D = _transition_rows(S.rot, S.xf, S.xg, S.yf, S.yg, nc)
+    A0 = sp.vstack([A, weight * D, weight * pin]).tocsr()
+    b0 = np.concatenate([b, np.zeros(2 * S.ne + 2)])
+    return A0, b0, pin
+
+
+def _solve_uv(A, b, nc: int) -> np.ndarray:
+    """``(u, v)`` per cut vertex ``(nc, 2)`` of the least-squares problem ``(A, b)``."""
+    x = _solve_normal(A, b)
+    return np.stack([x[:nc], x[nc:]], axis=1)
+
+
+def _soft_rows(seams, fixed: dict, rels, t, nc: int):
+    """Rows ``(M, rhs)`` pulling the continuous solve towards the constraints decided so far (the
+    fixed copies ``fixed``, the relations ``rels`` and the chains whose translation ``t`` is known)."""
+    fc = np.fromiter(fixed.keys(), dtype=np.int64, count=len(fixed))
+    fp = np.array(list(fixed.values())).reshape(-1, 2)
+    cp, st, kk, tau = _concat_relations(rels, seams.chain_relations(t, np.isfinite(t[:, 0])))
+    nf_, nr = fc.size, cp.size
+    Rk = _ROT[kk]  # (nr, 2, 2)
+    rows = [np.arange(2 * nf_)]
+    cols = [np.concatenate([fc, fc + nc])]
+    vals = [np.ones(2 * nf_)]
+    for i in range(2):  # p(cp) - R^k p(st) = tau, coordinate i
+        r0 = 2 * nf_ + i * nr + np.arange(nr)
+        rows += [r0, r0, r0]
+        cols += [cp + i * nc, st, st + nc]
+        vals += [np.ones(nr), -Rk[:, i, 0], -Rk[:, i, 1]]
+    M = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(2 * nf_ + 2 * nr, 2 * nc))
+    return M, np.concatenate([fp[:, 0], fp[:, 1], tau[:, 0], tau[:, 1]])
+
+
+def _resolve(fixed: dict, rels, t, *, seams, A0, b0, nc: int, weight: float) -> np.ndarray:
+    """The continuous solve again, pulled towards the roundings so far (``round_nodes``' ``resolve``)."""
+    M, r_ = _soft_rows(seams, fixed, rels, t, nc)
+    return _solve_uv(sp.vstack([A0, weight * M]).tocsr(), np.concatenate([b0, weight * r_]), nc)
+
+
+def _hard_constraints(seams, fixed_d: dict, node_rels, t_c, nc: int):
+    """The final solve's variables: ``(Smat (2nc, 2nf), s0 (2nc,), any_fixed)`` with the cut
+    vertices' ``(u, v) = Smat y + s0`` for the free unknowns ``y``: the singular node copies fixed,
+    every other copy of a seam vertex eliminated through its chain (regular vertices) or its node's
+    chains (regular nodes)."""
+    S = seams
+    elim_c, elim_ref, elim_k, elim_t = _concat_relations(
+        S.chain_relations(t_c, np.ones(S.n_chains, bool), at_nodes=False), node_rels)
+    fixed = np.zeros(nc, bool)
+    Pfix = np.zeros((nc, 2))
+    if fixed_d:
+        fc = np.fromiter(fixed_d.keys(), dtype=np.int64)
+        fixed[fc] = True
+        Pfix[fc] = np.array(list(fixed_d.values()))
+    elim = np.zeros(nc, bool)
+    elim[elim_c] = True
+    free = ~fixed & ~elim
+    idx = np.full(nc, -1)
+    idx[free] = np.arange(free.sum())
+    nf = int(free.sum())
+    if np.any(idx[elim_ref] < 0):
+        raise RuntimeError("a seam copy is related to a fixed or eliminated copy; the cut graph is not a tree")
+    rows, cols, vals = [np.flatnonzero(free), nc + np.flatnonzero(free)], [idx[free], nf + idx[free]], \
+        [np.ones(nf), np.ones(nf)]
+    Ro = _ROT[elim_k]
+    for i in range(2):
+        for j in range(2):
+            rows.append(i * nc + elim_c)
+            cols.append(j * nf + idx[elim_ref])
+            vals.append(Ro[:, i, j])
+    Smat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(2 * nc, 2 * nf))
+    s0 = np.zeros(2 * nc)
+    s0[np.flatnonzero(fixed)] = Pfix[fixed, 0]
+    s0[nc + np.flatnonzero(fixed)] = Pfix[fixed, 1]
+    s0[elim_c] = elim_t[:, 0]
+    s0[nc + elim_c] = elim_t[:, 1]
+    return Smat, s0, bool(fixed.any())
+
+
+def integer_solve(A, b, seams, uv: np.ndarray, I: np.ndarray, A0, b0, pin, *, weight: float, batches: int):
+    """Step 3 (module doc): round the nodes and translations along the chain tree (re-solving the
+    continuous problem ``(A0, b0)`` between ``batches``), then solve the alignment ``(A, b)`` with
+    them as hard constraints. Returns ``(uv (nc, 2), off)``: ``off`` the largest distance of a
+    rounded non-root node or translation from the integers."""
+    nc = uv.shape[0]
+    resolve = partial(_resolve, seams=seams, A0=A0, b0=b0, nc=nc, weight=weight)
+    fixed_d, node_rels, t_c, off = seams.round_nodes(uv, I, resolve=resolve, batches=batches)
+    Smat, s0, any_fixed = _hard_constraints(seams, fixed_d, node_rels, t_c, nc)
+    AS = (A @ Smat).tocsr()
+    if not any_fixed:
+        AS = sp.vstack([AS, pin @ Smat]).tocsr()
+        y = _solve_normal(AS, np.concatenate([b - A @ s0, np.zeros(2)]))
+    else:
+        y = _solve_normal(AS, b - A @ s0)
+    xx = Smat @ y + s0
+    return np.stack([xx[:nc], xx[nc:]], axis=1), off
+
+
+def _seam_translations(seams, uv: np.ndarray):
+    """The translation of every seam edge read at its two ends, ``(t_x, t_y)`` ``(ne, 2)`` each."""
+    S = seams
+    Rm = _ROT[S.rot]
+    return (uv[S.xg] - np.einsum("eij,ej->ei", Rm, uv[S.xf]), uv[S.yg] - np.einsum("eij,ej->ei", Rm, uv[S.yf]))
+
+
+def _face_transitions(m: int, fs, es, g, eg, rot, t_edge):
+    """Per face and local edge ``(rot (m, 3), trans (m, 3, 2))``: the transition into the
+    neighbour's chart, ``p_g = R^rot p_f + trans`` (identity off the seams)."""
+    out_rot = np.zeros((m, 3), np.int64)
+    trans = np.zeros((m, 3, 2))
+    if fs.size:
+        out_rot[fs, es] = rot
+        trans[fs, es] = t_edge
+        out_rot[g, eg] = (-rot) % 4
+        trans[g, eg] = -np.einsum("eij,ej->ei", _ROT[(-rot) % 4], t_edge)
+    return out_rot, trans
 
 
 def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bool = True,
@@ -304,155 +480,43 @@ def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bo
     ``integer_error`` (largest distance of a translation or a node from the integers, the root's
     position excepted), ``rot`` and ``trans`` (per face and local edge: the transition to the
     neighbour's chart, ``p_g = R^rot p_f + trans``; identity off the seams) and ``h``.
-    """
-    import igl
 
-    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
-    F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    The steps: :func:`comb_and_cut`, :func:`continuous_system` and its solve, :func:`integer_solve`
+    (rounding and the hard-constrained solve); :func:`extract_quads` is the last.
+    """
+    F = np.asarray(mesh.faces)
     if not (np.isfinite(h) and h > 0):
         raise ValueError(f"h (quad size) must be > 0, got {h!r}")
     z = np.asarray(z)
     if z.shape != (F.shape[0],):
         raise ValueError(f"z must hold one value per face, shape ({F.shape[0]},); got {z.shape}")
-    fr = mesh_frames(mesh)
-    d = field_vectors(z, fr, 4)
-    P1, P2 = igl.comb_cross_field(V, F, np.ascontiguousarray(d[:, 0]), np.ascontiguousarray(d[:, 1]))
-    mm = igl.cross_field_mismatch(V, F, P1, P2, True)
-    is_sing, _ = igl.find_cross_field_singularities(V, F, mm)
-    sing = np.flatnonzero(np.asarray(is_sing).ravel())
-    cuts = igl.cut_mesh_from_singularities(V, F, mm)
-    Vc, Fc, I = igl.cut_mesh(V, F, cuts)
-    I = np.asarray(I, dtype=np.int64).ravel()
-    m, nc = F.shape[0], Vc.shape[0]
-    A, b = _gradient_system(Vc, Fc, P1, P2, h)
-    TT, TTi = igl.triangle_triangle_adjacency(F)
-    fs, es, g, eg, r = _seam_edges(TT, TTi, cuts, mm)
+    cut = comb_and_cut(mesh, z)
+    F, Fc, I = cut["F"], cut["Fc"], cut["I"]
+    m, nc = F.shape[0], cut["Vc"].shape[0]
+    A, b = _gradient_system(cut["Vc"], Fc, cut["P1"], cut["P2"], h)
+    fs, es, g, eg, r = _seam_edges(cut["TT"], cut["TTi"], cut["cuts"], cut["mismatch"])
     ne = fs.size
-    S = _Seams(F, Fc, I, fs, es, g, eg, r, sing) if ne else None
-
-    # first solve: continuous, the transitions as soft constraints with free translations per edge
-    def transition_rows(rot, a_f, a_g, b_f, b_g):
-        """Rows of ``(p_g(x) - R p_f(x)) - (p_g(y) - R p_f(y))`` ``(2 ne, 2 nc)``."""
-        R = _ROT[rot]
-        rr, cc, vv = [], [], []
-        for i in range(2):
-            row = np.arange(ne) + i * ne
-            for cp, sgn in ((a_g, 1.0), (b_g, -1.0)):
-                rr.append(row)
-                cc.append(cp + i * nc)
-                vv.append(np.full(ne, sgn))
-            for j in range(2):
-                for cp, sgn in ((a_f, -1.0), (b_f, 1.0)):
-                    rr.append(row)
-                    cc.append(cp + j * nc)
-                    vv.append(sgn * R[:, i, j])
-        return sp.csr_matrix((np.concatenate(vv), (np.concatenate(rr), np.concatenate(cc))), shape=(2 * ne, 2 * nc))
-
-    pin = sp.csr_matrix(([1.0, 1.0], ([0, 1], [0, nc])), shape=(2, 2 * nc))
+    S = _Seams(F, Fc, I, fs, es, g, eg, r, cut["singular"]) if ne else None
+    A0, b0, pin = continuous_system(A, b, S, nc, weight)
+    uv = _solve_uv(A0, b0, nc)
+    if ne and integer:
+        uv, off = integer_solve(A, b, S, uv, I, A0, b0, pin, weight=weight, batches=batches)
     if ne:
-        D = transition_rows(S.rot, S.xf, S.xg, S.yf, S.yg)
-        A0 = sp.vstack([A, weight * D, weight * pin]).tocsr()
-        b0 = np.concatenate([b, np.zeros(2 * ne + 2)])
-    else:
-        A0, b0 = sp.vstack([A, pin]).tocsr(), np.concatenate([b, np.zeros(2)])
-    x = _solve_normal(A0, b0)
-    uv = np.stack([x[:nc], x[nc:]], axis=1)
-    int_err = float("nan")
-    n_chains = S.n_chains if S is not None else 0
-    if ne:
-        Rm = _ROT[S.rot]
-        t_edge = uv[S.xg] - np.einsum("eij,ej->ei", Rm, uv[S.xf])
-    if integer and ne:
-        def soft_rows(fixed, rels, t):
-            """Rows ``(M, rhs)`` pulling the continuous solve towards the constraints decided so far."""
-            fc = np.fromiter(fixed.keys(), dtype=np.int64, count=len(fixed))
-            fp = np.array(list(fixed.values())).reshape(-1, 2)
-            cp, st, kk, tau = _concat_relations(rels, S.chain_relations(t, np.isfinite(t[:, 0])))
-            nf_, nr = fc.size, cp.size
-            Rk = _ROT[kk]  # (nr, 2, 2)
-            rows = [np.arange(2 * nf_)]
-            cols = [np.concatenate([fc, fc + nc])]
-            vals = [np.ones(2 * nf_)]
-            for i in range(2):  # p(cp) - R^k p(st) = tau, coordinate i
-                r0 = 2 * nf_ + i * nr + np.arange(nr)
-                rows += [r0, r0, r0]
-                cols += [cp + i * nc, st, st + nc]
-                vals += [np.ones(nr), -Rk[:, i, 0], -Rk[:, i, 1]]
-            M = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                              shape=(2 * nf_ + 2 * nr, 2 * nc))
-            return M, np.concatenate([fp[:, 0], fp[:, 1], tau[:, 0], tau[:, 1]])
-
-        def resolve(fixed, rels, t):
-            M, r_ = soft_rows(fixed, rels, t)
-            xx = _solve_normal(sp.vstack([A0, weight * M]).tocsr(), np.concatenate([b0, weight * r_]))
-            return np.stack([xx[:nc], xx[nc:]], axis=1)
-
-        fixed_d, node_rels, t_c, int_err = S.round_nodes(uv, I, resolve=resolve, batches=batches)
-        # hard constraints: singular node copies fixed; every other copy of a seam vertex eliminated
-        # through its chain (regular vertices) or its node's chains (regular nodes)
-        elim_c, elim_ref, elim_k, elim_t = _concat_relations(
-            S.chain_relations(t_c, np.ones(S.n_chains, bool), at_nodes=False), node_rels)
-        fixed = np.zeros(nc, bool)
-        Pfix = np.zeros((nc, 2))
-        if fixed_d:
-            fc = np.fromiter(fixed_d.keys(), dtype=np.int64)
-            fixed[fc] = True
-            Pfix[fc] = np.array(list(fixed_d.values()))
-        elim = np.zeros(nc, bool)
-        elim[elim_c] = True
-        free = ~fixed & ~elim
-        idx = np.full(nc, -1)
-        idx[free] = np.arange(free.sum())
-        nf = int(free.sum())
-        if np.any(idx[elim_ref] < 0):
-            raise RuntimeError("a seam copy is related to a fixed or eliminated copy; the cut graph is not a tree")
-        rows, cols, vals = [np.flatnonzero(free), nc + np.flatnonzero(free)], [idx[free], nf + idx[free]], \
-            [np.ones(nf), np.ones(nf)]
-        Ro = _ROT[elim_k]
-        for i in range(2):
-            for j in range(2):
-                rows.append(i * nc + elim_c)
-                cols.append(j * nf + idx[elim_ref])
-                vals.append(Ro[:, i, j])
-        Smat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                             shape=(2 * nc, 2 * nf))
-        s0 = np.zeros(2 * nc)
-        s0[np.flatnonzero(fixed)] = Pfix[fixed, 0]
-        s0[nc + np.flatnonzero(fixed)] = Pfix[fixed, 1]
-        s0[elim_c] = elim_t[:, 0]
-        s0[nc + elim_c] = elim_t[:, 1]
-        AS = (A @ Smat).tocsr()
-        if not fixed.any():
-            AS = sp.vstack([AS, pin @ Smat]).tocsr()
-            y = _solve_normal(AS, np.concatenate([b - A @ s0, np.zeros(2)]))
-        else:
-            y = _solve_normal(AS, b - A @ s0)
-        xx = Smat @ y + s0
-        uv = np.stack([xx[:nc], xx[nc:]], axis=1)
-        t_edge = uv[S.xg] - np.einsum("eij,ej->ei", Rm, uv[S.xf])
-        t_end = uv[S.yg] - np.einsum("eij,ej->ei", Rm, uv[S.yf])
-        trans_err = float(np.abs(t_edge - t_end).max(initial=0.0))
-        int_err = float(max(int_err, np.abs(t_edge - np.round(t_edge)).max(initial=0.0)))
-        t_edge = np.round(t_edge)
-    elif ne:
-        t_end = uv[S.yg] - np.einsum("eij,ej->ei", Rm, uv[S.yf])
+        t_edge, t_end = _seam_translations(S, uv)
         trans_err = float(np.abs(t_edge - t_end).max(initial=0.0))
         int_err = float(np.abs(t_edge - np.round(t_edge)).max(initial=0.0))
+        if integer:
+            int_err = float(max(off, int_err))
+            t_edge = np.round(t_edge)
     else:
-        trans_err, int_err = 0.0, 0.0
+        trans_err, int_err, t_edge = 0.0, 0.0, None
     U = uv[Fc]
     det = (U[:, 1, 0] - U[:, 0, 0]) * (U[:, 2, 1] - U[:, 0, 1]) - (U[:, 1, 1] - U[:, 0, 1]) * (U[:, 2, 0] - U[:, 0, 0])
-    # per face and local edge: the transition into the neighbour's chart (identity off the seams)
-    rot = np.zeros((m, 3), np.int64)
-    trans = np.zeros((m, 3, 2))
-    if ne:
-        rot[fs, es] = S.rot
-        trans[fs, es] = t_edge
-        rot[g, eg] = (-S.rot) % 4
-        trans[g, eg] = -np.einsum("eij,ej->ei", _ROT[(-S.rot) % 4], t_edge)
-    return {"uv": uv, "Vc": Vc, "Fc": Fc, "I": I, "F": F, "TT": TT, "singular": sing, "n_seam_edges": int(ne),
-            "n_chains": int(n_chains), "n_flipped": int(np.sum(det <= 0)), "transition_error": trans_err,
-            "integer_error": int_err, "rot": rot, "trans": trans, "h": float(h)}
+    rot, trans = _face_transitions(m, fs, es, g, eg, S.rot if ne else None, t_edge)
+    return {"uv": uv, "Vc": cut["Vc"], "Fc": Fc, "I": I, "F": F, "TT": cut["TT"], "singular": cut["singular"],
+            "n_seam_edges": int(ne), "n_chains": int(S.n_chains if S is not None else 0),
+            "n_flipped": int(np.sum(det <= 0)), "transition_error": trans_err, "integer_error": int_err,
+            "rot": rot, "trans": trans, "h": float(h)}
 
 
 # ============================================================================ extraction
@@ -494,31 +558,9 @@ def _apply(rot, t, p):
     return np.einsum("kij,kj->ki", _ROT[rot % 4], p) + t
 
 
-def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
-    """Quads of a :func:`seamless_parametrization` and the polygons closing its holes (module doc).
-
-    ``eps`` (in ``uv`` units) is the tolerance under which a cell touching a triangle or an edge
-    only along a line or at a point does not count as crossing it, and a point on a triangle's
-    edge counts as on it. Returns a dict:
-
-    * ``V`` ``(p, 3)`` the integer points on the surface, ``location`` ``(p,)`` their face and
-      ``bary`` ``(p, 3)`` barycentric coordinates in it (mesh faces, for carrying points by a map);
-    * ``Q`` ``(q, 4)`` quads, counter-clockwise seen from outside;
-    * ``polygons`` (list of int arrays) the faces that close the holes, each counter-clockwise;
-    * ``n_cells`` (cells of the iso-line partition), ``n_inconsistent`` (cells not a unit square:
-      singular or folded), ``n_dropped`` (quads removed to keep every edge manifold).
-    """
-    uv, Fc, rot, trans = param["uv"], param["Fc"], param["rot"], param["trans"]
-    Vc = param["Vc"]
-    m = Fc.shape[0]
-    U = uv[Fc]  # (m, 3, 2)
-    e1, e2 = U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]
-    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    ok = det > eps * eps
-    base = np.floor(uv.min(axis=0)).astype(np.int64) - 2
-    W, H = (np.ceil(uv.max(axis=0)).astype(np.int64) - base + 3).tolist()
-
-    # -- cells: unit squares with a positive-area overlap with a (non-folded) triangle (separating axes)
+def _cells(U: np.ndarray, ok: np.ndarray, grid, eps: float):
+    """The cells: unit squares with a positive-area overlap with a (non-folded) triangle (separating
+    axes), as fragments ``(cf (c,) face, cij (c, 2) lower corner)`` and their lookup."""
     lo = np.floor(U.min(axis=1)).astype(np.int64)
     hi = np.ceil(U.max(axis=1)).astype(np.int64) - 1
     lo[~ok], hi[~ok] = 0, -1
@@ -535,11 +577,14 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
         ps = np.einsum("cvd,cd->cv", sq, nrm)
         keep &= (pt.max(1) > ps.min(1) + eps) & (ps.max(1) > pt.min(1) + eps)
     cf, cij = cf[keep], cij[keep]
-    cells = _Keys(cf, cij, base, W, H)
-    nfr = cf.size
+    return cf, cij, _Keys(cf, cij, *grid)
 
-    # -- cells across every edge (once): cells crossed by the open edge, in the neighbour's chart
-    TT = param["TT"]
+
+def _cell_links(U: np.ndarray, ok: np.ndarray, TT: np.ndarray, rot, trans, cells: "_Keys", eps: float):
+    """The cell fragments across every edge (once): those crossed by the open edge, each paired with
+    the fragment in the neighbour's chart. Returns ``(ia, ib, r, t)``: fragment ``ib``'s chart is
+    ``R^r (fragment ia's chart) + t``."""
+    m = U.shape[0]
     ef, ee = np.nonzero((TT > np.arange(m)[:, None]))
     eg = TT[ef, ee]
     both = ok[ef] & ok[eg]
@@ -562,10 +607,15 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
     gij = np.floor(_apply(r_, t_, sij + 0.5)).astype(np.int64)
     ia, ib = cells.find(f_, sij), cells.find(g_, gij)
     good = (ia >= 0) & (ib >= 0)
-    ia, ib, r_, t_ = ia[good], ib[good], r_[good], t_[good]
-    n_cls, cls = graph_components(nfr, ia, ib)
+    return ia[good], ib[good], r_[good], t_[good]
 
-    # -- chart of every cell fragment relative to its class's first fragment: p_root = R^k p + tau
+
+def _cell_charts(nfr: int, cls: np.ndarray, n_cls: int, links, cij: np.ndarray):
+    """The chart of every cell fragment relative to its class's first fragment, ``p_root = R^k p + tau``,
+    walked along the ``links`` (:func:`_cell_links`). Returns ``(kk (c,), tau (c, 2), ref_cell (c, 2),
+    bad_cls (n_cls,))``: ``ref_cell`` the unit square of its class in the root chart, ``bad_cls`` the
+    classes whose fragments name different squares (not a proper cell)."""
+    ia, ib, r_, t_ = links
     kk = np.full(nfr, -1)
     tau = np.zeros((nfr, 2))
     roots = np.unique(cls, return_index=True)[1]
@@ -589,8 +639,15 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
     ref_cell = root_cell[roots][cls]
     bad_cls = np.zeros(n_cls, bool)
     bad_cls[cls[np.any(root_cell != ref_cell, axis=1)]] = True
+    return kk, tau, ref_cell, bad_cls
 
-    # -- integer points of the closed (non-folded) triangles, merged across edges into point ids
+
+def _integer_points(U, e1, e2, det, ok, TT, rot, trans, grid, eps: float):
+    """The integer points of the closed (non-folded) triangles, merged across edges into point ids.
+
+    Returns ``(pts, pf, pid, n_pts, first, lam)``: ``pts`` the lookup of the per-face points, ``pf``
+    their face, ``pid`` their point id, ``first`` one per-face point of every id and ``lam``
+    ``(p, 3)`` the barycentric coordinates of the per-face points."""
     plo = np.ceil(U.min(axis=1) - eps).astype(np.int64)
     phi = np.floor(U.max(axis=1) + eps).astype(np.int64)
     plo[~ok], phi[~ok] = 0, -1
@@ -602,8 +659,7 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
     tol = eps / np.sqrt(np.abs(det[pf_]))[:, None]  # barycentric tolerance for eps in uv
     inside = np.all(lam >= -tol, axis=1)
     pf_, pij, lam, tol = pf_[inside], pij[inside], lam[inside], tol[inside]
-    pts = _Keys(pf_, pij, base, W, H)
-    npi = pf_.size
+    pts = _Keys(pf_, pij, *grid)
     la_, lb_ = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)]
     for k in range(3):  # on the edge opposite corner k: local edge (k+1) % 3
         on = np.flatnonzero(lam[:, k] <= tol[:, 0])
@@ -614,15 +670,17 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
         j = pts.find(g, q)
         la_.append(on[j >= 0])
         lb_.append(j[j >= 0])
-    la_, lb_ = np.concatenate(la_), np.concatenate(lb_)
-    n_pts, pid = graph_components(npi, la_, lb_)
+    n_pts, pid = graph_components(pf_.size, np.concatenate(la_), np.concatenate(lb_))
     first = np.unique(pid, return_index=True)[1]
-    lam_c = np.clip(lam[first], 0.0, None)
-    lam_c /= lam_c.sum(axis=1, keepdims=True)
-    Xp = np.einsum("pk,pkd->pd", lam_c, Vc[Fc[pf_[first]]])
+    return pts, pf_, pid, n_pts, first, lam
 
-    # -- corners of every cell fragment (those in its closed triangle), by slot of the root square
-    fr_idx = np.repeat(np.arange(nfr), 4)
+
+def _quads_of_cells(cf, cij, cls, n_cls: int, charts, pts: "_Keys", pid) -> np.ndarray:
+    """The quads ``(q, 4)``: the consistent cell classes with exactly one integer point per corner
+    slot of their root square, four slots, four distinct points (the corners of every fragment in
+    its closed triangle, by slot of the root square)."""
+    kk, tau, ref_cell, bad_cls = charts
+    fr_idx = np.repeat(np.arange(cf.size), 4)
     corner = (cij[:, None, :] + _CORNERS[None]).reshape(-1, 2)
     j = pts.find(cf[fr_idx], corner)
     has = j >= 0
@@ -633,7 +691,6 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
         slot[np.all(rc == c, axis=1)] = s
     triples = np.unique(np.stack([cls[fr_idx], slot, pid[j]], axis=1), axis=0)
     triples = triples[triples[:, 1] >= 0]
-    # a quad: a consistent class with exactly one point per slot, four slots, four distinct points
     cs = triples[:, 0] * 4 + triples[:, 1]
     cnt_slot = np.bincount(cs, minlength=4 * n_cls).reshape(n_cls, 4)
     quad_cls = np.flatnonzero(np.all(cnt_slot == 1, axis=1) & ~bad_cls)
@@ -641,9 +698,12 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
     one = cnt_slot.ravel()[cs] == 1
     Qall[triples[one, 0], triples[one, 1]] = triples[one, 2]
     Q = Qall[quad_cls]
-    Q = Q[np.all(np.diff(np.sort(Q, axis=1), axis=1) > 0, axis=1)]
+    return Q[np.all(np.diff(np.sort(Q, axis=1), axis=1) > 0, axis=1)]
 
-    # -- keep every edge manifold: drop quads that reuse a directed edge or make an edge non-manifold
+
+def _manifold_quads(Q: np.ndarray, n_pts: int):
+    """Drop quads that reuse a directed edge or make an edge non-manifold, until none does:
+    ``(Q, n_dropped)``."""
     n_dropped = 0
     while Q.size:
         E = np.stack([Q, np.roll(Q, -1, axis=1)], axis=2).reshape(-1, 2)
@@ -657,9 +717,47 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
             break
         n_dropped += int(bad_q.sum())
         Q = Q[~bad_q]
-    polygons = _close_holes(Q, n_pts)
-    return {"V": Xp, "location": pf_[first], "bary": lam_c, "Q": Q.astype(np.int64), "polygons": polygons,
-            "n_cells": int(n_cls), "n_inconsistent": int(bad_cls.sum()), "n_dropped": n_dropped}
+    return Q, n_dropped
+
+
+def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
+    """Quads of a :func:`seamless_parametrization` and the polygons closing its holes (module doc, step 4).
+
+    ``eps`` (in ``uv`` units) is the tolerance under which a cell touching a triangle or an edge
+    only along a line or at a point does not count as crossing it, and a point on a triangle's
+    edge counts as on it. Returns a dict:
+
+    * ``V`` ``(p, 3)`` the integer points on the surface, ``location`` ``(p,)`` their face and
+      ``bary`` ``(p, 3)`` barycentric coordinates in it (mesh faces, for carrying points by a map);
+    * ``Q`` ``(q, 4)`` quads, counter-clockwise seen from outside;
+    * ``polygons`` (list of int arrays) the faces that close the holes, each counter-clockwise;
+    * ``n_cells`` (cells of the iso-line partition), ``n_inconsistent`` (cells not a unit square:
+      singular or folded), ``n_dropped`` (quads removed to keep every edge manifold).
+
+    The steps: the cell fragments per triangle, linked across edges into cells (classes) with a
+    chart each; the integer points merged across edges; a cell with four distinct corner points is a
+    quad; quads that break manifoldness are dropped and every hole is closed by one polygon.
+    """
+    uv, Fc, rot, trans, TT = param["uv"], param["Fc"], param["rot"], param["trans"], param["TT"]
+    U = uv[Fc]  # (m, 3, 2)
+    e1, e2 = U[:, 1] - U[:, 0], U[:, 2] - U[:, 0]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    ok = det > eps * eps
+    base = np.floor(uv.min(axis=0)).astype(np.int64) - 2
+    W, H = (np.ceil(uv.max(axis=0)).astype(np.int64) - base + 3).tolist()
+    grid = (base, W, H)
+    cf, cij, cells = _cells(U, ok, grid, eps)
+    links = _cell_links(U, ok, TT, rot, trans, cells, eps)
+    n_cls, cls = graph_components(cf.size, links[0], links[1])
+    charts = _cell_charts(cf.size, cls, n_cls, links, cij)
+    pts, pf_, pid, n_pts, first, lam = _integer_points(U, e1, e2, det, ok, TT, rot, trans, grid, eps)
+    lam_c = np.clip(lam[first], 0.0, None)
+    lam_c /= lam_c.sum(axis=1, keepdims=True)
+    location = pf_[first]
+    Xp = np.einsum("pk,pkd->pd", lam_c, param["Vc"][Fc[location]])
+    Q, n_dropped = _manifold_quads(_quads_of_cells(cf, cij, cls, n_cls, charts, pts, pid), n_pts)
+    return {"V": Xp, "location": location, "bary": lam_c, "Q": Q.astype(np.int64), "polygons": _close_holes(Q, n_pts),
+            "n_cells": int(n_cls), "n_inconsistent": int(charts[3].sum()), "n_dropped": n_dropped}
 
 
 def _close_holes(Q: np.ndarray, n: int) -> list:
