@@ -24,7 +24,7 @@ from .protocol import ProtocolSettings, family_means, method_label, run_protocol
 from .store import ShapeStore
 
 __all__ = ["METHODS", "condition_key", "variant_pairs", "default_transfer_study", "single_function_excess", "summary",
-           "figure"]
+           "figure", "report_blocks", "REPORT_NAMES"]
 
 METHODS = ("std", "B", "B_gain", "default")
 
@@ -166,3 +166,48 @@ def figure(results: dict):
     fig.suptitle("Transfer error / standard transfer's, per condition (map/k_M_k_N/pairs) and family", fontsize=9)
     fig.tight_layout()
     return fig
+
+
+REPORT_NAMES = {"our_B": "paper B (rtol 1e-3)", "our_B_gainrule": "B with the gain rule", "our_default": "default"}
+"""How the report names the extended methods of :func:`summary`."""
+
+
+def report_blocks(results: dict, dataset: str, *, main: bool = True) -> list:
+    """The study's section of the report, as ``(kind, *args)`` blocks (``("h", level, text)``,
+    ``("p", text)``, ``("table", header, rows)``): per method, the cells and single functions worse
+    than the standard transfer, and the conclusion on the default, computed from ``results``.
+    ``dataset`` is the display name, named in the heading of a per-dataset section (``main=False``);
+    none without a summary."""
+    summ = results.get("summary", {})
+    if not summ:
+        return []
+    on = "" if main else f" on {dataset}"
+    first = next(iter(summ.values()), {})
+    n_cells = first.get("cells", 0)
+    single = "single_functions" in first
+    out = [("h", 2 if main else 3, f"Study: the library's default extended transfer against the standard one{on}"),
+           ("p", f"Every condition (map kind, sizes, intra-/inter-subject or remeshed pairs) and family: {n_cells} "
+                 "cells, each the mean error over its pairs (`study_default`)"
+                 + (f"; and every single function of every pair: {first['single_functions']} functions"
+                    if single else "")
+                 + ". *Ratio of means*: mean error over all cells divided by the standard transfer's.")]
+    rows = [[REPORT_NAMES.get(m, m), f"{v['cells_above_std_plus_0.01']} of {v['cells']}",
+             f"{v['worst_excess']:+.4f} (`{v['worst_cell']}`)"]
+            + ([f"{v['single_above_std_plus_0.01']} of {v['single_functions']}",
+                f"{v['single_worst_excess']:+.4f} (`{v['single_worst_cell']}`)"] if single else [])
+            + [f"{v['ratio_of_means']:.3f}", f"{v['mean_ratio_to_std']:.3f}"] for m, v in summ.items()]
+    out.append(("table", ["method", "families worse than std + 0.01", "worst family excess over std"]
+                + (["single functions worse than std + 0.01", "worst single function"] if single else [])
+                + ["ratio of means", "mean ratio"], rows))
+    dflt = summ.get("our_default")
+    if dflt:
+        n_bad = dflt["cells_above_std_plus_0.01"]
+        where = "in no cell" if n_bad == 0 else f"in {n_bad} of {dflt['cells']} cells"
+        text = (f"Conclusion, computed from the numbers: the default is worse than the standard transfer by more "
+                f"than 0.01 {where} (worst {dflt['worst_excess']:+.4f})")
+        if single:
+            n1 = dflt["single_above_std_plus_0.01"]
+            text += (", and for " + ("no single function" if n1 == 0 else f"{n1} of {dflt['single_functions']} "
+                                     "single functions") + f" (worst {dflt['single_worst_excess']:+.4f})")
+        out.append(("p", text + f"; its mean error is {dflt['ratio_of_means']:.2f} times the standard transfer's."))
+    return out

@@ -169,9 +169,13 @@ SUMMARY_HEADER = ["family", "chosen reading (std control)", "std textbook", "std
                   "cells within ±0.02", "library's reading"]
 
 
-def report_blocks(results: dict, dataset: str) -> list:
+def report_blocks(results: dict, dataset: str, *, main: bool = True) -> list:
     """The study's section of the report, as ``(kind, *args)`` blocks (``("h", level, text)``,
-    ``("p", text)``, ``("table", header, rows)``): what the study shows, owned by the study."""
+    ``("p", text)``, ``("table", header, rows)``): what the study shows, owned by the study.
+    ``dataset`` is the display name; the section is the same in the main report and in a
+    per-dataset one (``main``); none without scores."""
+    if not results.get("scores"):
+        return []
     rows = summary_rows(results)
     n_pairs = len(results.get("pairs", []))
     tot = {k: sum(int(r[6].split(" → ")[i].split("/")[0]) for r in rows) for i, k in enumerate(("tb", "ch"))}

@@ -8,10 +8,18 @@ Every run is an entry of ``paper/runs.toml`` (another file through ``$PRODMAPS_R
     reproduces = "Figure 4"
     title = "Coordinate reconstruction, k = 9..69"                  # optional
     claims = ["fig04.products_improve"]                             # optional: ledger entries judged on it
+    report = "prodmaps.experiments.default_study"                   # optional: the module owning its report section
+    dataset_figures = true                                          # optional: its figures in every dataset's section
     [runs.fig04.params.smoke]        # papermill parameters of the smoke profile
     [runs.fig04.params.paper]        # ... and of the paper profile
     [runs.fig04.tolerances]          # optional, for prodmaps.pipeline.diffing (dotted-key globs)
     "results.errors.*" = { rtol = 1e-6, atol = 1e-9 }
+
+A run with ``report`` has a section of its own in the report: the module's
+``report_blocks(results, dataset, *, main=True)`` returns it as ``(kind, *args)`` blocks
+(``("h", level, text)``, ``("p", text)``, ``("table", header, rows)``, ``("ul", items)``), for the
+report's own results (``main``) and for each prepared dataset's (``main=False``); the report
+adds the run's figures after them.
 
 Several runs may share one notebook with different parameters (e.g. the six tables). Relative
 notebook paths are resolved against the project root: the parent of the folder holding the
@@ -36,7 +44,9 @@ __all__ = ["PROFILES", "REGISTRY", "Run", "RegistryError", "find_project_root", 
 PROFILES = ("smoke", "paper")
 REGISTRY = Path("paper") / "runs.toml"
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
-_RUN_KEYS = {"notebook", "reproduces", "title", "params", "tolerances", "description", "claims"}
+_RUN_KEYS = {"notebook", "reproduces", "title", "params", "tolerances", "description", "claims", "report",
+             "dataset_figures"}
+_MODULE_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$")
 
 
 class RegistryError(ValueError):
@@ -55,6 +65,8 @@ class Run:
     params: dict = field(default_factory=dict)
     tolerances: dict = field(default_factory=dict)
     claims: tuple = ()
+    report: str = ""  # module with report_blocks(results, dataset, *, main) (see the module doc)
+    dataset_figures: bool = False  # its figures shown in every dataset's section of the report
 
     def parameters(self, profile: str) -> dict:
         return dict(self.params.get(profile, {}))
@@ -131,12 +143,19 @@ def load_registry(path=None) -> dict[str, Run]:
         claims = entry.get("claims", [])
         if not (isinstance(claims, list) and all(isinstance(c, str) for c in claims)):
             raise RegistryError(f"{where}: claims must be a list of claim ids of the ledger, got {claims!r}")
+        report = entry.get("report", "")
+        if not (isinstance(report, str) and (report == "" or _MODULE_RE.match(report))):
+            raise RegistryError(f"{where}: report must name a module (\"prodmaps.experiments.default_study\"), "
+                                f"got {report!r}")
+        if not isinstance(entry.get("dataset_figures", False), bool):
+            raise RegistryError(f"{where}: dataset_figures must be true or false")
         nb = Path(entry["notebook"])
         out[name] = Run(
             name=name, notebook=(nb if nb.is_absolute() else root / nb).resolve(),
             reproduces=str(entry.get("reproduces", "")), title=str(entry.get("title", "")),
             params={k: dict(v) for k, v in params.items()}, tolerances=dict(tol),
-            description=str(entry.get("description", "")), claims=tuple(claims),
+            description=str(entry.get("description", "")), claims=tuple(claims), report=report,
+            dataset_figures=entry.get("dataset_figures", False),
         )
     return out
 

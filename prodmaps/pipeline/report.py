@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import datetime as _dt
 import html
+import importlib
 import json
 import os
 import platform
@@ -55,6 +56,8 @@ class RunInfo:
     doc: dict = field(default_factory=dict)
     manifest: dict = field(default_factory=dict)
     figures: list = field(default_factory=list)
+    report: str = ""  # the module owning the run's report section (registry key `report`)
+    dataset_figures: bool = False  # its figures in every dataset's section (registry key `dataset_figures`)
 
 
 def _read_json(p: Path) -> dict:
@@ -82,6 +85,7 @@ def collect_runs(results_dir, registry=None) -> list[RunInfo]:
         info = RunInfo(n, folder)
         if n in runs:
             info.reproduces, info.title = runs[n].reproduces, runs[n].title
+            info.report, info.dataset_figures = runs[n].report, runs[n].dataset_figures
         info.doc = _read_json(folder / "results.json")
         info.manifest = _read_json(folder / "manifest.json")
         if info.manifest:
@@ -407,8 +411,7 @@ def _table_summaries(d: "_Doc", infos, published_rows, matches,
         "pairs and on intra- / inter-subject pairs.")
     rows = []
     for t in sorted({r["table"] for r in published_rows}, key=int):
-        run = f"tab0{t}"
-        info = next((i for i in infos if i.name == run), None)
+        info = next((i for i in infos if i.reproduces == f"Table {t}"), None)
         if only_run and not (info and info.doc):
             continue
         got = [(r, e) for r, e in matches if r["table"] == t]
@@ -438,90 +441,26 @@ def _table_summaries(d: "_Doc", infos, published_rows, matches,
         d.ul(SYSTEMATIC_DIFFERENCES)
 
 
-def _study_section(d: "_Doc", infos, base: Path, copy_figures: bool) -> None:
-    study = next((i for i in infos if i.name == "study_truncation" and i.doc), None)
-    if study is None:
-        return
-    d.h(2, "Study: Approach B's threshold, transfer gains, and a rule that does not need ground truth")
-    res = study.doc.get("results", {})
-    gains = res.get("median_max_gain_of_kept_directions", {})
-    lines = []
-    for case, g in gains.items():
-        lines.append(f"`{case}`: median over pairs of the largest transfer gain kept at rtol = 1e-3: "
-                     f"{g.get('0.001', float('nan')):.1f}; at 1e-2: {g.get('0.01', float('nan')):.1f}")
-    summ = res.get("summary", {})
-    wins = {}
-    for case, fams in summ.items():
-        for fam, v in fams.items():
-            ch = v.get("chosen", {})
-            if {"gain", "paper", "oracle"} <= set(ch):
-                wins.setdefault(case, []).append((fam, ch["paper"]["transfer"], ch["gain"]["transfer"],
-                                                  ch["oracle"]["transfer"], v["std_transfer"]))
-    for case, rows in wins.items():
-        better = sum(compare.not_higher(g, p) for _, p, g, _, _ in rows)
-        near = sum(compare.not_higher(g, 1.1 * o) for _, _, g, o, _ in rows)
-        below_std = sum(compare.not_higher(g, s) for _, _, g, _, s in rows)
-        lines.append(f"`{case}`: the gain rule is at least as good as the paper's 1e-3 for {better} of {len(rows)} "
-                     f"families, within 10 % of the oracle threshold for {near}, and below the standard transfer "
-                     f"for {below_std}")
-    d.p("Conclusion, computed from `study_truncation`'s numbers:")
-    d.ul(lines)
-    _figures(d, study, base, copy_figures)
-
-
-METHOD_NAMES = {"our_B": "paper B (rtol 1e-3)", "our_B_gainrule": "B with the gain rule", "our_default": "default"}
-
-
-def _family_readings_section(d: "_Doc", infos, base: Path, copy_figures: bool, dataset: str | None = None) -> None:
-    """The family-readings study's own section (:func:`prodmaps.experiments.family_readings.report_blocks`)."""
-    info = next((i for i in infos if i.name == "study_family_readings" and i.doc
-                 and i.doc.get("results", {}).get("scores")), None)
-    if info is None:
-        return
-    from ..experiments.family_readings import report_blocks
-
-    res = info.doc["results"]
-    ds = dataset or res.get("dataset", "")
-    for kind, *args in report_blocks(res, DATASET_NAMES.get(ds, ds)):
-        getattr(d, kind)(*args)
-    _figures(d, info, base, copy_figures, prefix=f"{dataset}/" if dataset else "")
-
-
-def _default_study_section(d: "_Doc", infos, base: Path, copy_figures: bool, dataset: str | None = None) -> None:
-    study = next((i for i in infos if i.name == "study_default" and i.doc), None)
-    if study is None:
-        return
-    res = study.doc.get("results", {})
-    summ = res.get("summary", {})
-    on = "" if dataset is None else f" on {DATASET_NAMES.get(dataset, dataset)}"
-    d.h(2 if dataset is None else 3, f"Study: the library's default extended transfer against the standard one{on}")
-    first = next(iter(summ.values()), {})
-    n_cells = first.get("cells", 0)
-    single = "single_functions" in first
-    d.p(f"Every condition (map kind, sizes, intra-/inter-subject or remeshed pairs) and family: {n_cells} cells, "
-        "each the mean error over its pairs (`study_default`)"
-        + (f"; and every single function of every pair: {first['single_functions']} functions" if single else "")
-        + ". *Ratio of means*: mean error over all cells divided by the standard transfer's.")
-    rows = [[METHOD_NAMES.get(m, m), f"{v['cells_above_std_plus_0.01']} of {v['cells']}",
-             f"{v['worst_excess']:+.4f} (`{v['worst_cell']}`)"]
-            + ([f"{v['single_above_std_plus_0.01']} of {v['single_functions']}",
-                f"{v['single_worst_excess']:+.4f} (`{v['single_worst_cell']}`)"] if single else [])
-            + [f"{v['ratio_of_means']:.3f}", f"{v['mean_ratio_to_std']:.3f}"] for m, v in summ.items()]
-    d.table(["method", "families worse than std + 0.01", "worst family excess over std"]
-            + (["single functions worse than std + 0.01", "worst single function"] if single else [])
-            + ["ratio of means", "mean ratio"], rows)
-    dflt = summ.get("our_default")
-    if dflt:
-        n_bad = dflt["cells_above_std_plus_0.01"]
-        where = "in no cell" if n_bad == 0 else f"in {n_bad} of {dflt['cells']} cells"
-        text = (f"Conclusion, computed from the numbers: the default is worse than the standard transfer by more "
-                f"than 0.01 {where} (worst {dflt['worst_excess']:+.4f})")
-        if single:
-            n1 = dflt["single_above_std_plus_0.01"]
-            text += (", and for " + ("no single function" if n1 == 0 else f"{n1} of {dflt['single_functions']} "
-                                     "single functions") + f" (worst {dflt['single_worst_excess']:+.4f})")
-        d.p(text + f"; its mean error is {dflt['ratio_of_means']:.2f} times the standard transfer's.")
-    _figures(d, study, base, copy_figures, prefix="" if dataset is None else f"{dataset}/")
+def _study_sections(d: "_Doc", infos, base: Path, copy_figures: bool, dataset: str | None = None) -> set:
+    """The sections the studies own: every run whose registry entry names a ``report`` module, in
+    registry order, as that module's ``report_blocks(results, dataset name, main=...)`` gives it,
+    followed by the run's figures; ``dataset`` for a prepared dataset's section (``main=False``).
+    Returns the names of the runs shown."""
+    shown = set()
+    for info in infos:
+        if not (info.report and info.doc):
+            continue
+        res = info.doc.get("results", {})
+        ds = dataset or res.get("dataset", "anny_humans")
+        blocks = importlib.import_module(info.report).report_blocks(res, DATASET_NAMES.get(ds, ds),
+                                                                    main=dataset is None)
+        if not blocks:
+            continue
+        for kind, *args in blocks:
+            getattr(d, kind)(*args)
+        _figures(d, info, base, copy_figures, prefix=f"{dataset}/" if dataset else "")
+        shown.add(info.name)
+    return shown
 
 
 def _figures(d: "_Doc", info, base: Path, copy_figures: bool, prefix: str = "") -> None:
@@ -536,7 +475,6 @@ def _figures(d: "_Doc", info, base: Path, copy_figures: bool, prefix: str = "") 
 
 
 DATASET_NAMES = {"anny_humans": "embedded humans", "faust": "FAUST", "tosca": "TOSCA"}
-DATASET_FIGURE_RUNS = ("study_normalization", "fig08", "fig11", "fig12_13")
 
 
 def other_datasets(results_dir) -> dict:
@@ -568,83 +506,11 @@ def _dataset_section(d: "_Doc", ds: str, folder: Path, infos, published_rows, ba
         matches, _ = match_entries(entries, published_rows)
         _table_summaries(d, present, published_rows, matches, heading=f"Tables on {name}: our values beside the "
                          "published ones", only_run=True, differences=False)
-    norm = _normalization_run(present)  # gets its own section (scores, cells, figure) below
     for i in present:
-        if i.name in DATASET_FIGURE_RUNS and i.figures and i is not norm:
+        if i.dataset_figures and i.figures:
             d.h(3, f"{i.name} on {name}" + (f" — {i.reproduces}" if i.reproduces else ""))
             _figures(d, i, base, copy_figures, prefix=f"{ds}/")
-    _default_study_section(d, present, base, copy_figures, dataset=ds)
-    _family_readings_section(d, present, base, copy_figures, dataset=ds)
-    if norm is not None:
-        _normalization_section(d, norm, base, copy_figures, ds)
-
-
-def _normalization_run(infos):
-    """The ``study_normalization`` run among ``infos`` if it has scores, else None."""
-    return next((i for i in infos if i.name == "study_normalization" and i.doc
-                 and i.doc.get("results", {}).get("scores")), None)
-
-
-def _normalization_section(d: "_Doc", info, base: Path, copy_figures: bool, dataset: str) -> None:
-    """Which reading of Approach B reproduces the published cells (``study_normalization``), cell by cell."""
-    res = info.doc.get("results", {})
-    scores, errors = res.get("scores", {}), res.get("errors", {})
-    if not scores:
-        return
-    name = DATASET_NAMES.get(dataset, dataset)
-    d.h(2, f"Study: Approach B's normalisation, judged on {name}")
-    d.p("Every plausible reading of \"singular values below 0.1 % of the maximum set to zero\" run on the "
-        "ground-truth tables (`study_normalization`; the standard column, which no reading changes, is the "
-        "control). *Within ±0.02*: published cells reproduced at the paper's two decimals.")
-    methods = [("std", "std (control)"), ("our_l2", "A, T1"), ("our_A", "A, T5/T6"), ("our_B", "B")]
-    rows = []
-    for reading, sc in scores.items():
-        rows.append([reading] + [f"{sc[m]['within']}/{sc[m]['cells']} (mean {sc[m]['mean_abs']:.3f}, largest "
-                                 f"{sc[m]['max_abs']:.3f})" if m in sc else "—" for m, _ in methods])
-    d.table(["reading"] + [lab for _, lab in methods], rows)
-    best = res.get("best")
-    if best:
-        b = scores[best]["our_B"]
-        text = (f"Conclusion, computed from the numbers: **{best}** reproduces the most Approach B cells "
-                f"({b['within']} of {b['cells']} within ±0.02, mean |diff| {b['mean_abs']:.3f})")
-        default = next((r for r, v in res.get("readings", {}).items()
-                        if v.get("normalization") == "euclidean" and v.get("rtol") == 1e-3), None)
-        if default and default != best and "our_B" in scores.get(default, {}):
-            e = scores[default]["our_B"]
-            text += (f"; the library's default, **{default}** (free of the mesh's units), reproduces {e['within']} "
-                     f"(mean |diff| {e['mean_abs']:.3f})")
-        metres = scores.get("metres", {}).get("our_B")
-        if metres:
-            text += (f"; A-orthonormal eigenfunctions in metres: {metres['within']} "
-                     f"(mean |diff| {metres['mean_abs']:.3f})")
-        d.p(text + ".")
-    from ..experiments.normalization_study import explain_cell
-    from ..experiments.published import published_values
-
-    readings = list(errors)
-    cells = []
-    for t, by_size in (errors.get(readings[0], {}) if readings else {}).items():
-        pub = published_values(t, "ground_truth")
-        for key in by_size:
-            kM, kN = (int(v) for v in key[1:].split("_"))
-            for fam in by_size[key]["transfer"].get("our_B", {}):
-                c = (kM, kN, "transfer", "our_B", fam)
-                if c not in pub:
-                    continue
-                vals = {r: errors[r][t][key]["transfer"]["our_B"][fam] for r in readings}
-                closest = min(vals, key=lambda r: abs(vals[r] - pub[c]))
-                std = by_size[key]["transfer"]["std"][fam]
-                pstd = pub.get((kM, kN, "transfer", "std", fam))
-                cells.append([f"T{t[1:]} {kM}/{kN}", fam, f"{pstd:.2f}" if pstd is not None else "—", f"{std:.3f}",
-                              f"{pub[c]:.2f}"] + [f"{vals[r]:.3f}" for r in readings]
-                             + [f"{closest} ({vals[closest] - pub[c]:+.3f})",
-                                explain_cell(pub[c], vals[closest], pstd, std)])
-    if cells:
-        d.p("Approach B cell by cell (transfer errors; the standard columns beside them show where the data "
-            "or the function family, not the reading, differ from the paper's):")
-        d.table(["table", "family", "published std", "ours std", "published B"] + readings
-                + ["closest reading", "why"], cells)
-    _figures(d, info, base, copy_figures, prefix=f"{dataset}/")
+    _study_sections(d, present, base, copy_figures, dataset=ds)
 
 
 def build_report(results_dir, out=None, *, registry=None, published=None, html_out=None,
@@ -705,12 +571,7 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
         _dataset_section(d, ds, folder, collect_runs(folder, registry), published_rows, base, copy_figures)
     for ds, k in kept.items():
         d.blocks += k.blocks
-    norm = _normalization_run(infos)
-    if norm is not None:
-        _normalization_section(d, norm, base, copy_figures, norm.doc.get("results", {}).get("dataset", "anny_humans"))
-    _study_section(d, infos, base, copy_figures)
-    _default_study_section(d, infos, base, copy_figures)
-    _family_readings_section(d, infos, base, copy_figures)
+    studies = _study_sections(d, infos, base, copy_figures)
 
     d.h(2, "Runs")
     rows = []
@@ -727,7 +588,7 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
 
     d.h(2, "Figures")
     for i in infos:
-        if i.name == "study_truncation" or not (i.figures or i.status == "failed"):
+        if i.name in studies or not (i.figures or i.status == "failed"):  # a study's figures: in its section
             continue
         d.h(3, f"{i.name}" + (f" — {i.reproduces}" if i.reproduces else ""))
         if i.title:

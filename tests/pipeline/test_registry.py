@@ -73,6 +73,19 @@ def test_real_registry_claims_refer_to_ledger_and_ledger_to_runs(real_runs):
         assert not missing, f"claim {cid}: runs {sorted(missing)} are not registered"
 
 
+def test_real_registry_report_modules_own_their_sections(real_runs):
+    import importlib
+    import inspect
+
+    owners = {name: run.report for name, run in real_runs.items() if run.report}
+    assert {"study_truncation", "study_default", "study_normalization", "study_family_readings"} <= set(owners)
+    for name, module in owners.items():
+        blocks = importlib.import_module(module).report_blocks
+        assert list(inspect.signature(blocks).parameters) == ["results", "dataset", "main"], name
+        assert blocks({}, "embedded humans", main=False) == [], name  # no results, no section
+    assert {n for n, r in real_runs.items() if r.dataset_figures} >= {"fig08", "fig11", "fig12_13"}
+
+
 def test_project_root_of_real_registry():
     assert project_root(REAL) == ROOT
     assert (ROOT / "prodmaps" / "pipeline" / "registry.py").is_file()
@@ -158,6 +171,8 @@ def test_empty_registry_has_no_runs(tmp_path):
         ('[runs.a]\nnotebook = "a.ipynb"\n[runs.a.params.smoke]\nprofile = "paper"\n', "must not set ['profile']"),
         ('[runs.a]\nnotebook = "a.ipynb"\n[runs.a.params.paper]\nout_dir = "x"\n', "must not set ['out_dir']"),
         ('[runs.a]\nnotebook = "a.ipynb"\ntolerances = 1e-3\n', "tolerances must be a table"),
+        ('[runs.a]\nnotebook = "a.ipynb"\nreport = "not a module"\n', "report must name a module"),
+        ('[runs.a]\nnotebook = "a.ipynb"\ndataset_figures = "yes"\n', "dataset_figures must be true or false"),
     ],
 )
 def test_malformed_registries_raise_registry_error(tmp_path, text, message):

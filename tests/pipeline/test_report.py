@@ -46,6 +46,7 @@ table = "T1"
 [runs.study_truncation]
 notebook = "notebooks/study.ipynb"
 reproduces = "Study"
+report = "prodmaps.experiments.truncation_study"
 """
 
 FAMS = ("hk k", "HKS", "XYZ")
@@ -762,3 +763,28 @@ def test_publish_keeps_the_faust_section_when_faust_was_not_rerun(tmp_path, monk
     assert kept_dataset(md, "faust").commit == first_commit
     assert faust_part(md.read_text(encoding="utf-8")) == faust_part(first)
     assert "<h2>On FAUST</h2>" in html.read_text(encoding="utf-8") and "<h2>On FAUST</h2>" in first_html
+
+
+def test_a_run_with_a_report_module_gets_its_section_in_the_report_and_each_dataset(tmp_path, monkeypatch):
+    (tmp_path / "owned_section.py").write_text(
+        "def report_blocks(results, dataset, *, main=True):\n"
+        "    if not results.get('n'):\n"
+        "        return []\n"
+        "    return [('h', 2 if main else 3, f\"Study: owned, on {dataset}\"), ('p', f\"n = {results['n']}\"),\n"
+        "            ('table', ['a', 'b'], [[1, 2]])]\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    reg, res = make_project(tmp_path)
+    reg.write_text(REGISTRY + '[runs.owned]\nnotebook = "notebooks/owned.ipynb"\nreproduces = "Study"\n'
+                   'report = "owned_section"\n[runs.empty]\nnotebook = "notebooks/owned.ipynb"\n'
+                   'report = "owned_section"\n')
+    _run(res, "owned", _doc({"n": 7, "dataset": "anny_humans"}), _manifest("owned", "ok", 1.0), pngs=["o.png"])
+    _run(res, "empty", _doc({}), _manifest("empty", "ok", 1.0), pngs=["e.png"])  # no blocks: no section
+    faust = res.with_name(res.name + "-faust")
+    _run(faust, "owned", _doc({"n": 8}), _manifest("owned", "ok", 1.0), pngs=["o.png"])
+    text = build_report(res, tmp_path / "paper" / "REPORT.md", registry=reg)[0].read_text(encoding="utf-8")
+    owned = _section(text, "Study: owned, on embedded humans")
+    assert "n = 7" in owned and "![owned o](../results/owned/o.png)" in owned
+    assert text.index("\n## Study: Approach B's threshold") < text.index("\n## Study: owned")  # registry order
+    assert "### Study: owned, on FAUST" in _section(text, "On FAUST") and "n = 8" in _section(text, "On FAUST")
+    figs = _section(text, "Figures")
+    assert "owned o" not in figs and "![empty e](../results/empty/e.png)" in figs  # shown once, in its section
