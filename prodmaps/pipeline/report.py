@@ -463,6 +463,12 @@ def _study_sections(d: "_Doc", infos, base: Path, copy_figures: bool, dataset: s
     return shown
 
 
+def _run_dataset(info) -> str:
+    """The dataset a run's results were computed on (``anny_humans`` when they do not say)."""
+    res = info.doc.get("results", {}) if info.doc else {}
+    return res.get("dataset", "anny_humans") if isinstance(res, dict) else "anny_humans"
+
+
 def _figures(d: "_Doc", info, base: Path, copy_figures: bool, prefix: str = "") -> None:
     for fig in info.figures:
         if copy_figures:
@@ -567,11 +573,17 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
     _claims_section(d, verdicts, results_dir, base, others, notebooks, kept)
     if published_rows:
         _table_summaries(d, infos, published_rows, matches)
+    shown_in_dataset = set()  # (run, dataset) a dataset's own section shows
     for ds, (folder, _) in others.items():
-        _dataset_section(d, ds, folder, collect_runs(folder, registry), published_rows, base, copy_figures)
+        ds_infos = collect_runs(folder, registry)
+        _dataset_section(d, ds, folder, ds_infos, published_rows, base, copy_figures)
+        shown_in_dataset |= {(i.name, ds) for i in ds_infos if i.doc}
     for ds, k in kept.items():
         d.blocks += k.blocks
-    studies = _study_sections(d, infos, base, copy_figures)
+    # a study of the main run that ran on a prepared dataset (FAUST when prepared) is not repeated
+    # when that dataset's section already shows the same run
+    studies = _study_sections(d, [i for i in infos if (i.name, _run_dataset(i)) not in shown_in_dataset],
+                              base, copy_figures)
 
     d.h(2, "Runs")
     rows = []

@@ -788,3 +788,22 @@ def test_a_run_with_a_report_module_gets_its_section_in_the_report_and_each_data
     assert "### Study: owned, on FAUST" in _section(text, "On FAUST") and "n = 8" in _section(text, "On FAUST")
     figs = _section(text, "Figures")
     assert "owned o" not in figs and "![empty e](../results/empty/e.png)" in figs  # shown once, in its section
+
+
+def test_a_main_study_run_on_a_prepared_dataset_is_not_repeated_beside_its_dataset_section(tmp_path, monkeypatch):
+    """The main run's studies run on FAUST when it is prepared: shown once, in FAUST's section."""
+    (tmp_path / "owned_section2.py").write_text(
+        "def report_blocks(results, dataset, *, main=True):\n"
+        "    return [('h', 2 if main else 3, f\"Study: owned2, on {dataset}\"), ('p', f\"n = {results['n']}\")]\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    reg, res = make_project(tmp_path)
+    reg.write_text(REGISTRY + '[runs.owned]\nnotebook = "notebooks/owned.ipynb"\nreproduces = "Study"\n'
+                   'report = "owned_section2"\n')
+    _run(res, "owned", _doc({"n": 7, "dataset": "faust"}), _manifest("owned", "ok", 1.0), pngs=["o.png"])
+    faust = res.with_name(res.name + "-faust")
+    text = build_report(res, tmp_path / "paper" / "REPORT.md", registry=reg)[0].read_text(encoding="utf-8")
+    assert text.count("Study: owned2, on FAUST") == 1  # no FAUST folder: the main run's section
+    _run(faust, "owned", _doc({"n": 8, "dataset": "faust"}), _manifest("owned", "ok", 1.0), pngs=["o.png"])
+    text = build_report(res, tmp_path / "paper" / "REPORT.md", registry=reg)[0].read_text(encoding="utf-8")
+    assert text.count("Study: owned2, on FAUST") == 1 and "n = 8" in _section(text, "On FAUST")
+    assert "n = 7" not in text
