@@ -15,9 +15,9 @@ Three layers, arrows pointing down only:
 The conventions (bases A-orthonormal with the constant first, ``k`` counts the constant,
 ``C_12`` is ``(k2, k1)``, ``p2p_21`` is ``(n2,)``) are stated once in :mod:`prodmaps.conventions`.
 
-No module shares its name with a function: ``pm.transfer``, ``pm.safe_transfer`` and
-``pm.laplacian`` are functions, defined in :mod:`prodmaps.mapping`, :mod:`prodmaps.default_transfer`
-and :mod:`prodmaps.operators`. Importing prodmaps loads numpy and scipy only.
+No module shares its name with a function: ``pm.transfer``, ``pm.transfer_operator`` and
+``pm.laplacian`` are functions, defined in :mod:`prodmaps.transfers` and
+:mod:`prodmaps.operators`. Importing prodmaps loads numpy and scipy only.
 """
 
 __version__ = "0.2.0"
@@ -26,6 +26,7 @@ from . import (  # noqa: F401
                approx,
                basis,
                cache,
+               checks,
                conventions,
                curvature,
                datasets,
@@ -44,21 +45,27 @@ from . import (  # noqa: F401
                p2p,
                products,
                sampling,
+               transfers,
                truncation,
 )
 from .approx import ApproximationOperator, approximate, approximation_operator
 from .basis import Basis, eigenbasis, fourier_basis
-from .default_transfer import safe_transfer
 from .io import load_mesh, save_mesh
-from .mapping import extend_fmap, fmap_from_p2p, transfer
+from .mapping import extend_fmap, fmap_from_p2p
 from .mesh import Mesh, MeshError
 from .metrics import area_fraction_curve, relative_error
 from .operators import laplacian
 from .products import ProductBasis, product_basis
+from .transfers import (
+               TransferOperator,
+               safe_transfer,  # noqa: F401 (deprecated, not in __all__: one more release)
+               transfer,
+               transfer_operator,
+)
 
 __all__ = [
     "Mesh", "MeshError", "load_mesh", "save_mesh", "laplacian", "Basis", "eigenbasis",
     "fourier_basis", "ProductBasis", "product_basis", "ApproximationOperator", "approximate",
-    "approximation_operator", "extend_fmap", "fmap_from_p2p", "transfer", "safe_transfer",
+    "approximation_operator", "extend_fmap", "fmap_from_p2p", "transfer_operator", "TransferOperator", "transfer",
     "area_fraction_curve", "relative_error",
 ]

@@ -68,33 +68,25 @@ import numpy as np
 import scipy.linalg as sla
 
 from .basis import Basis
-from .products import ProductBasis
+from .checks import check_functions
 
-__all__ = ["ApproximationOperator", "approximation_operator", "approximate", "check_functions", "column_weights",
-           "NORMALIZATIONS", "DEFAULT_NORMALIZATION"]
+__all__ = ["ApproximationOperator", "approximation_operator", "approximate", "column_weights", "gram_eigenpairs",
+           "is_extended", "NORMALIZATIONS", "DEFAULT_NORMALIZATION"]
 
 METHODS = ("std", "svd", "ridge", "lasso")
 NORMALIZATIONS = ("euclidean", "unit_area", "columns", "area")
 DEFAULT_NORMALIZATION = "euclidean"  # the reading that reproduces the paper (study_normalization)
 
 
-def check_functions(F, n: int, what: str = "f") -> np.ndarray:
-    """Validate a function or a matrix of functions on ``n`` points; returns float64.
+def is_extended(basis) -> bool:
+    """Whether ``basis`` is an extended basis (a :class:`prodmaps.ProductBasis`) rather than a Basis.
 
-    Raises ``ValueError`` for a wrong shape, complex values (transfer the real and imaginary
-    parts separately) or non-finite values, ``TypeError`` for values that are not numbers.
+    This module sits below :mod:`prodmaps.products` (``ProductBasis.operator`` builds its operators
+    here), so it knows a ProductBasis by what it offers: a ``base`` :class:`prodmaps.Basis` and the
+    solver products (``solver_gram``, ``solver_rmatmul``, ``expand``, ``unique_index``).
     """
-    F = np.asarray(F)
-    if np.iscomplexobj(F):
-        raise ValueError(f"{what} is complex; functions are real: transfer F.real and F.imag separately")
-    if F.dtype.kind not in "biuf":
-        raise TypeError(f"{what} must be a real numeric array; got dtype {F.dtype}")
-    F = F.astype(np.float64, copy=False)
-    if F.ndim not in (1, 2) or F.shape[0] != n:
-        raise ValueError(f"{what} must have shape ({n},) or ({n}, m); got {F.shape}")
-    if not np.all(np.isfinite(F)):
-        raise ValueError(f"{what} contains non-finite values (NaN or inf)")
-    return F
+    return not isinstance(basis, Basis) and isinstance(getattr(basis, "base", None), Basis) and all(
+        hasattr(basis, a) for a in ("solver_gram", "solver_rmatmul", "expand", "unique_index", "cache"))
 
 
 def _solver_parts(basis):
@@ -103,7 +95,7 @@ def _solver_parts(basis):
     For a ProductBasis ``B_s`` is None: use :func:`_gram` / :func:`_rmatmul`, which are
     blocked for large meshes, or ``basis.solver_basis()`` when the matrix is really needed.
     """
-    if isinstance(basis, ProductBasis):
+    if is_extended(basis):
         E = None if basis.pairs == "unique" else basis.expand()
         return None, basis.base, E, basis.K
     if isinstance(basis, Basis):
@@ -140,7 +132,7 @@ def column_weights(basis, normalization: str = DEFAULT_NORMALIZATION) -> np.ndar
         c = np.full(base.k, np.sqrt(base.area))  # (k,) per factor
     else:  # euclidean
         c = 1.0 / np.linalg.norm(base.vecs, axis=0)  # (k,) per factor
-    if not isinstance(basis, ProductBasis):
+    if not is_extended(basis):
         return c
     idx = basis.unique_index  # (K_u, order), factors 1-based, 0 pads; row 0 is the constant
     fac = np.where(idx > 0, c[idx], 1.0)
@@ -227,7 +219,7 @@ class ApproximationOperator:
         if self._sV is None:
             raise ValueError("canonical coefficients need an Approach B operator (method='svd')")
         coefs = np.asarray(coefs, dtype=np.float64)
-        if isinstance(self.basis, ProductBasis) and self.basis.pairs == "ordered":
+        if is_extended(self.basis) and self.basis.pairs == "ordered":
             coefs = self.basis.expand().T @ coefs  # S a: ordered -> scaled unique
         return self._sV @ coefs
 
@@ -241,14 +233,14 @@ class ApproximationOperator:
         if self._sV is None:
             raise ValueError("span_factors needs an Approach B operator (method='svd')")
         P = self._P if self._P is not None else self._M @ self._sV.T  # (K_u, r); M sVᵀ = D V Σ⁻¹
-        if isinstance(self.basis, ProductBasis) and self.basis.pairs == "ordered":
+        if is_extended(self.basis) and self.basis.pairs == "ordered":
             P = self.basis.expand() @ P  # Sᵀ P: B_o Sᵀ P = B_s P (S has orthonormal rows)
         return np.asarray(P)
 
     def reconstruct(self, F) -> np.ndarray:
         """The approximation ``B a`` of ``F`` in the basis."""
         a = self.coefficients(F)
-        if isinstance(self.basis, ProductBasis):
+        if is_extended(self.basis):
             return self.basis.evaluate(a)
         return self.basis.vecs @ a
 
@@ -295,7 +287,7 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
         normalization = DEFAULT_NORMALIZATION
     B_s, base, E, K = _solver_parts(basis)
     if method == "std":
-        if isinstance(basis, ProductBasis):
+        if is_extended(basis):
             raise ValueError("method='std' projects on an orthonormal Basis; pass ext.base, "
                              "or use 'svd'/'ridge'/'lasso' for a ProductBasis")
         return ApproximationOperator(basis, method, {})
@@ -326,7 +318,7 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
                                          _P=P, _U=np.ascontiguousarray(U[:, :r]), _sV=sV)
         if route != "gram":
             raise ValueError(f"route must be 'auto', 'svd' or 'gram', got {route!r}")
-        w, V, side = _gram_eig(basis, normalization)
+        w, V, side = gram_eigenpairs(basis, normalization)
         s = np.sqrt(np.maximum(w, 0.0))
         r = int(np.sum(s > rtol * s[0]))
         Vr = V[:, :r]
@@ -361,8 +353,13 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
     return ApproximationOperator(basis, method, params, _G=G, _d=d)
 
 
-def _gram_eig(basis, normalization: str = "area"):
+def gram_eigenpairs(basis, normalization: str):
     """Eigenpairs, descending, of the smaller Gram matrix of ``X = sqrt(A) B_s D``.
+
+    ``D`` the column weights of ``normalization`` (:func:`column_weights`; pass
+    :data:`DEFAULT_NORMALIZATION` for the library's reading). Approach B's operator
+    (route ``"gram"``) and :func:`prodmaps.truncation.singular_directions` share this one
+    decomposition.
 
     Returns ``(w, V, side)``: ``side="primal"``: ``XᵀX = V diag(w) Vᵀ`` (``K_u x K_u``);
     ``side="dual"`` when ``K_u > n`` (e.g. order-4 products): ``XXᵀ = U diag(w) Uᵀ``
@@ -370,10 +367,10 @@ def _gram_eig(basis, normalization: str = "area"):
     ``rtol``, so a ProductBasis caches them and every threshold reuses one decomposition.
     """
     def compute():
-        base = basis.base if isinstance(basis, ProductBasis) else basis
-        K_u = basis.unique_index.shape[0] if isinstance(basis, ProductBasis) else basis.k
+        base = basis.base if is_extended(basis) else basis
+        K_u = basis.unique_index.shape[0] if is_extended(basis) else basis.k
         d = column_weights(basis, normalization)
-        if isinstance(basis, ProductBasis) and K_u > base.n and base.mass_is_diagonal:
+        if is_extended(basis) and K_u > base.n and base.mass_is_diagonal:
             X = np.sqrt(base.mass)[:, None] * basis.solver_basis()[0]
             if d is not None:
                 X = X * d
@@ -385,21 +382,21 @@ def _gram_eig(basis, normalization: str = "area"):
             side = "primal"
         return w[::-1], V[:, ::-1], side
 
-    if isinstance(basis, ProductBasis):
+    if is_extended(basis):
         return basis.cache.get("gram_eig" if normalization == "area" else ("gram_eig", normalization), compute)
     return compute()
 
 
 def _rmatmul(basis, Y):
     """``B_sᵀ Y`` for a Basis or ProductBasis."""
-    if isinstance(basis, ProductBasis):
+    if is_extended(basis):
         return basis.solver_rmatmul(Y)
     return basis.vecs.T @ Y
 
 
 def _gram(basis) -> np.ndarray:
     """``B_sᵀ A B_s`` (symmetric) for a Basis or ProductBasis (cached and blocked there)."""
-    if isinstance(basis, ProductBasis):
+    if is_extended(basis):
         return basis.solver_gram()
     B_s, base = basis.vecs, basis
     if base.mass_is_diagonal:
@@ -518,7 +515,7 @@ def approximate(F, basis, method: str = "svd", **params) -> np.ndarray:
     >>> bool(np.allclose(std, b.vecs.T @ (b.mass * f)))
     True
     """
-    if isinstance(basis, ProductBasis):
+    if is_extended(basis):
         op = basis.operator(method, **params)
     else:
         op = approximation_operator(basis, method, **params)

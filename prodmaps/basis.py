@@ -25,7 +25,7 @@ from .eigensolver import smallest_eigenpairs
 from .mesh import Mesh, MeshError
 from .operators import laplacian
 
-__all__ = ["Basis", "eigenbasis", "eigenbases", "fourier_basis", "fix_signs", "from_arrays", "check_basis"]
+__all__ = ["Basis", "eigenbasis", "eigenbases", "fourier_basis", "fix_signs", "from_arrays"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,13 +153,6 @@ class Basis:
     def __repr__(self) -> str:
         label = f"{self.name!r}, " if self.name else ""
         return f"Basis({label}n={self.n}, k={self.k})"
-
-
-def check_basis(basis, name: str = "basis") -> Basis:
-    """``basis`` if it is a :class:`Basis`, else a ``TypeError`` naming the argument."""
-    if not isinstance(basis, Basis):
-        raise TypeError(f"{name} must be a prodmaps.Basis, got {type(basis).__name__}")
-    return basis
 
 
 SIGN_TIE_RTOL = 1e-6

@@ -18,15 +18,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .mesh import Mesh
+from .mesh import Mesh, check_mesh
 
 __all__ = ["face_frames", "principal_curvatures"]
-
-
-def _check_mesh(mesh) -> Mesh:
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"expected a prodmaps.Mesh, got {type(mesh).__name__} (use pm.load_mesh)")
-    return mesh
 
 
 def face_frames(V: np.ndarray, F: np.ndarray):
@@ -60,7 +54,7 @@ def principal_curvatures(mesh: Mesh, smooth: int = 1):
     ``(n,)`` curvatures (convention: positive mean curvature on a sphere with outward normals).
     Directions are defined up to sign; everything is invariant to rigid motions.
     """
-    mesh = _check_mesh(mesh)
+    mesh = check_mesh(mesh)
     V, F = mesh.vertices, mesh.faces
     n, m = V.shape[0], F.shape[0]
     N = mesh.vertex_normals()

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from .mesh import Mesh, check_vertex_indices
+from .mesh import Mesh, check_vertex_indices, edges
 
 __all__ = ["distances", "DistanceRows", "all_pairs", "map_error", "error_curve", "cache_dir", "mesh_key"]
 
@@ -67,8 +67,6 @@ def _check_sources(mesh: Mesh, sources) -> np.ndarray:
 
 
 def _edge_graph(mesh: Mesh) -> sp.csr_matrix:
-    from .mesh import edges
-
     e, _ = edges(mesh.faces)  # (E, 2)
     w = np.linalg.norm(mesh.vertices[e[:, 0]] - mesh.vertices[e[:, 1]], axis=1)  # (E,)
     n = mesh.n_vertices

@@ -51,7 +51,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .mesh import Mesh, MeshError
+from .mesh import Mesh, MeshError, repair
 
 __all__ = ["load_mesh", "read_mesh_arrays", "save_mesh", "load_mesh_repaired", "file_to_mesh_index"]
 
@@ -107,8 +107,6 @@ def load_mesh_repaired(path, *, name: str | None = None, verbose: bool = True) -
     they cannot fix (non-manifold edges, polygons) raises ``MeshError`` "cannot be repaired
     automatically: ...". With ``verbose`` the problem found and what changed are printed.
     """
-    from .mesh import repair
-
     try:
         mesh = load_mesh(path, name=name)
         return mesh, np.arange(mesh.n_vertices)

@@ -1,4 +1,7 @@
-"""Functional maps between bases, the extended map ``C~`` (Section 4.3) and function transfer.
+"""Functional maps between bases and the extended map ``C~`` (Section 4.3).
+
+Function transfer with these maps is :mod:`prodmaps.transfers` (:func:`prodmaps.transfer_operator`,
+:func:`prodmaps.transfer`).
 
 Conventions
 -----------
@@ -20,62 +23,11 @@ import itertools
 import numpy as np
 import scipy.sparse as sp
 
-from .approx import check_functions
 from .basis import Basis
-from .mesh import check_vertex_indices
-from .products import _n_orderings, multi_indices, product_basis
+from .checks import check_fmap, check_p2p
+from .products import check_pairs, multi_indices, n_orderings, product_basis
 
-__all__ = ["fmap_from_p2p", "extend_fmap", "transfer", "check_fmap", "check_p2p"]
-
-
-def check_p2p(p2p_21, n1: int, n2: int) -> np.ndarray:
-    """Validate a point map ``(n2,)`` into ``[0, n1)``."""
-    p = np.asarray(p2p_21)
-    if p.shape != (n2,):
-        raise ValueError(f"p2p_21 must have shape (n2,) = ({n2},): one vertex of shape 1 per "
-                         f"vertex of shape 2; got {p.shape}")
-    return check_vertex_indices(p, n1, "p2p_21")
-
-
-def check_fmap(C_12, basis_1: Basis, basis_2: Basis, allow_truncation: bool = False) -> np.ndarray:
-    """Validate ``C_12`` against the bases: shape ``(k2, k1)``, real, finite; returns a dense float64 array.
-
-    A scipy sparse matrix is densified (functional maps are small). Complex values raise
-    ``ValueError`` (a functional map between real function spaces is real), values that are not
-    numbers ``TypeError``. With ``allow_truncation`` the map may be smaller than the bases
-    (``k1 <= basis_1.k``, ``k2 <= basis_2.k``): callers then use the first ``k1`` / ``k2`` columns.
-    """
-    for b, name in ((basis_1, "basis_1"), (basis_2, "basis_2")):
-        if not isinstance(b, Basis):
-            raise TypeError(f"{name} must be a prodmaps.Basis, got {type(b).__name__}")
-    import scipy.sparse as sp
-
-    if sp.issparse(C_12):
-        C_12 = C_12.toarray()
-    C = np.asarray(C_12)
-    if np.iscomplexobj(C):
-        raise ValueError("C_12 is complex; a functional map between real function spaces is real (if the imaginary "
-                         "part is round-off, pass C_12.real)")
-    if C.dtype.kind not in "biuf":
-        raise TypeError(f"C_12 must be a real numeric (k2, k1) array or a scipy sparse matrix; got dtype {C.dtype}")
-    C = C.astype(np.float64, copy=False)
-    if C.ndim != 2:
-        raise ValueError(f"C_12 must be a 2D array (k2, k1); got shape {C.shape}")
-    if allow_truncation:
-        if C.shape[1] > basis_1.k or C.shape[0] > basis_2.k:
-            raise ValueError(
-                f"C_12 has shape (k2, k1) = {C.shape} but basis_1 has {basis_1.k} columns and basis_2 "
-                f"{basis_2.k}: rows of C_12 index shape 2, columns index shape 1 (transpose it or "
-                "pass the bases in the other order?)"
-            )
-    elif C.shape != (basis_2.k, basis_1.k):
-        raise ValueError(
-            f"C_12 must have shape (basis_2.k, basis_1.k) = ({basis_2.k}, {basis_1.k}); got {C.shape}. "
-            "C_12 maps coefficients on shape 1 to shape 2"
-        )
-    if not np.all(np.isfinite(C)):
-        raise ValueError("C_12 contains non-finite values")
-    return C
+__all__ = ["fmap_from_p2p", "extend_fmap"]
 
 
 def fmap_from_p2p(p2p_21, basis_1: Basis, basis_2: Basis) -> np.ndarray:
@@ -164,8 +116,7 @@ def extend_fmap(C_12, basis_1: Basis, basis_2: Basis, order: int = 2, pairs: str
     C = check_fmap(C_12, basis_1, basis_2)
     if order < 1:
         raise ValueError(f"order must be >= 1, got {order}")
-    if pairs not in ("ordered", "unique"):
-        raise ValueError(f"pairs must be 'ordered' or 'unique', got {pairs!r}")
+    check_pairs(pairs)
     phi0 = basis_2.phi0
     if order == 1:
         return C.copy()
@@ -176,7 +127,7 @@ def extend_fmap(C_12, basis_1: Basis, basis_2: Basis, order: int = 2, pairs: str
         return Cu
     ext1 = product_basis(basis_1, order, "ordered")
     ext2 = product_basis(basis_2, order, "ordered")
-    spread = ext2.fold().T @ sp.diags(1.0 / _n_orderings(ext2.unique_index))  # (K2_o, K2_u)
+    spread = ext2.fold().T @ sp.diags(1.0 / n_orderings(ext2.unique_index))  # (K2_o, K2_u)
     return np.asarray(spread @ (ext1.fold().T @ Cu.T).T)
 
 
@@ -239,114 +190,3 @@ def _extend_unique(C: np.ndarray, phi0: float, order: int) -> np.ndarray:
             Ct[offsets2[s]: offsets2[s + 1], cols] = X
         Ct[0, cols] /= phi0  # the function 1 is the constant column divided by φ0
     return Ct
-
-
-# ------------------------------------------------------------------------- transfer
-def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, order: int = 2,
-             pairs: str = "ordered", approx: str | None = None, rtol: float | None = None, **params) -> np.ndarray:
-    """Transfer function(s) ``F`` ``(n1,)``/``(n1, m)`` from shape 1 to shape 2 with ``C_12``.
-
-    ``C_12`` is ``(basis_2.k, basis_1.k)`` and maps coefficients on shape 1 to shape 2; bases are
-    A-orthonormal with the constant first (:mod:`prodmaps.conventions`).
-
-    ``method="std"``: ``Φ2 C_12 Φ1ᵀ A1 F`` (A-orthogonal projection, then the map).
-
-    ``method="prod"`` with no threshold given: **the library's default extended transfer**
-    (:mod:`prodmaps.default_transfer`): the standard projection first, then the residual fitted with
-    the products that are A1-orthogonal to the basis; each product direction's image under ``C~``
-    loses its part inside ``range(Φ2 C)`` and is kept only if it passes a gain, a leak and a
-    truncation test (no ground truth needed). The paper's fixed threshold can make products worse
-    on real maps; the default was never above the standard transfer by more than 0.01, per single
-    function, in our measurements (embedded humans and FAUST): it never changes what the standard transfer carries
-    (its projection on ``range(Φ2 C)`` is the standard transfer) and reduces to it exactly when no
-    direction passes. ``params`` may set its ``g0``, ``p``, ``l0``, ``e0``, ``floor``, ``h_min``.
-
-    ``method="prod"`` with ``rtol=...`` (e.g. ``rtol=1e-3``): **the paper's Approach B** exactly,
-    ``B2 C~ a`` with ``a`` the truncated-SVD coefficients of ``F`` in the extended basis of
-    ``order`` and ``pairs`` (the ordered pairs are the paper's); ``approx="ridge"`` or ``"lasso"``
-    (with ``eps=...``) gives Approach A. ``params`` go to
-    :func:`prodmaps.approx.approximation_operator`. Factorisations are cached on the bases, so
-    transferring many functions in one call, or in repeated calls, reuses them.
-
-    Parameters
-    ----------
-    F : (n1,) or (n1, m) array_like of float
-        Function(s) on shape 1, real and finite.
-    C_12 : (k2, k1) array_like
-        Functional map from ``basis_1`` to ``basis_2``.
-    basis_1, basis_2 : Basis
-        Bases on shape 1 (``n1`` points, ``k1`` columns) and shape 2 (``n2``, ``k2``).
-    method : ``"std"`` (default) or ``"prod"``.
-    order, pairs : the product basis of ``method="prod"`` with ``rtol`` (the default rule uses
-        ``order=2``).
-    approx : ``None`` (Approach B) or ``"ridge"`` / ``"lasso"`` (Approach A), with ``rtol`` or ``eps``.
-    rtol : float, optional
-        Approach B's threshold; ``None`` selects the default extended transfer.
-    **params
-        The default rule's parameters, or :func:`prodmaps.approx.approximation_operator`'s.
-
-    Returns
-    -------
-    (n2,) or (n2, m) ndarray
-        The transferred function(s) on shape 2.
-
-    Raises
-    ------
-    ValueError
-        For an unknown ``method``, shapes that do not match the bases, complex or non-finite
-        values, or ``order != 2`` for the default rule.
-    TypeError
-        For parameters the chosen method does not take (e.g. ``rtol`` with ``method="std"``).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> import prodmaps as pm
-    >>> from prodmaps.mesh import ellipsoid
-    >>> mesh = ellipsoid(2)
-    >>> b = pm.eigenbasis(mesh, 6)
-    >>> C = pm.fmap_from_p2p(np.arange(mesh.n_vertices), b, b)  # (k2, k1) = (6, 6)
-    >>> f = mesh.vertices[:, 0] * mesh.vertices[:, 1]
-    >>> std = pm.transfer(f, C, b, b)
-    >>> prod = pm.transfer(f, C, b, b, method="prod")            # the default extended transfer
-    >>> paper = pm.transfer(f, C, b, b, method="prod", rtol=1e-3)  # the paper's Approach B
-    >>> std.shape, prod.shape, paper.shape
-    ((162,), (162,), (162,))
-    >>> errors = [pm.relative_error(g, f, b.mass) for g in (std, prod, paper)]
-    >>> bool(errors[1] < errors[0] and errors[2] < errors[0])  # products help on a product
-    True
-    """
-    C = check_fmap(C_12, basis_1, basis_2)
-    F = check_functions(F, basis_1.n)
-    if method == "std":
-        if rtol is not None or approx is not None or params:
-            raise TypeError("method='std' takes no rtol/approx/params (they configure method='prod')")
-        return basis_2.vecs @ (C @ basis_1.project(F))
-    if method != "prod":
-        raise ValueError(f"method must be 'std' or 'prod', got {method!r}")
-    from .products import _check_pairs
-
-    _check_pairs(pairs)
-    if rtol is None and approx is None:
-        # the default works on the unique multisets: the ordered pairs span the same space and its rule
-        # does not see duplicated columns, so both conventions give the same transfer
-        if order != 2:
-            raise ValueError("the default extended transfer uses pairwise products (order=2); pass rtol=... "
-                             "for the paper's Approach B with higher orders")
-        from .default_transfer import DEFAULTS, safe_operator
-
-        unknown = set(params) - set(DEFAULTS)
-        if unknown:
-            raise TypeError(f"unknown parameters {sorted(unknown)} for the default extended transfer "
-                            f"(allowed: {sorted(DEFAULTS)}); pass rtol=... for Approach B")
-        return safe_operator(C, basis_1, basis_2, **params)(F)
-    approx = approx or "svd"
-    if approx == "svd":
-        params["rtol"] = 1e-3 if rtol is None else rtol
-    elif rtol is not None:
-        raise TypeError(f"rtol is Approach B's threshold; approx={approx!r} takes eps=...")
-    ext1 = product_basis(basis_1, order, pairs)
-    ext2 = product_basis(basis_2, order, pairs)
-    a = ext1.operator(approx, **params).coefficients(F)  # (K1,) or (K1, m)
-    return ext2.evaluate(extend_fmap(C, basis_1, basis_2, order, pairs) @ a)
-

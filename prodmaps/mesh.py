@@ -35,6 +35,7 @@ __all__ = [
     "face_mean_ratio",
     "face_radius_ratio",
     "vertex_normals",
+    "check_mesh",
     "check_vertex_indices",
     "edges",
     "boundary_edges",
@@ -141,10 +142,30 @@ def face_radius_ratio(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return 8.0 * area2 / np.maximum(s * a * b * c, np.finfo(float).tiny)
 
 
+def check_mesh(mesh) -> Mesh:
+    """``mesh`` if it is a :class:`Mesh`, else a ``TypeError`` (the one check of a mesh argument).
+
+    The checks of a mesh live here, the lowest module (:mod:`prodmaps.operators` and
+    :mod:`prodmaps.curvature` use them); the checks that need a basis are in :mod:`prodmaps.checks`.
+
+    Examples
+    --------
+    >>> check_mesh(ellipsoid(1)).n_vertices
+    42
+    >>> check_mesh("bunny.ply")
+    Traceback (most recent call last):
+    ...
+    TypeError: expected a prodmaps.Mesh, got str (use pm.load_mesh)
+    """
+    if not isinstance(mesh, Mesh):
+        raise TypeError(f"expected a prodmaps.Mesh, got {type(mesh).__name__} (use pm.load_mesh)")
+    return mesh
+
+
 def check_vertex_indices(idx, n: int, name: str = "indices") -> np.ndarray:
     """``idx`` (any shape) as int64, after checking it holds integer vertex indices in ``[0, n)``.
 
-    The one check behind point maps (:func:`prodmaps.mapping.check_p2p`), geodesic sources and
+    The one check behind point maps (:func:`prodmaps.checks.check_p2p`), geodesic sources and
     sampled vertices; an empty array passes whatever its dtype.
     """
     p = np.asarray(idx)

@@ -26,7 +26,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from .mesh import Mesh
+from .curvature import face_frames, principal_curvatures
+from .mesh import Mesh, face_areas
 
 __all__ = ["laplacian", "cotan_weights", "lumped_mass", "fem_mass", "anisotropic_laplacian"]
 
@@ -55,8 +56,6 @@ def cotan_weights(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
 
 def lumped_mass(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Barycentric lumped mass ``(n,)``: a third of each incident triangle's area."""
-    from .mesh import face_areas
-
     a = face_areas(vertices, faces) / 3.0
     n = np.asarray(vertices).shape[0]
     return np.bincount(np.asarray(faces).ravel(), weights=np.repeat(a, 3), minlength=n)
@@ -64,8 +63,6 @@ def lumped_mass(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 def fem_mass(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
     """Consistent (full) piecewise-linear FEM mass matrix ``(n, n)``."""
-    from .mesh import face_areas
-
     f = np.asarray(faces, dtype=np.int64)
     a = face_areas(vertices, f)
     n = np.asarray(vertices).shape[0]
@@ -157,8 +154,6 @@ def anisotropic_laplacian(
         raise ValueError(f"angle must be finite, got {angle!r}")
     V, F = mesh.vertices, mesh.faces
     n = V.shape[0]
-    from .curvature import face_frames, principal_curvatures
-
     curv = principal_curvatures(mesh) if curvature is None else curvature
     fn, _, _, area = face_frames(V, F)
     w1 = np.cos(angle) * curv["dir_max"] + np.sin(angle) * curv["dir_min"]  # (m, 3)

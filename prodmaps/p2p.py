@@ -84,8 +84,12 @@ import time
 
 import numpy as np
 
+from .approx import column_weights
 from .basis import Basis
+from .checks import check_fmap
+from .mapping import extend_fmap
 from .mesh import check_vertex_indices
+from .products import multi_indices, n_columns, product_basis
 
 __all__ = ["nearest_neighbors", "effective_dimension", "from_fmap", "heat_square_coefficients", "extended_embeddings",
            "point_functions", "METHODS", "POINTS", "DEFAULT_KERNEL_EIG"]
@@ -282,12 +286,6 @@ def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None
     return idx, np.sqrt(np.einsum("ij,ij->i", diff, diff))
 
 
-def _check_inputs(C_12, basis_1, basis_2) -> np.ndarray:
-    from .mapping import check_fmap
-
-    return check_fmap(C_12, basis_1, basis_2, allow_truncation=True)
-
-
 def heat_square_coefficients(basis: Basis, t: float, n_eig: int, pairs: str = "unique", points=None) -> np.ndarray:
     """Closed-form coefficients ``(n_points, K)`` of ``h_t(x, ·)²`` in the order-2 extended basis of ``basis``.
 
@@ -295,8 +293,6 @@ def heat_square_coefficients(basis: Basis, t: float, n_eig: int, pairs: str = "u
     point ``x`` (all vertices, or ``points``). Column layout of
     ``prodmaps.product_basis(basis, order=2, pairs=pairs)`` (see module doc).
     """
-    from .products import multi_indices
-
     k = basis.k - 1  # non-constant functions of the extended basis
     if not 1 <= n_eig <= basis.k:
         raise ValueError(f"n_eig must be in [1, {basis.k}] (columns of the basis, constant included), got {n_eig}")
@@ -324,8 +320,6 @@ _HEAT_SQUARES_CACHE_BYTES = 2**28
 def _heat_squares_of_source(basis: Basis, t: float, n_eig: int, pairs: str) -> np.ndarray:
     """:func:`heat_square_coefficients` of all vertices, kept in ``basis.cache`` up to 256 MB: ``t``
     depends on the source basis only, so every map from the same source reuses them."""
-    from .products import n_columns
-
     if basis.n * n_columns(basis.k - 1, 2, pairs) * 8 > _HEAT_SQUARES_CACHE_BYTES:
         return heat_square_coefficients(basis, t, n_eig, pairs)
     key = ("heat_square_coefficients", basis.k, float(t), int(n_eig), pairs)
@@ -339,8 +333,6 @@ def _closed_form_embeddings(C, b1: Basis, b2: Basis, *, t, t_scale, n_eig, rtol,
     (``r × K1`` times ``K1 × n1``), not ``Σ_r V_rᵀ (C~ a1ᵀ)``: the same product, ``K2/r``-fold
     fewer operations on the vertices.
     """
-    import prodmaps as pm
-
     k2, k1 = C.shape
     n_eig = min(k1, k2) if n_eig is None else int(n_eig)
     if not 2 <= n_eig <= min(k1, k2):
@@ -355,8 +347,8 @@ def _closed_form_embeddings(C, b1: Basis, b2: Basis, *, t, t_scale, n_eig, rtol,
     ratio = b2.area / b1.area
     a1 = _heat_squares_of_source(b1, t, n_eig, pairs)  # (n1, K1)
     a2 = heat_square_coefficients(b2, t * ratio, n_eig, pairs, points=vertices)  # (n2 or m, K2)
-    Ct = pm.extend_fmap(C, b1, b2, order=2, pairs=pairs)  # (K2, K1)
-    op = pm.product_basis(b2, order=2, pairs=pairs).operator("svd", rtol=rtol, **normalization)
+    Ct = extend_fmap(C, b1, b2, order=2, pairs=pairs)  # (K2, K1)
+    op = product_basis(b2, order=2, pairs=pairs).operator("svd", rtol=rtol, **normalization)
     emb_1 = a1 @ (np.asarray(op.canonical(Ct)).T / ratio**2)  # (n1, K1) @ (K1, r)
     emb_2 = np.asarray(op.canonical(a2.T)).T  # (n2 or m, r)
     return emb_1, emb_2, {"point": "closed_form", "t": t, "n_eig": n_eig, "rtol": rtol, "pairs": pairs,
@@ -424,8 +416,6 @@ def _canonical_functions(pb, op) -> tuple[np.ndarray, np.ndarray]:
     Approach B fit ``a = X Xᵀ B_sᵀ A f``). ``X`` comes from the operator's own ``Σ Vᵀ D⁻¹``
     (``op.canonical``), so the truncation is the operator's: ``X = D² (ΣVᵀD⁻¹)ᵀ Σ⁻²``, with
     ``Σ² = (ΣVᵀD⁻¹) D² (ΣVᵀD⁻¹)ᵀ`` solved rather than assumed diagonal."""
-    from .approx import column_weights
-
     def compute():
         E = pb.expand()  # (K, K_u): solver -> basis coefficients; Eᵀ E = I
         sV = np.asarray(op.canonical(E.toarray()))  # (r, K_u) = Σ Vᵀ D⁻¹ in the solver columns
@@ -489,11 +479,9 @@ def extended_embeddings(
     """
     import warnings
 
-    import prodmaps as pm
-
     if point not in POINTS:
         raise ValueError(f"point must be one of {POINTS}, got {point!r}")
-    C = _check_inputs(C_12, basis_1, basis_2)
+    C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)
     k2, k1 = C.shape
     b1, b2 = basis_1.truncate(k1), basis_2.truncate(k2)
     norm = {} if normalization is None else {"normalization": normalization}
@@ -518,9 +506,9 @@ def extended_embeddings(
     if int(block_bytes) < 1:
         raise ValueError(f"block_bytes must be >= 1, got {block_bytes}")
     ratio = b2.area / b1.area  # shape 2 uses the same time relative to its area: t · a2 / a1
-    pb1, pb2 = pm.product_basis(b1, order=2, pairs=pairs), pm.product_basis(b2, order=2, pairs=pairs)
+    pb1, pb2 = product_basis(b1, order=2, pairs=pairs), product_basis(b2, order=2, pairs=pairs)
     op1, op2 = pb1.operator("svd", rtol=rtol, **norm), pb2.operator("svd", rtol=rtol, **norm)
-    Ct = pm.extend_fmap(C, b1, b2, order=2, pairs=pairs)  # (K2, K1)
+    Ct = extend_fmap(C, b1, b2, order=2, pairs=pairs)  # (K2, K1)
     scale = 1.0 / np.sqrt(b2.area)  # ‖f‖ on the unit-area target
     _, X1 = _canonical_functions(pb1, op1)  # (K1_u, r1)
     # a source function's fit is a1 = E1 X1 ã1 (ã1 its canonical coefficients on shape 1); its image's
@@ -584,7 +572,7 @@ def from_fmap(
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    C = _check_inputs(C_12, basis_1, basis_2)
+    C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)
     k2, k1 = C.shape
     if vertices is not None:
         if np.ndim(vertices) != 1:

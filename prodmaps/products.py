@@ -36,15 +36,18 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from .approx import approximation_operator
 from .basis import Basis
 from .cache import Cache
 
-__all__ = ["ProductBasis", "product_basis", "multi_indices", "n_columns"]
+__all__ = ["ProductBasis", "product_basis", "multi_indices", "n_columns", "n_orderings", "check_pairs",
+           "evaluate_products", "unique_solver_gram", "PAIRS"]
 
 PAIRS = ("ordered", "unique")
 
 
-def _check_pairs(pairs: str) -> None:
+def check_pairs(pairs: str) -> None:
+    """A ``ValueError`` unless ``pairs`` is ``"ordered"`` (the paper's) or ``"unique"``."""
     if pairs not in PAIRS:
         raise ValueError(f"pairs must be 'ordered' (the paper's) or 'unique', got {pairs!r}")
 
@@ -55,7 +58,7 @@ def multi_indices(k: int, order: int, pairs: str) -> np.ndarray:
     Rows are in column order: the constant ``[0…0]``, the ``k`` singletons, then products
     by increasing degree. Factors are 1-based (``1..k``); 0 pads.
     """
-    _check_pairs(pairs)
+    check_pairs(pairs)
     if order < 1:
         raise ValueError(f"order must be >= 1, got {order}")
     rows = [np.zeros((1, order), dtype=np.int64)]
@@ -72,13 +75,13 @@ def multi_indices(k: int, order: int, pairs: str) -> np.ndarray:
 
 def n_columns(k: int, order: int, pairs: str) -> int:
     """Number of columns of the extended basis (``k`` non-constant functions)."""
-    _check_pairs(pairs)
+    check_pairs(pairs)
     if pairs == "ordered":
         return 1 + sum(k**d for d in range(1, order + 1))
     return 1 + sum(math.comb(k + d - 1, d) for d in range(1, order + 1))
 
 
-def _n_orderings(index: np.ndarray) -> np.ndarray:
+def n_orderings(index: np.ndarray) -> np.ndarray:
     """Number of distinct orderings of each multiset row (0 pads ignored)."""
     out = np.empty(index.shape[0], dtype=np.float64)
     for j, row in enumerate(index):  # K rows of small multi-indices; not a per-vertex loop
@@ -103,11 +106,6 @@ def evaluate_products(vecs: np.ndarray, index: np.ndarray) -> np.ndarray:
         out_T *= padded_T[index[:, t]]
     out_T[0] = vecs[:, 0]  # the constant column is φ0 itself
     return out_T.T
-
-
-KEPT_BLOCKS = Cache(max_entries=256, max_bytes=512 << 20)
-"""Per process: the one-block unique bases ``B_s`` of product bases (keyed by the basis), so that
-repeated products with a small mesh's extended basis do not form its columns again (512 MB at most)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,6 +144,8 @@ class ProductBasis:
     index: np.ndarray = field(repr=False)
     cache: Cache = field(default_factory=lambda: Cache(max_entries=32), repr=False, compare=False)
     block_bytes: int = field(default=32 << 20, repr=False)  # row blocks of the blocked products
+    kept_block: Cache = field(default_factory=lambda: Cache(max_entries=1), repr=False, compare=False)
+    """The solver basis ``B_s`` when one block of ``block_bytes`` holds every row (formed once, read-only)."""
 
     @property
     def n_factors(self) -> int:
@@ -193,7 +193,7 @@ class ProductBasis:
         def compute():
             if self.pairs == "unique":
                 return self.matrix, np.ones(self.K)
-            scale = self._solver_scale()
+            scale = self.solver_scale()
             return evaluate_products(self.base.vecs, self.unique_index) * scale, scale
 
         return self.cache.get("solver", compute)
@@ -208,7 +208,7 @@ class ProductBasis:
                 return sp.identity(self.K, format="csr")
             E = _ordered_to_unique(self.index, self.unique_index).T.tocsr()  # counts -> weights
             # S[u, o] = 1/sqrt(#orderings(u)) for every ordering o of multiset u
-            w = 1.0 / np.sqrt(_n_orderings(self.unique_index))
+            w = 1.0 / np.sqrt(n_orderings(self.unique_index))
             return (E @ sp.diags(w)).tocsr()
 
         return self.cache.get("expand", compute)
@@ -232,18 +232,20 @@ class ProductBasis:
     def _materialize_solver(self) -> bool:
         return "solver" in self.cache
 
-    def _solver_scale(self):
+    def solver_scale(self) -> np.ndarray | None:
+        """``sqrt(#orderings)`` ``(K_u,)`` of the unique columns in the solver basis (``None`` for
+        ``pairs="unique"``, whose solver basis is the basis itself): ``B_s = B_unique * scale``."""
         if self.pairs == "unique":
             return None
-        return self.cache.get("scale", lambda: np.sqrt(_n_orderings(self.unique_index)))
+        return self.cache.get("scale", lambda: np.sqrt(n_orderings(self.unique_index)))
 
     def _solver_blocks(self):
         """Yield ``(rows slice, B_s[rows])`` blocks of about ``block_bytes``.
 
-        When one block holds every row it is kept (:data:`KEPT_BLOCKS`, least recently used
-        dropped first) and the next product reuses it: the same array, so the same numbers."""
+        When one block holds every row (at most ``block_bytes``) it is kept (:attr:`kept_block`)
+        and the next product reuses it: the same array, so the same numbers."""
         uidx = self.unique_index
-        scale = self._solver_scale()
+        scale = self.solver_scale()
         step = max(1, int(self.block_bytes // (8 * uidx.shape[0])))
 
         def block(rows):
@@ -254,13 +256,18 @@ class ProductBasis:
             def whole():
                 b = block(slice(0, self.n))
                 b.setflags(write=False)
-                return self, b  # the entry holds the basis, so no other object takes its id meanwhile
+                return b
 
-            yield slice(0, self.n), KEPT_BLOCKS.get(id(self), whole)[1]
+            yield slice(0, self.n), self.kept_block.get("B_s", whole)
             return
         for i0 in range(0, self.n, step):
             rows = slice(i0, min(self.n, i0 + step))
             yield rows, block(rows)
+
+    @property
+    def has_gram(self) -> bool:
+        """Whether :meth:`solver_gram` has been computed (and is held in :attr:`cache`)."""
+        return "gram" in self.cache
 
     def solver_gram(self) -> np.ndarray:
         """``G_s = B_sᵀ A B_s`` ``(K_u, K_u)`` (cached), blocked for large meshes."""
@@ -310,14 +317,12 @@ class ProductBasis:
             raise ValueError(f"coefficients have {coefs.shape[0]} rows, the basis has {self.K} columns")
         if self.pairs == "unique":
             return self.solver_matmul(coefs)
-        scale = self._solver_scale()
+        scale = self.solver_scale()
         cu = self.fold() @ coefs  # (K_u,) or (K_u, m)
         return self.solver_matmul(cu / (scale if cu.ndim == 1 else scale[:, None]))
 
     def operator(self, method: str = "svd", **params):
         """A cached reusable approximation operator (see :func:`prodmaps.approx.approximation_operator`)."""
-        from .approx import approximation_operator
-
         key = ("operator", method, tuple(sorted(params.items())))
         return self.cache.get(key, lambda: approximation_operator(self, method=method, **params))
 
@@ -376,7 +381,33 @@ def product_basis(basis: Basis, order: int = 2, pairs: str = "ordered") -> Produ
         raise TypeError(f"product_basis expects a prodmaps.Basis, got {type(basis).__name__}")
     if not isinstance(order, (int, np.integer)) or order < 1:
         raise ValueError(f"order must be an integer >= 1, got {order!r}")
-    _check_pairs(pairs)
+    check_pairs(pairs)
     key = ("product_basis", basis.k, int(order), pairs)
     return basis.cache.get(key, lambda: ProductBasis(basis, int(order), pairs,
                                                      multi_indices(basis.k - 1, int(order), pairs)))
+
+
+def unique_solver_gram(basis: Basis, order: int = 2) -> np.ndarray:
+    """The Gram matrix ``B_uᵀ A B_u`` ``(K_u, K_u)`` of the unique-multiset extended basis of ``basis``.
+
+    It is the unique basis' :meth:`ProductBasis.solver_gram` (cached there), except when only the
+    ordered (paper's) extended basis has computed its Gram: then it is recovered from that one,
+    exactly up to rounding (the ordered solver basis is the unique one with each column scaled by
+    ``sqrt(#orderings)``, :meth:`ProductBasis.solver_scale`), and nothing is formed again.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> b = pm.eigenbasis(ellipsoid(2), 5)
+    >>> G = unique_solver_gram(b)
+    >>> G.shape, bool(np.allclose(G[:5, :5], np.eye(5)))  # A-orthonormal base columns
+    ((15, 15), True)
+    """
+    ext_u = product_basis(basis, order, "unique")
+    ext_o = product_basis(basis, order, "ordered")
+    if not ext_u.has_gram and ext_o.has_gram:
+        s = ext_o.solver_scale()
+        return ext_o.solver_gram() / np.outer(s, s)
+    return ext_u.solver_gram()

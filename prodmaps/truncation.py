@@ -41,8 +41,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from .approx import DEFAULT_NORMALIZATION, column_weights, gram_eigenpairs
 from .basis import Basis
-from .mapping import check_fmap, extend_fmap
+from .checks import check_fmap
+from .mapping import extend_fmap
 from .products import product_basis
 
 __all__ = ["singular_directions", "transfer_gains", "select_rtol", "DEFAULT_CANDIDATES"]
@@ -59,16 +61,14 @@ def singular_directions(basis_1: Basis, order: int = 2, pairs: str = "ordered", 
     :data:`prodmaps.approx.DEFAULT_NORMALIZATION`). Direction ``i`` is the function
     ``B_s D V[:, i]``; ``ext.expand() @ (D V)`` gives the directions as coefficients of ``pairs``'
     basis. Diagonalises the Gram matrix ``D B_sᵀ A B_s D`` once per product basis and
-    normalization, shared with Approach B's operator (:func:`prodmaps.approx._gram_eig`, cached;
+    normalization, shared with Approach B's operator (:func:`prodmaps.approx.gram_eigenpairs`, cached;
     fast for ``n >> K``; squares the
     condition number: ``sigma_i`` has a relative error of about ``1e-16 (sigma_max / sigma_i)²``,
     below ``1e-7`` for the thresholds ``>= 1e-4`` studied here).
     """
-    from .approx import DEFAULT_NORMALIZATION, _gram_eig, column_weights
-
     ext = product_basis(basis_1, order, pairs)
     norm = normalization or DEFAULT_NORMALIZATION
-    w, V, side = _gram_eig(ext, norm)  # the decomposition Approach B's operator caches and reuses
+    w, V, side = gram_eigenpairs(ext, norm)  # the decomposition Approach B's operator caches and reuses
     if side != "primal":  # K_u > n: the operator diagonalises X Xᵀ; the directions need Xᵀ X
         d = column_weights(ext, norm)
         G = ext.solver_gram()
@@ -88,8 +88,6 @@ def transfer_gains(C_12, basis_1: Basis, basis_2: Basis, order: int = 2, pairs: 
     C = check_fmap(C_12, basis_1, basis_2)
     ext1 = product_basis(basis_1, order, pairs)
     ext2 = product_basis(basis_2, order, pairs)
-    from .approx import DEFAULT_NORMALIZATION, column_weights
-
     sigma, V = singular_directions(basis_1, order, pairs, normalization)
     d = column_weights(ext1, normalization or DEFAULT_NORMALIZATION)
     if d is not None:
@@ -150,8 +148,6 @@ def select_rtol(basis_1: Basis, F=None, *, method: str = "gain", C_12=None, basi
             raise ValueError(f"F must be finite with {basis_1.n} rows; got shape {F.shape}")
         if not basis_1.mass_is_diagonal:
             raise ValueError("select_rtol needs a lumped (diagonal) mass")
-        from .approx import DEFAULT_NORMALIZATION, column_weights
-
         ext = product_basis(basis_1, order, pairs)
         norm = normalization or DEFAULT_NORMALIZATION
 

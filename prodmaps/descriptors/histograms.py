@@ -10,17 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..mesh import Mesh
+from ..mesh import Mesh, check_mesh
 
 __all__ = ["SHOT_DIM", "shot"]
 
 SHOT_DIM = 352  # 32 sectors x 11 bins (the default layout)
-
-
-def _check_mesh(mesh) -> Mesh:
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"expected a prodmaps.Mesh, got {type(mesh).__name__} (use pm.load_mesh)")
-    return mesh
 
 
 def _neighbour_pairs(points: np.ndarray, radius: float):
@@ -93,7 +87,7 @@ def shot(
     Rows are ordered sector-major: column ``((a·n_elevation + e)·n_radial + r)·n_bins + b``.
     Invariant to rigid motions (up to round-off and to neighbours exactly at distance ``R``).
     """
-    mesh = _check_mesh(mesh)
+    mesh = check_mesh(mesh)
     for name, val in (
         ("n_bins", n_bins),
         ("n_azimuth", n_azimuth),

@@ -58,17 +58,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..basis import Basis
+from ..checks import check_basis
 
 __all__ = ["ZERO_EIGENVALUE_REL", "nonzero_eigenvalues", "hks", "hks_times", "wks", "wks_weights",
-           "wks_energies", "wks_energies_from_evals", "heat_kernel", "check_basis", "as_1d_finite"]
+           "wks_energies", "wks_energies_from_evals", "heat_kernel", "as_1d_finite"]
 
 ZERO_EIGENVALUE_REL = 1e-8
-
-
-def check_basis(basis) -> Basis:
-    if not isinstance(basis, Basis):
-        raise TypeError(f"expected a prodmaps.Basis, got {type(basis).__name__} (use pm.eigenbasis(mesh, k))")
-    return basis
 
 
 def as_1d_finite(x, name: str, positive: bool = False) -> np.ndarray:

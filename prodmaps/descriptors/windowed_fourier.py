@@ -12,10 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..curvature import _check_mesh as check_mesh
 from ..curvature import principal_curvatures
 from ..eigensolver import smallest_eigenpairs
-from ..mesh import Mesh
+from ..mesh import Mesh, check_mesh
 from ..operators import anisotropic_laplacian, laplacian
 from .spectral import as_1d_finite
 

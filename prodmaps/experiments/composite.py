@@ -30,11 +30,11 @@ import numpy as np
 
 from .. import datasets
 from ..basis import eigenbasis
-from ..default_transfer import safe_operator
-from ..mapping import fmap_from_p2p, transfer
+from ..mapping import fmap_from_p2p
 from ..metrics import relative_error
 from ..operators import laplacian
 from ..products import product_basis
+from ..transfers import transfer, transfer_operator
 from ..truncation import select_rtol
 from .compare import compare
 
@@ -96,7 +96,7 @@ def function_transfer(dataset: str, source_id: str, target_id: str, sizes, *, rt
         approx_std = b1.vecs @ b1.project(f)  # (n1,)
         approx_prod = ext1.evaluate(ext1.operator("svd", rtol=rtol).coefficients(f))
         trans_std = transfer(f, C, b1, b2, "std")  # (n2,)
-        trans_prod = transfer(f, C, b1, b2, "prod", rtol=rtol, **kw)
+        trans_prod = transfer(f, C, b1, b2, "svd", rtol=rtol, **kw)
         key = f"kM{kM}_kN{kN}"
         errors[key] = {
             "approx": {"std": relative_error(approx_std, f, b1.mass), "prod": relative_error(approx_prod, f, b1.mass)},
@@ -107,24 +107,24 @@ def function_transfer(dataset: str, source_id: str, target_id: str, sizes, *, rt
         }
         # beside the paper: Approach B with the gain rule's threshold, and the library's default transfer
         r_g = select_rtol(b1, method="gain", C_12=C, basis_2=b2, pairs=pairs_convention)
-        safe = safe_operator(C, b1, b2)
-        trans_default = safe(f)
+        default = transfer_operator(C, b1, b2, "default")
+        trans_default = default(f)
         errors[key]["approx"].update({
             "gain_rule": relative_error(ext1.evaluate(ext1.operator("svd", rtol=r_g).coefficients(f)), f, b1.mass),
-            "default": relative_error(safe.approximate(f), f, b1.mass)})
+            "default": relative_error(default.approximate(f), f, b1.mass)})
         errors[key]["transfer"].update({
-            "gain_rule": relative_error(transfer(f, C, b1, b2, "prod", rtol=r_g, **kw), g_true, b2.mass),
+            "gain_rule": relative_error(transfer(f, C, b1, b2, "svd", rtol=r_g, **kw), g_true, b2.mass),
             "default": relative_error(trans_default, g_true, b2.mass)})
         errors[key]["gain_rule_rtol"] = r_g
         Fp = np.column_stack(list(parts.values()))  # (n1, 4): each part alone, same pipeline
         Gp = Fp[p2p_21]
         eps = relative_error(transfer(Fp, C, b1, b2, "std"), Gp, b2.mass)
-        epp = relative_error(transfer(Fp, C, b1, b2, "prod", rtol=rtol, **kw), Gp, b2.mass)
+        epp = relative_error(transfer(Fp, C, b1, b2, "svd", rtol=rtol, **kw), Gp, b2.mass)
         errors[key]["transfer_per_part"] = {name: {"std": eps[i], "prod": epp[i]} for i, name in enumerate(parts)}
         extra[key] = {}
         for r in rtol_compare:
             a_r = ext1.evaluate(ext1.operator("svd", rtol=r).coefficients(f))
-            t_r = transfer(f, C, b1, b2, "prod", rtol=r, **kw)
+            t_r = transfer(f, C, b1, b2, "svd", rtol=r, **kw)
             extra[key][f"rtol{r:g}"] = {"approx_prod": relative_error(a_r, f, b1.mass),
                                          "transfer_prod": relative_error(t_r, g_true, b2.mass)}
         fields[key] = (approx_std, approx_prod, trans_std, trans_prod, trans_default)
@@ -180,7 +180,7 @@ def remeshing_transfer(dataset: str, targets, sizes, *, source_ids=None, laplaci
                 for name, bb, p2p, g in (("variant", b2, c["p2p_21"], g_true), ("reference", br, c["p2p_ref"], g_ref)):
                     C = fmap_from_p2p(p2p, b1, bb)  # (kN + 1, kM + 1)
                     ts = transfer(c["f"], C, b1, bb, "std")
-                    tp = transfer(c["f"], C, b1, bb, "prod", rtol=rtol, pairs=pairs_convention)
+                    tp = transfer(c["f"], C, b1, bb, "svd", rtol=rtol, pairs=pairs_convention)
                     out[name] = {"std": relative_error(ts, g, bb.mass), "prod": relative_error(tp, g, bb.mass)}
                     if name == "variant":
                         fields[(c["target"], lap, kM, kN)] = (ts, tp)

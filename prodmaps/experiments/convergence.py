@@ -22,9 +22,10 @@ import numpy as np
 
 from .. import datasets, descriptors
 from ..basis import eigenbasis
-from ..mapping import fmap_from_p2p, transfer
+from ..mapping import fmap_from_p2p
 from ..metrics import relative_error
 from ..products import product_basis
+from ..transfers import transfer
 
 __all__ = ["SCALES", "spectral_descriptors", "hks_wks_convergence"]
 
@@ -78,12 +79,12 @@ def hks_wks_convergence(dataset: str, pairs, *, source_dim: int, target_dims, hk
         for j, name in enumerate(names):
             approx_err[name]["std"].append(relative_error(b1.vecs @ b1.project(F[:, j]), F[:, j], b1.mass))
             approx_err[name]["prod"].append(relative_error(a_prod[:, j], F[:, j], b1.mass))
-        kw = {"prod": {"rtol": rtol, "pairs": pairs_convention}, "std": {}}
+        how = {"prod": ("svd", {"rtol": rtol, "pairs": pairs_convention}), "std": ("std", {})}  # (method, params)
         for jd, d in enumerate(dims):
             b2 = b2_full.truncate(d)
             C = fmap_from_p2p(p2p_21, b1, b2)  # (d, k_M + 1) ground-truth map
             for method in methods:
-                e_ = relative_error(transfer(F, C, b1, b2, method, **kw[method]), G, b2.mass)  # (3,)
+                e_ = relative_error(transfer(F, C, b1, b2, how[method][0], **how[method][1]), G, b2.mass)  # (3,)
                 for j, name in enumerate(names):
                     err[name][method][ip, jd] = e_[j]
         for s in SCALES:  # scale sensitivity at the largest target dimension
@@ -91,7 +92,7 @@ def hks_wks_convergence(dataset: str, pairs, *, source_dim: int, target_dims, hk
             b2 = b2_full.truncate(dims[-1])
             C = fmap_from_p2p(p2p_21, b1, b2)
             for method in methods:
-                e_ = relative_error(transfer(Fs, C, b1, b2, method, **kw[method]), Fs[p2p_21], b2.mass)
+                e_ = relative_error(transfer(Fs, C, b1, b2, how[method][0], **how[method][1]), Fs[p2p_21], b2.mass)
                 for j, name in enumerate(names):
                     sens[name][method][s].append(e_[j])
         if verbose:

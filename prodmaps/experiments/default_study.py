@@ -4,7 +4,7 @@ Over the conditions that matter — maps (ground truth, NO17, ground truth plus 
 ``(k_M, k_N)`` (9/9, 29/39, 27/35, 6/7), pair kinds (intra-, inter-subject, and targets remeshed
 with another connectivity) — and the nine function families, the relative transfer error of:
 ``std`` (the standard transfer), ``B`` (the paper's Approach B, ``rtol = 1e-3``), ``B_gain``
-(Approach B with the threshold of the gain rule) and ``default`` (:mod:`prodmaps.default_transfer`).
+(Approach B with the threshold of the gain rule) and ``default`` (``method="default"`` of :mod:`prodmaps.transfers`).
 Each condition runs :func:`prodmaps.experiments.protocol.run_protocol` on its pairs, with the
 basis-dependent families (hk k, HKS, WKS, Random) built from that condition's own ``k_M + 1``
 source eigenpairs (as in Figure 11, so HKS and WKS lie in the product span); errors are averaged

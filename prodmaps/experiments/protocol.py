@@ -11,8 +11,8 @@ the source and transferred to the target with a functional map ``C_12`` (ground 
 ``B``          Approach B at the paper's ``rtol``; ``B@<r>`` Approach B at ``rtol = r``;
 ``B_gain``     Approach B with ``rtol`` from the map-based gain rule
                (:func:`prodmaps.truncation.select_rtol`, no ground truth);
-``default``    the library's default extended transfer (``pm.transfer(..., method="prod")`` with
-               no threshold given; :mod:`prodmaps.mapping`);
+``default``    the library's default extended transfer (``pm.transfer(..., method="default")``,
+               :mod:`prodmaps.transfers`);
 ``p2p``        the map converted to a point map first (nearest neighbours, :func:`prodmaps.p2p.from_fmap`)
                and ``f`` pulled back through it (Section 5.1's remark; its "approximation" is the
                standard one).
@@ -32,6 +32,7 @@ from .. import truncation
 from ..mapping import extend_fmap, fmap_from_p2p
 from ..metrics import relative_error
 from ..products import product_basis
+from ..transfers import transfer_operator
 from . import families as pfam
 from .maps import no17_demo_map
 from .parallel import map_by_source
@@ -200,9 +201,7 @@ def _protocol_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, s: Protocol
                 if m == "p2p":
                     continue
                 if m == "default":
-                    from ..default_transfer import safe_operator
-
-                    op = safe_operator(C, b1, b2)
+                    op = transfer_operator(C, b1, b2, "default")
                     outputs[m] = (op.approximate(F), op(F))
                     continue
                 if m == "B_gain":

@@ -34,7 +34,7 @@ through coordinates in an A-orthonormal basis ``Q2`` of it (area inner product):
   ``||C~ Q~_1 - Q~_2 C~||²`` on the extended test functions; products let
   the map carry the high-frequency functions ``Q_z(f_j)``.
 * ``"default"``: ``T h`` is the library's default extended transfer of ``h``
-  (:func:`prodmaps.safe_transfer.safe_operator` of ``C``, no threshold), compared in the same
+  (``pm.transfer_operator(C, b1, b2, "default")``, no threshold), compared in the same
   span of ``B2`` as ``"ext"``; not in the paper.
 * ``"p2p"`` (oracle, evaluation only): ``T h = h ∘ p2p_21`` and test images ``f_j ∘ p2p_21``,
   compared in the span of ``B2``: what a perfect transfer would give in that span.
@@ -72,9 +72,11 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..basis import Basis
+from ..checks import check_symmetry_order
 from ..mapping import extend_fmap
 from ..products import product_basis
-from .crossfield import _check_N, connection_laplacian
+from ..transfers import transfer_operator
+from .crossfield import aligned_field, connection_laplacian, normalize_field
 from .frames import Frames, as_frames, complex_gradient, face_to_vertex
 from .operators import SpanProjector, powered_gradients, span_projector
 
@@ -263,9 +265,7 @@ def _ext_transfer(C, Ct, b1: Basis, b2: Basis, ext2, proj2: SpanProjector, rtol:
 def _default_transfer(C, b1: Basis, b2: Basis, Q2):
     """``"default"``: ``Tr = Q2ᵀ A2 S(h)``, ``S`` the default transfer (linear in ``h``), applied to
     blocks of the identity."""
-    from ..default_transfer import safe_operator
-
-    op = safe_operator(C, b1, b2)
+    op = transfer_operator(C, b1, b2, "default")
     M2 = (Q2 * b2.mass[:, None]).T  # (r, n2)
     Tr = np.empty((Q2.shape[1], b1.n))
     step = 512
@@ -318,7 +318,7 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
         ``kind="p2p"`` it may be None (then the images of the test functions are pulled back
         through ``p2p_21`` too and ``span_k`` sets the comparison span).
     kind : ``"std"`` (basis, ``C``), ``"ext"`` (extended basis, ``C~``, pairs="unique"),
-        ``"default"`` (the default extended transfer of ``C``, :mod:`prodmaps.safe_transfer`) or
+        ``"default"`` (the default extended transfer of ``C``, :mod:`prodmaps.transfers`) or
         ``"p2p"`` (oracle through the point map ``p2p_21``, evaluation only).
     N : symmetry order of the fields (4 for cross fields, 1 for vector fields).
     tests : test functions: ``"base"`` (the ``k`` non-constant base functions), ``"pairs"``
@@ -341,7 +341,7 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
     The steps: the inputs checked, :func:`images_of_tests`, :func:`scaled_actions`,
     :func:`comparison_span`; the problem's ``W_s`` push the comparison to the faces.
     """
-    N = _check_N(N)
+    N = check_symmetry_order(N)
     fr_1, fr_2 = as_frames(fr_1), as_frames(fr_2)
     C, b1, b2, tests, p2p_21 = _checked_inputs(basis_1, basis_2, fr_1, fr_2, C_12, kind, tests, p2p_21, span_k)
     F1, F2, Ct = images_of_tests(b1, b2, C, tests, p2p_21)
@@ -413,14 +413,10 @@ def design_consistent_field(problem: ConsistencyProblem, z1: np.ndarray, *, smoo
     z2, info = _cg(apply, rhs, pre.solve, tol, maxiter)
     info.update(consistency=P.energy(z1, z2), smooth=float(np.real(np.vdot(z2, L @ z2)) / (P.lam_2 * area.sum())),
                 kind=P.kind, **P.info)
-    from .crossfield import normalize_field
-
     return (normalize_field(z2) if normalize else z2), info
 
 
 def normalize_guide(q):
-    from .crossfield import normalize_field
-
     return normalize_field(q)
 
 
@@ -434,8 +430,6 @@ def design_joint(problem: ConsistencyProblem, guide_1: np.ndarray, guide_2: np.n
     ``ν`` the squared norm of ``data`` for the aligned source field alone (so ``β`` is
     dimensionless). Returns ``(z1, z2, info)``.
     """
-    from .crossfield import aligned_field, normalize_field
-
     P = problem
     m1 = P.fr_1.n_faces
     L1, L2 = P.laplacian(1), P.laplacian(2)

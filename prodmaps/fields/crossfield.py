@@ -41,8 +41,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from ..mapping import check_p2p
-from ..mesh import Mesh
+from ..checks import check_p2p, check_symmetry_order
+from ..curvature import face_frames, principal_curvatures
+from ..mesh import Mesh, vertex_normals
 from .frames import Frames, angle_defect, as_frames, dual_edges, halfedges, mesh_frames, transport_angles, wrap_angle
 
 __all__ = [
@@ -62,12 +63,6 @@ def _check_field(z, fr: Frames, name="z") -> np.ndarray:
     return z.astype(np.complex128)
 
 
-def _check_N(N) -> int:
-    if not isinstance(N, (int, np.integer)) or N < 1:
-        raise ValueError(f"N (the symmetry order, 4 for crosses) must be a positive integer; got {N!r}")
-    return int(N)
-
-
 # ----------------------------------------------------------------------------- energies
 def connection_laplacian(fr: Frames, N: int = 4):
     """Connection Laplacian of ``N``-power fields on the dual graph.
@@ -76,7 +71,7 @@ def connection_laplacian(fr: Frames, N: int = 4):
     (CSR) with ``zᴴ L z = Σ w_fg |z_g - exp(iNρ_fg) z_f|²`` and ``mass`` ``(m,)`` the face areas.
     """
     fr = as_frames(fr)
-    N = _check_N(N)
+    N = check_symmetry_order(N)
     de = dual_edges(fr)
     f, g = de["f"], de["g"]
     c = fr.centroids
@@ -100,7 +95,7 @@ def smoothest_field(fr: Frames, N: int = 4, *, L=None):
     characteristic or a boundary for ``λ > 0``; otherwise ``λ ≈ 0`` and the field is parallel.
     """
     fr = as_frames(fr)
-    N = _check_N(N)
+    N = check_symmetry_order(N)
     if L is None:
         L, _ = connection_laplacian(fr, N)
     M = sp.diags(fr.area)
@@ -126,9 +121,7 @@ def curvature_guide(mesh: Mesh, fr: Frames | None = None, N: int = 4, *, smooth:
 
     Returns ``(q, weight)``.
     """
-    from ..curvature import principal_curvatures
-
-    N = _check_N(N)
+    N = check_symmetry_order(N)
     if fr is None:
         fr = mesh_frames(mesh)
     pc = curvature if curvature is not None else principal_curvatures(mesh, smooth=smooth)
@@ -150,7 +143,7 @@ def aligned_field(fr: Frames, q: np.ndarray, N: int = 4, *, scale: float = 0.05,
     scale of ``q``). Returns the unit power field (``normalize``) or the raw solution.
     """
     fr = as_frames(fr)
-    N = _check_N(N)
+    N = check_symmetry_order(N)
     q = _check_field(q, fr, "q")
     if L is None:
         L, _ = connection_laplacian(fr, N)
@@ -182,18 +175,18 @@ def normalize_field(z: np.ndarray, eps: float = 1e-300) -> np.ndarray:
 
 def rotate_field(z: np.ndarray, angle, N: int = 4) -> np.ndarray:
     """Rotate every direction of the field by ``angle`` (radians, scalar or ``(m,)``)."""
-    return np.asarray(z) * np.exp(1j * _check_N(N) * np.asarray(angle))
+    return np.asarray(z) * np.exp(1j * check_symmetry_order(N) * np.asarray(angle))
 
 
 def field_angles(z: np.ndarray, N: int = 4) -> np.ndarray:
     """Angle ``(m,)`` of one representative direction in each face frame (``arg z / N``)."""
-    return np.angle(z) / _check_N(N)
+    return np.angle(z) / check_symmetry_order(N)
 
 
 def field_vectors(z: np.ndarray, fr: Frames, N: int = 4) -> np.ndarray:
     """The ``N`` unit directions of every face as 3D vectors ``(m, N, 3)``."""
     fr = as_frames(fr)
-    N = _check_N(N)
+    N = check_symmetry_order(N)
     z = _check_field(z, fr)
     a = field_angles(z, N)[:, None] + 2 * np.pi * np.arange(N)[None, :] / N  # (m, N)
     return np.cos(a)[..., None] * fr.u[:, None, :] + np.sin(a)[..., None] * fr.v[:, None, :]
@@ -205,7 +198,7 @@ def cross_angle(z1: np.ndarray, z2: np.ndarray, N: int = 4) -> np.ndarray:
     For crosses (``N = 4``) this is the angle modulo 90°, in ``[0°, 45°]`` (radians).
     Both fields must be in the same face frames.
     """
-    N = _check_N(N)
+    N = check_symmetry_order(N)
     return np.abs(np.angle(np.asarray(z1) * np.conj(np.asarray(z2)))) / N
 
 
@@ -237,7 +230,7 @@ def singularity_index(fr: Frames, z: np.ndarray, N: int = 4) -> np.ndarray:
     Boundary vertices get 0 (their dual cycle is open).
     """
     fr = as_frames(fr)
-    N = _check_N(N)
+    N = check_symmetry_order(N)
     z = _check_field(z, fr)
     tail, head, face, twin = halfedges(fr.faces)
     ok = twin >= 0
@@ -263,8 +256,6 @@ def singularities(fr: Frames, z: np.ndarray, N: int = 4):
 
 # ----------------------------------------------------------------------------- vertices, maps
 def _vertex_frames(V, F, fr: Frames):
-    from ..mesh import vertex_normals
-
     nv = vertex_normals(V, F)
     ref = np.where(np.abs(nv[:, [0]]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
     t = np.cross(nv, ref)
@@ -281,7 +272,7 @@ def vertex_power_field(fr: Frames, z: np.ndarray, N: int = 4):
     frames ``(t, b, normal)`` ``(n, 3)`` each; ``|zv|`` is small near singularities.
     """
     fr = as_frames(fr)
-    N = _check_N(N)
+    N = check_symmetry_order(N)
     z = _check_field(z, fr)
     V, F = fr.vertices, fr.faces
     nv, t, b = _vertex_frames(V, F, fr)
@@ -329,9 +320,7 @@ def pushforward_field(fr1: Frames, z1: np.ndarray, fr2: Frames, p2p_21: np.ndarr
     Returns ``(z2 (m2,) unit, valid (m2,) bool)``; faces whose image triangle is degenerate
     (area below ``min_area_ratio`` times the mean face area) are invalid and get 0.
     """
-    from ..curvature import face_frames
-
-    N = _check_N(N)
+    N = check_symmetry_order(N)
     fr1, fr2 = as_frames(fr1), as_frames(fr2)
     z1 = _check_field(z1, fr1, "z1")
     p = check_p2p(p2p_21, fr1.n_vertices, fr2.n_vertices)
@@ -394,9 +383,7 @@ def pushforward_field_barycentric(fr1: Frames, z1: np.ndarray, fr2: Frames, face
     Returns ``(z2 (m2,) unit, valid (m2,) bool)``; faces whose image triangle is degenerate
     (area below ``min_area_ratio`` times the mean face area of shape 1) are invalid and get 0.
     """
-    from ..curvature import face_frames
-
-    N = _check_N(N)
+    N = check_symmetry_order(N)
     fr1, fr2 = as_frames(fr1), as_frames(fr2)
     z1 = _check_field(z1, fr1, "z1")
     fa = np.asarray(face_21, dtype=np.int64)

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..basis import Basis, check_basis
-from ..mapping import check_fmap
+from ..basis import Basis
+from ..checks import check_basis, check_fmap
+from ..p2p import from_fmap
 
 __all__ = ["icp_refine"]
 
@@ -32,8 +33,6 @@ def icp_refine(C_12, basis_1: Basis, basis_2: Basis, n_iter: int = 5, *, orthogo
     Returns ``C_12`` (``(k2, k1)``), and with ``return_p2p`` also the point map of the last
     conversion (the one the final ``C`` was estimated from).
     """
-    from ..p2p import from_fmap
-
     check_basis(basis_1, "basis_1")
     check_basis(basis_2, "basis_2")
     C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)

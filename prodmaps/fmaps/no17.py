@@ -76,7 +76,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..basis import Basis, check_basis
+from ..basis import Basis
+from ..checks import check_basis
 
 __all__ = [
     "first_column",

@@ -40,7 +40,7 @@ def test_default_never_worse_than_std_plus_001_per_single_function(study):
     # every (condition, pair, function column), not only family means -- with ground-truth and
     # perturbed maps. With ICP-refined NO17 maps the truncation test is blind (an orthogonalised C has
     # CᵀC = I whatever the map lost), and single heat kernels hk K of one intra pair come out above
-    # std + 0.01 at 27/35 and 29/39 (see the module doc of prodmaps.default_transfer): asserted as
+    # std + 0.01 at 27/35 and 29/39 (see docs/guide/default_transfer.md): asserted as
     # the known limit, not hidden
     s = study["summary"]["our_default"]
     assert s["single_functions"] == sum(v["our_default"]["functions"] for v in study["single"].values()) > 0

@@ -388,7 +388,6 @@ def test_barycentric_pushforward_across_triangulations():
 
 
 def test_default_kind_transfers_through_the_default_operator(ell_pair3):
-    from prodmaps.default_transfer import safe_operator
     from prodmaps.fields.operators import span_projector
 
     d = ell_pair3
@@ -402,7 +401,7 @@ def test_default_kind_transfers_through_the_default_operator(ell_pair3):
     x = np.random.default_rng(0).standard_normal(d["fr1"].n_faces)  # face values
     h = pf.face_to_vertex(d["fr1"]) @ x
     Q2 = span_projector(pm.product_basis(b2, 2, "unique"), 1e-3).Q
-    expected = Q2.T @ (b2.mass * safe_operator(C, b1, b2)(h))
+    expected = Q2.T @ (b2.mass * pm.transfer_operator(C, b1, b2, "default")(h))
     np.testing.assert_allclose(P.W_1.T @ x, expected, rtol=1e-8, atol=1e-10 * np.abs(expected).max())
     z_ref, _ = pf.pushforward_field(d["fr1"], d["z1"], d["fr2"], d["p"])
     assert P.energy(d["z1"], z_ref) < 0.05 < P.energy(d["z1"], pf.rotate_field(z_ref, np.radians(30)))

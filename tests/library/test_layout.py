@@ -51,14 +51,14 @@ def test_every_public_name_documents_parameters_returns_raises_and_examples():
 
 def test_help_of_transfer_shows_the_function():
     text = pydoc.render_doc(pm.transfer, renderer=pydoc.plaintext)
-    assert text.splitlines()[0] == "Python Library Documentation: function transfer in module prodmaps.mapping"
+    assert text.splitlines()[0] == "Python Library Documentation: function transfer in module prodmaps.transfers"
     assert "C_12" in text and "FUNCTIONS" not in text  # the function's page, not a module page
 
 
-def test_safe_transfer_is_callable_as_named(sphere):
+def test_transfer_operator_is_callable_as_named(sphere):
     b = pm.eigenbasis(sphere, 6)
     f = sphere.vertices[:, 2]
     C = np.eye(6)
-    g = pm.safe_transfer(f, C, b, b)
+    g = pm.transfer_operator(C, b, b, "default")(f)
     assert g.shape == f.shape
-    np.testing.assert_allclose(g, pm.transfer(f, C, b, b, method="prod"))
+    np.testing.assert_allclose(g, pm.transfer(f, C, b, b, method="default"))

@@ -98,7 +98,7 @@ def test_a_one_block_extended_basis_is_formed_once_and_gives_the_same_products(b
 
     ext = pm.product_basis(basis_0.truncate(8), order=2)
     assert 8 * ext.n * ext.unique_index.shape[0] <= ext.block_bytes  # one block: kept
-    pr.KEPT_BLOCKS.clear()
+    ext.kept_block.clear()
     X = np.random.default_rng(0).standard_normal((ext.unique_index.shape[0], 3))
     first = ext.solver_matmul(X)
     calls = []
@@ -107,5 +107,5 @@ def test_a_one_block_extended_basis_is_formed_once_and_gives_the_same_products(b
     assert np.array_equal(ext.solver_matmul(X), first) and calls == []  # the kept block, not formed again
     B_s, _ = ext.solver_basis()
     np.testing.assert_allclose(first, B_s @ X, rtol=1e-12, atol=1e-12)
-    kept = pr.KEPT_BLOCKS.get(id(ext), lambda: None)[1]
+    kept = ext.kept_block.get("B_s", lambda: None)
     assert not kept.flags.writeable  # shared: read-only

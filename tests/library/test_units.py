@@ -121,8 +121,8 @@ def _gt(b1, b2, k1=10, k2=12):
     return pm.fmap_from_p2p(np.arange(b2.n), b1.truncate(k1), b2.truncate(k2))
 
 
-@pytest.mark.parametrize("how", [{"method": "std"}, {"method": "prod"}, {"method": "prod", "rtol": 1e-3},
-                                 {"method": "prod", "approx": "ridge", "eps": 1e-6}])
+@pytest.mark.parametrize("how", [{"method": "std"}, {"method": "default"}, {"method": "svd", "rtol": 1e-3},
+                                 {"method": "ridge", "eps": 1e-6}])
 def test_transfer_is_unit_free(pair, human_0, how):
     b1, b2 = pair[1.0]
     F = _smooth_rough(human_0)
