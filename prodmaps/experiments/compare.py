@@ -35,7 +35,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
-__all__ = ["TIE_REL", "ROUNDING_REL", "OUTCOMES", "relative_difference", "compare", "is_tie", "tie_mask", "lower",
+__all__ = ["TIE_REL", "ROUNDING_REL", "OUTCOMES", "relative_difference", "outcome", "is_tie", "tie_mask", "lower",
            "not_higher", "count_outcomes"]
 
 TIE_REL = 1e-5
@@ -60,17 +60,17 @@ def relative_difference(a: float, b: float) -> float:
     return 0.0 if scale == 0.0 else (a - b) / scale
 
 
-def compare(a: float, b: float, rel: float = TIE_REL) -> str:
+def outcome(a: float, b: float, rel: float = TIE_REL) -> str:
     """``"better"`` if error ``a`` is lower than ``b`` by more than ``rel`` relative, ``"worse"`` if
     higher by more than that, else ``"tie"``.
 
     Examples
     --------
-    >>> compare(0.10, 0.20)
+    >>> outcome(0.10, 0.20)
     'better'
-    >>> compare(0.2, 0.2 * (1 + 1e-12))   # equal up to rounding
+    >>> outcome(0.2, 0.2 * (1 + 1e-12))   # equal up to rounding
     'tie'
-    >>> compare(0.3, 0.2)
+    >>> outcome(0.3, 0.2)
     'worse'
     """
     d = relative_difference(a, b)
@@ -80,8 +80,8 @@ def compare(a: float, b: float, rel: float = TIE_REL) -> str:
 
 
 def is_tie(a: float, b: float, rel: float = TIE_REL) -> bool:
-    """``compare(a, b, rel) == "tie"``."""
-    return compare(a, b, rel) == "tie"
+    """``outcome(a, b, rel) == "tie"``."""
+    return outcome(a, b, rel) == "tie"
 
 
 def tie_mask(a, b, rel: float = TIE_REL) -> np.ndarray:
@@ -98,13 +98,13 @@ def tie_mask(a, b, rel: float = TIE_REL) -> np.ndarray:
 
 
 def lower(a: float, b: float, rel: float = TIE_REL) -> bool:
-    """``a < b`` by more than a tie: ``compare(a, b, rel) == "better"``."""
-    return compare(a, b, rel) == "better"
+    """``a < b`` by more than a tie: ``outcome(a, b, rel) == "better"``."""
+    return outcome(a, b, rel) == "better"
 
 
 def not_higher(a: float, b: float, rel: float = TIE_REL) -> bool:
-    """``a <= b`` up to a tie: ``compare(a, b, rel) != "worse"``."""
-    return compare(a, b, rel) != "worse"
+    """``a <= b`` up to a tie: ``outcome(a, b, rel) != "worse"``."""
+    return outcome(a, b, rel) != "worse"
 
 
 def count_outcomes(pairs: Iterable[tuple[float, float]], rel: float = TIE_REL) -> dict:
@@ -117,5 +117,5 @@ def count_outcomes(pairs: Iterable[tuple[float, float]], rel: float = TIE_REL) -
     """
     out = dict.fromkeys(OUTCOMES, 0)
     for a, b in pairs:
-        out[compare(a, b, rel)] += 1
+        out[outcome(a, b, rel)] += 1
     return out

@@ -36,7 +36,7 @@ from ..operators import laplacian
 from ..products import product_basis
 from ..transfers import transfer, transfer_operator
 from ..truncation import select_rtol
-from .compare import compare
+from .compare import outcome
 
 __all__ = ["composite_function", "function_transfer", "remeshing_transfer"]
 
@@ -193,7 +193,7 @@ def remeshing_transfer(dataset: str, targets, sizes, *, source_ids=None, laplaci
             for key, e in by_size.items():
                 summary[f"{tgt}/{lap}/{key}"] = {
                     "prod": e["variant"]["prod"], "std": e["variant"]["std"],
-                    "prod_vs_std": compare(e["variant"]["prod"], e["variant"]["std"]),
+                    "prod_vs_std": outcome(e["variant"]["prod"], e["variant"]["std"]),
                     "std_change_vs_reference": e["variant"]["std"] - e["reference"]["std"],
                     "prod_change_vs_reference": e["variant"]["prod"] - e["reference"]["prod"],
                 }

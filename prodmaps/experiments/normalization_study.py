@@ -27,7 +27,7 @@ import numpy as np
 from .protocol import ProtocolSettings, family_means, method_label, run_protocol
 from .published import published_values
 
-__all__ = ["READINGS", "GT_TABLES", "ofp_rtol", "normalization_study", "score_cells", "best_reading", "explain_cell",
+__all__ = ["READINGS", "GT_TABLES", "ofp_rtol", "run", "score_cells", "best_reading", "explain_cell",
            "report_blocks"]
 
 READINGS = {
@@ -67,7 +67,7 @@ def score_cells(ours: dict, published: dict, methods=("std", "our_A", "our_l2", 
     return out
 
 
-def normalization_study(store, pairs, *, readings: dict | None = None, tables: dict | None = None,
+def run(store, pairs, *, readings: dict | None = None, tables: dict | None = None,
                         families=("hk_k", "HKS", "WKS", "Random", "XYZ", "Indicator"),
                         eps_ridge: float = 1e-6, progress: bool = True) -> dict:
     """Run the ground-truth tables under every reading; returns the results document.

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..files import atomic_path
 from . import families as pfam
-from .compare import compare, count_outcomes
+from .compare import count_outcomes, outcome
 from .protocol import ProtocolSettings, family_means, method_label, run_protocol
 from .published import published_values
 from .results import to_jsonable
@@ -122,7 +122,7 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
             for r in rows:
                 o, st = ours[(s[0], s[1], "transfer", lab, r)], ours[(s[0], s[1], "transfer", "std", r)]
                 better[f"k{s[0]}_{s[1]}/{lab}/{r}"] = {"ours": o, "std": st, "ratio": o / st,
-                                                         "outcome": compare(o, st)}
+                                                         "outcome": outcome(o, st)}
     n_better = {m: count_outcomes((v["ours"], v["std"]) for k, v in better.items()
                                   if f"/{method_label(m, table)}/" in k)
                 for m in prod_methods}  # {"better": n, "tie": n, "worse": n}; ties never count as wins

@@ -33,7 +33,7 @@ from .maps import no17_demo_map
 from .parallel import map_by_source
 from .store import ShapeStore
 
-__all__ = ["QUANTITIES", "CHOOSERS", "truncation_study", "report_blocks"]
+__all__ = ["QUANTITIES", "CHOOSERS", "run", "report_blocks"]
 
 QUANTITIES = ("approx", "transfer", "map_part", "coef_norm")
 CHOOSERS = ("paper", "gain", "cv", "gcv", "oracle")
@@ -43,7 +43,7 @@ def _colnorm(X, mass):
     return np.sqrt(np.einsum("ij,ij->j", X, mass[:, None] * X))
 
 
-def truncation_study(store: ShapeStore, pairs, *, sizes, map_kinds, families, rtols, eps_list, paper_rtol=1e-3,
+def run(store: ShapeStore, pairs, *, sizes, map_kinds, families, rtols, eps_list, paper_rtol=1e-3,
                      max_gain=2.0, no17_k_descr=128, seed=0, progress=True, workers: int | None = None) -> dict:
     """Run the study (module doc) and return its results document plus the raw gains.
 

@@ -11,8 +11,8 @@ from prodmaps.experiments import claims, compare
 def test_two_equal_errors_are_a_tie_not_a_win():
     a = 0.0671234
     for b in (a, a * (1 + 1e-13), a * (1 - 1e-9), a * (1 + 0.9 * compare.TIE_REL)):
-        assert compare.compare(a, b) == "tie"
-        assert compare.compare(b, a) == "tie"
+        assert compare.outcome(a, b) == "tie"
+        assert compare.outcome(b, a) == "tie"
         assert not compare.lower(a, b) and not compare.lower(b, a)
         assert compare.not_higher(a, b) and compare.not_higher(b, a)
     assert compare.count_outcomes([(a, a)] * 3) == {"better": 0, "tie": 3, "worse": 0}
@@ -21,10 +21,10 @@ def test_two_equal_errors_are_a_tie_not_a_win():
 def test_outside_the_tie_band_the_lower_error_wins():
     a = 0.2
     b = a * (1 + 3 * compare.TIE_REL)
-    assert compare.compare(a, b) == "better" and compare.compare(b, a) == "worse"
+    assert compare.outcome(a, b) == "better" and compare.outcome(b, a) == "worse"
     assert compare.lower(a, b) and not compare.not_higher(b, a)
-    assert compare.compare(0.0, 0.0) == "tie"
-    assert compare.compare(0.0, 1e-300) == "better"  # relative: any non-zero against zero
+    assert compare.outcome(0.0, 0.0) == "tie"
+    assert compare.outcome(0.0, 1e-300) == "better"  # relative: any non-zero against zero
     assert compare.count_outcomes([(1, 2), (2, 1), (1, 1)]) == {"better": 1, "tie": 1, "worse": 1}
 
 
@@ -32,9 +32,9 @@ def test_relative_difference_is_scale_free_and_refuses_nan():
     for s in (1e-8, 1.0, 1e8):
         assert math.isclose(compare.relative_difference(1.0 * s, 2.0 * s), -0.5)
     with pytest.raises(ValueError, match="non-finite"):
-        compare.compare(float("nan"), 1.0)
+        compare.outcome(float("nan"), 1.0)
     with pytest.raises(ValueError, match="non-finite"):
-        compare.compare(1.0, float("inf"))
+        compare.outcome(1.0, float("inf"))
 
 
 def _claim(holds: str) -> claims.Claim:

@@ -3,12 +3,11 @@
 import numpy as np
 import pytest
 
-from prodmaps.experiments import maps, no17_study, parallel
+from prodmaps.experiments import maps, no17_study, parallel, truncation_study
 from prodmaps.experiments.crossfields import figure14_joint_study
 from prodmaps.experiments.pointmaps import point_map_recovery
 from prodmaps.experiments.protocol import ProtocolSettings, run_protocol
 from prodmaps.experiments.store import ShapeStore
-from prodmaps.experiments.truncation_study import truncation_study
 from prodmaps.pipeline.schedulers import thread_env
 
 DS = "anny_humans"
@@ -188,8 +187,8 @@ def test_figure14_study_does_not_depend_on_the_number_of_workers():
 def test_studies_do_not_depend_on_the_number_of_workers(store):
     kw = dict(sizes=[(9, 9)], map_kinds=["gt"], families=["XYZ", "HKS"], rtols=[1e-4, 1e-3, 1e-2],
               eps_list=[1e-6, 1e-4], progress=False)
-    one = truncation_study(store, PAIRS, workers=1, **kw)
-    two = truncation_study(store, PAIRS, workers=2, **kw)
+    one = truncation_study.run(store, PAIRS, workers=1, **kw)
+    two = truncation_study.run(store, PAIRS, workers=2, **kw)
     assert one["results"]["summary"] == two["results"]["summary"]
     assert one["results"]["product_preservation_deviation"] == two["results"]["product_preservation_deviation"]
     assert all(np.array_equal(a, b) for a, b in zip(one["gains"]["k9_9/gt"], two["gains"]["k9_9/gt"]))
