@@ -13,7 +13,7 @@ of the peak resident memory (``ru_maxrss``):
 * ``eigenbasis(k)`` on both shapes, in ``--jobs`` worker processes (:func:`prodmaps.basis.eigenbases`:
   the sparse LU and its solves run on one core each; ``--jobs 1``: one after the other);
 * the ground-truth map ``C_12`` at ``k_M = 29`` / ``k_N = 39``; the default transfer
-  ``pm.transfer(F, C, b1, b2, "prod")`` and Approach B (``rtol=1e-3``, ordered pairs) of
+  ``pm.transfer(F, C, b1, b2, "default")`` and Approach B (``rtol=1e-3``, ordered pairs) of
   ``functions`` functions (the coordinates and seeded random functions);
 * the standard point-map conversion ``pm.p2p.from_fmap(C, b1, b2, "std", vertices=...)`` (exact
   nearest neighbours, 39 + 1 dimensions) for ``--p2p-sample`` seeded target vertices against all
@@ -91,11 +91,11 @@ def main(argv=None) -> int:
     C = pm.fmap_from_p2p(idn, c1, c2)  # (k2, k1) ground truth
     rng = np.random.default_rng(0)
     F = np.column_stack([m1.vertices, rng.normal(size=(n, args.functions - 3))])  # (n, functions)
-    G_def = step("transfer_default", lambda: pm.transfer(F, C, c1, c2, "prod"))
+    G_def = step("transfer_default", lambda: pm.transfer(F, C, c1, c2, "default"))
     err_def = pm.relative_error(G_def[:, :3], m2.vertices, c2.mass)
     del G_def
     fresh1, fresh2 = pm.Basis(c1.vecs, c1.evals, c1.mass), pm.Basis(c2.vecs, c2.evals, c2.mass)  # nothing cached
-    G_b = step("transfer_approach_b", lambda: pm.transfer(F, C, fresh1, fresh2, "prod", rtol=1e-3, pairs="ordered"))
+    G_b = step("transfer_approach_b", lambda: pm.transfer(F, C, fresh1, fresh2, "svd", rtol=1e-3, pairs="ordered"))
     err_b = pm.relative_error(G_b[:, :3], m2.vertices, c2.mass)
     del G_b
     out = {"n": n, "k": args.k, "k_M": k1 - 1, "k_N": k2 - 1, "functions": args.functions, "jobs": args.jobs,
