@@ -22,7 +22,7 @@ import scipy.sparse as sp
 
 from .cache import Cache
 from .eigensolver import smallest_eigenpairs
-from .mesh import Mesh, MeshError
+from .mesh import Mesh, MeshError, face_components
 from .operators import laplacian
 
 __all__ = ["Basis", "eigenbasis", "eigenbases", "fourier_basis", "fix_signs", "from_arrays"]
@@ -244,9 +244,7 @@ def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped") ->
             f"k={k} is out of range for a mesh with {n} vertices: need 1 <= k < {n} "
             "(k counts the constant; the paper's k_M = 9 is k = 10)"
         )
-    from .mesh import _components
-
-    ncomp, labels = _components(n, mesh.faces)
+    ncomp, labels = face_components(n, mesh.faces)
     if ncomp > 1:  # a mesh loaded with validate=False: the constant is not the only zero mode
         sizes = np.bincount(labels)
         raise MeshError(

@@ -40,6 +40,7 @@ __all__ = [
     "edges",
     "boundary_edges",
     "graph_components",
+    "face_components",
     "mean_edge_length",
     "largest_component",
     "remove_unreferenced_vertices",
@@ -238,8 +239,14 @@ def graph_components(n: int, a: np.ndarray, b: np.ndarray) -> tuple[int, np.ndar
     return connected_components(adj, directed=False)
 
 
-def _components(n: int, faces: np.ndarray) -> tuple[int, np.ndarray]:
-    """:func:`graph_components` of the vertices joined by the face edges."""
+def face_components(n: int, faces: np.ndarray) -> tuple[int, np.ndarray]:
+    """:func:`graph_components` of ``n`` vertices joined by the face edges: ``(count, labels (n,))``.
+
+    Examples
+    --------
+    >>> face_components(5, np.array([[0, 1, 2]]))  # one triangle and two lone vertices
+    (3, array([0, 0, 0, 1, 2], dtype=int32))
+    """
     return graph_components(n, np.concatenate([faces[:, 0], faces[:, 1], faces[:, 2]]),
                             np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]]))
 
@@ -328,7 +335,7 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -
             f"non-manifold edges: {bad.shape[0]} edges are shared by more than two faces "
             f"(first {bad[:3].tolist()}); the Laplacian is undefined there"
         )
-    ncomp, labels = _components(n, f)
+    ncomp, labels = face_components(n, f)
     if ncomp > 1:
         sizes = np.bincount(labels)
         raise MeshError(
@@ -464,7 +471,7 @@ def largest_component(vertices, faces):
     """Keep the connected component with the largest surface area; drops the other vertices."""
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
-    _, labels = _components(v.shape[0], f)
+    _, labels = face_components(v.shape[0], f)
     face_label = labels[f[:, 0]]
     comp_area = np.bincount(face_label, weights=face_areas(v, f))
     keep = face_label == int(np.argmax(comp_area))
