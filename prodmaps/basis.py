@@ -191,7 +191,7 @@ def fix_signs(vecs: np.ndarray, rtol: float = SIGN_TIE_RTOL) -> np.ndarray:
     return vecs * s
 
 
-def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped") -> Basis:
+def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped", *, solver: str = "auto") -> Basis:
     """First ``k`` Laplace–Beltrami eigenpairs of ``mesh`` (constant included).
 
     Solves ``W φ = λ A φ`` (see :func:`prodmaps.laplacian`) with the package's one eigensolver
@@ -205,6 +205,11 @@ def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped") ->
     k : int
         Number of columns including the constant; the paper's ``k_M = 9`` is ``k = 10``.
     kind, mass : passed to :func:`prodmaps.laplacian`.
+    solver : ``"auto"`` (default), ``"superlu"`` or ``"cholesky"``: the sparse factorisation of
+        the eigensolver (:func:`prodmaps.eigensolver.smallest_eigenpairs`). ``"auto"`` uses the
+        optional sparse Cholesky (``cholespy``) from ``CHOLESKY_MIN_N`` = 50,000 vertices and
+        SuperLU below, so smaller meshes give exactly the bases of earlier releases; the two
+        agree to the Lanczos tolerance (eigenvalues 1e-10 relative, subspaces 1e-8).
 
     Returns
     -------
@@ -254,7 +259,7 @@ def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped") ->
             "pm.mesh.largest_component(mesh.vertices, mesh.faces), or load with pm.io.load_mesh_repaired(path)"
         )
     W, A = laplacian(mesh, kind=kind, mass=mass)
-    evals, vecs = smallest_eigenpairs(W, A, k)  # ascending, A-normalised
+    evals, vecs = smallest_eigenpairs(W, A, k, solver=solver)  # ascending, A-normalised
     # fix the constant exactly (round-off only) and the signs
     area = float(A.sum())
     evals = np.maximum(evals, 0.0)
@@ -264,15 +269,17 @@ def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped") ->
     return Basis(vecs, evals, A, name=mesh.name)
 
 
-def _eigenbasis_arrays(vertices, faces, name, k, kind, mass):
+def _eigenbasis_arrays(vertices, faces, name, k, kind, mass, solver="auto"):
     """Worker of :func:`eigenbases`: plain arrays in and out (cheap to send between processes)."""
-    b = eigenbasis(Mesh(vertices, faces, name=name, validate=False), k, kind=kind, mass=mass)  # validated by the caller
+    b = eigenbasis(Mesh(vertices, faces, name=name, validate=False), k, kind=kind, mass=mass,
+                   solver=solver)  # validated by the caller
     return b.vecs, b.evals, b.mass
 
 
-def eigenbases(meshes, k: int, kind: str = "cotan", mass: str = "lumped", *, jobs: int | None = None) -> list:
+def eigenbases(meshes, k: int, kind: str = "cotan", mass: str = "lumped", *, jobs: int | None = None,
+               solver: str = "auto") -> list:
     """:func:`eigenbasis` of several meshes, in ``jobs`` worker processes (default: one per mesh,
-    at most the number of CPUs; ``jobs=1`` runs in this process).
+    at most the number of CPUs; ``jobs=1`` runs in this process); ``solver`` as in :func:`eigenbasis`.
 
     The sparse LU factorisation and the triangular solves of shift-invert Lanczos run on one core,
     so the eigenbases of a pair of large meshes take about the time of one on a 2-core machine
@@ -300,12 +307,12 @@ def eigenbases(meshes, k: int, kind: str = "cotan", mass: str = "lumped", *, job
     if not isinstance(jobs, (int, np.integer)) or jobs < 1:
         raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
     if jobs == 1 or len(meshes) <= 1:
-        return [eigenbasis(m, k, kind=kind, mass=mass) for m in meshes]
+        return [eigenbasis(m, k, kind=kind, mass=mass, solver=solver) for m in meshes]
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor
 
     with ProcessPoolExecutor(max_workers=int(jobs), mp_context=mp.get_context("spawn")) as ex:
-        futs = [ex.submit(_eigenbasis_arrays, m.vertices, m.faces, m.name, k, kind, mass) for m in meshes]
+        futs = [ex.submit(_eigenbasis_arrays, m.vertices, m.faces, m.name, k, kind, mass, solver) for m in meshes]
         out = [f.result() for f in futs]
     return [Basis(v, e, a, name=m.name) for m, (v, e, a) in zip(meshes, out)]
 

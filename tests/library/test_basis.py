@@ -196,3 +196,68 @@ def test_eigenbases_in_worker_processes_equal_eigenbasis_bit_for_bit():
         eigenbases([meshes[0].vertices], 12)
     with pytest.raises(ValueError, match="out of range"):
         eigenbases(meshes, 10_000, jobs=2)  # the worker's error reaches the caller
+
+
+def test_cholesky_route_gives_the_superlu_eigenpairs(human_0):
+    """The optional sparse Cholesky route (safe shift) and today's SuperLU route (checked shift inside the
+    spectrum): eigenvalues to 1e-10 relative, the k-dimensional eigenspaces to 1e-8 (principal angles), and
+    with the basis' signs fixed the same vectors to 1e-8; small meshes keep SuperLU under solver="auto"."""
+    pytest.importorskip("cholespy")  # an optional extra; `make venv` installs it ([fast] in the lock file)
+    from prodmaps import eigensolver
+
+    W, A = pm.laplacian(human_0)
+    k = 30
+    ev_lu, V_lu = eigensolver.smallest_eigenpairs(W, A, k, solver="superlu")
+    ev_ch, V_ch = eigensolver.smallest_eigenpairs(W, A, k, solver="cholesky")
+    np.testing.assert_allclose(ev_ch[1:], ev_lu[1:], rtol=1e-10)
+    cos = np.linalg.svd(V_lu.T @ (A[:, None] * V_ch), compute_uv=False)  # cosines of the principal angles
+    assert cos.min() > 1 - 1e-8 and cos.max() < 1 + 1e-8
+    b_lu = pm.eigenbasis(human_0, k, solver="superlu")
+    b_ch = pm.eigenbasis(human_0, k, solver="cholesky")
+    np.testing.assert_allclose(b_ch.vecs, b_lu.vecs, atol=1e-8 * np.abs(b_lu.vecs).max())
+    # auto below CHOLESKY_MIN_N: SuperLU, bit for bit
+    assert human_0.n_vertices < eigensolver.CHOLESKY_MIN_N
+    b_auto = pm.eigenbasis(human_0, k)
+    np.testing.assert_array_equal(b_auto.vecs, b_lu.vecs)
+    np.testing.assert_array_equal(b_auto.evals, b_lu.evals)
+
+
+def test_cholesky_route_chosen_by_size_and_its_fallbacks(human_0, monkeypatch):
+    """solver="auto" takes the Cholesky route from CHOLESKY_MIN_N unknowns when cholespy imports, SuperLU
+    otherwise; an explicit "cholesky" without cholespy, or with an indefinite shift, is a clear error."""
+    import sys
+
+    from prodmaps import eigensolver
+
+    W, A = pm.laplacian(human_0)
+    calls = []
+    real = eigensolver._cholesky_inverse
+
+    def spy(K):
+        calls.append(K.shape[0])
+        return real(K)
+
+    monkeypatch.setattr(eigensolver, "_cholesky_inverse", spy)
+    ev_lu, _ = eigensolver.smallest_eigenpairs(W, A, 8, solver="superlu")
+    monkeypatch.setattr(eigensolver, "CHOLESKY_MIN_N", human_0.n_vertices)  # this mesh counts as large
+    if eigensolver.have_cholesky():
+        ev, _ = eigensolver.smallest_eigenpairs(W, A, 8)
+        assert calls == [human_0.n_vertices]
+        np.testing.assert_allclose(ev[1:], ev_lu[1:], rtol=1e-10)
+        mid = 0.5 * float(ev_lu[4])  # a shift inside the spectrum: W - sigma A indefinite
+        with pytest.raises(ValueError, match="positive definite.*superlu"):
+            eigensolver.smallest_eigenpairs(W, A, 8, sigma=mid, solver="cholesky")
+        calls.clear()
+        ev_mid, _ = eigensolver.smallest_eigenpairs(W, A, 8, sigma=mid)  # auto: tries, falls back to SuperLU
+        assert calls == [human_0.n_vertices]
+        np.testing.assert_array_equal(ev_mid, eigensolver.smallest_eigenpairs(W, A, 8, sigma=mid, solver="superlu")[0])
+    calls.clear()
+    monkeypatch.setitem(sys.modules, "cholespy", None)  # not installed
+    assert not eigensolver.have_cholesky()
+    ev, _ = eigensolver.smallest_eigenpairs(W, A, 8)  # auto: SuperLU
+    assert calls == []
+    np.testing.assert_array_equal(ev, ev_lu)
+    with pytest.raises(ImportError, match="pip install cholespy"):
+        eigensolver.smallest_eigenpairs(W, A, 8, solver="cholesky")
+    with pytest.raises(ValueError, match="solver must be one of"):
+        eigensolver.smallest_eigenpairs(W, A, 8, solver="lu")
