@@ -76,6 +76,22 @@ Closed form (``method="extended_closed_form"``, the conversion of releases befor
 Nearest neighbours are exact with ties to the smallest index (:func:`nearest_neighbors`): a
 kd-tree in low dimensions, blocked float32 matrix products with an exact float64 recheck of every
 near tie in high ones (the extended embedding has up to ~2.5k dimensions).
+
+Search at scale (``search=`` of :func:`from_fmap` and :func:`nearest_neighbors`)
+    ``"exact"`` is the search above. ``"approximate"`` is an inverted-file index (faiss
+    ``IndexIVFFlat``, the optional dependency ``faiss-cpu``, ``pip install 'prodmaps[fast]'``):
+    the points are clustered by k-means into about ``n_p / IVF_LIST_SIZE`` lists (trained on
+    ``IVF_TRAIN_PER_LIST`` seeded points per list), each query scans the ``IVF_NPROBE`` lists
+    of the nearest centroids in float32 for its ``IVF_CANDIDATES`` nearest, and these are
+    re-ranked by their exact float64 distances (ties to the smallest index), so a query whose
+    exact neighbour was scanned gets the exact answer. ``"auto"`` (the default of
+    :func:`from_fmap`) is approximate when the search compares more than
+    ``APPROX_MIN_PAIRS`` = 1e11 query-point pairs and faiss is installed, exact otherwise:
+    every mesh of the paper (and any pair up to ~300k vertices each) keeps the exact path and
+    its numbers. Measured on the 1.28M-vertex pair of ``benchmarks/scale_1m.py`` (standard
+    conversion, 39 + 1 dimensions, ground-truth map): recall against the exact answer 0.99x on
+    2000 seeded vertices, see the README's performance section for the figures of the last run
+    (the exact search of all vertices would take hours there).
 """
 
 from __future__ import annotations
@@ -92,7 +108,7 @@ from .mesh import check_vertex_indices
 from .products import multi_indices, n_columns, product_basis
 
 __all__ = ["nearest_neighbors", "effective_dimension", "from_fmap", "heat_square_coefficients", "extended_embeddings",
-           "point_functions", "METHODS", "POINTS", "DEFAULT_KERNEL_EIG"]
+           "point_functions", "METHODS", "POINTS", "DEFAULT_KERNEL_EIG", "SEARCHES", "have_faiss"]
 
 METHODS = ("std", "extended", "extended_closed_form")
 POINTS = ("heat", "delta", "closed_form")  # a point's function in the extended conversion
@@ -111,6 +127,24 @@ NN_METHODS = ("auto", "kdtree", "gemm")
 PROBE_MIN_DIM = 8  # auto: a kd-tree pick above this dimension is checked against the products ...
 PROBE_QUERIES = 256  # ... on this many queries each, when there are at least 4x as many (_nn_probe)
 _clock = time.perf_counter  # the probe's clock (a test replaces it)
+SEARCHES = ("auto", "exact", "approximate")
+APPROX_MIN_PAIRS = 1e11  # search="auto": approximate above this many query-point pairs (faiss installed)
+IVF_LIST_SIZE = 512  # approximate: about n_p / IVF_LIST_SIZE inverted lists ...
+IVF_TRAIN_PER_LIST = 40  # ... trained by IVF_KMEANS_ITER k-means iterations on this many seeded points per list
+IVF_KMEANS_ITER = 10
+IVF_NPROBE = 4  # lists scanned per query
+IVF_CANDIDATES = 16  # nearest per query (float32) from the scanned lists, re-ranked by exact float64 distances
+IVF_SEED = 0
+_FAISS_HINT = "pip install faiss-cpu (or the extra: pip install 'prodmaps[fast]')"
+
+
+def have_faiss() -> bool:
+    """Whether the optional approximate search (``faiss``) can be imported."""
+    try:
+        import faiss  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def effective_dimension(P: np.ndarray) -> float:
@@ -227,9 +261,57 @@ def _nn_probe(Q, P, block):
     return idx
 
 
+def _rerank(Q, P, cand):
+    """Among the candidates ``cand`` ``(n_q, c)`` (``-1``: none) of each query, the exact nearest by
+    float64 distances ``Σ (q − p)²``, ties to the smallest index; ``-1`` for a row without any."""
+    n_q, c = cand.shape
+    idx = np.empty(n_q, dtype=np.int64)
+    step = max(1, 4_000_000 // max(1, c * Q.shape[1]))
+    big = np.iinfo(np.int64).max
+    for s in range(0, n_q, step):  # blocks of queries, vectorised inside
+        cb = cand[s : s + step].astype(np.int64)
+        diff = Q[s : s + step, None, :] - P[np.maximum(cb, 0)]  # (b, c, d)
+        d2 = np.einsum("ijk,ijk->ij", diff, diff)
+        d2[cb < 0] = np.inf
+        best = d2.min(axis=1)
+        pick = np.where((d2 == best[:, None]) & (cb >= 0), cb, big).min(axis=1)
+        idx[s : s + step] = np.where(np.isfinite(best), pick, -1)
+    return idx
+
+
+def _nn_approximate(Q, P, block, *, nprobe: int = IVF_NPROBE, candidates: int = IVF_CANDIDATES,
+                    list_size: int = IVF_LIST_SIZE, seed: int = IVF_SEED):
+    """Approximate nearest neighbours by a faiss inverted-file index, candidates re-ranked exactly
+    (module doc, "Search at scale"). Deterministic for given inputs (seeded training sample, faiss'
+    seeded k-means). Rows whose scanned lists hold no point are searched exactly."""
+    try:
+        import faiss
+    except ImportError as e:
+        raise ImportError(f"search='approximate' needs the optional dependency faiss: {_FAISS_HINT}") from e
+    n_p, d = P.shape
+    nlist = max(1, int(round(n_p / list_size)))
+    P32 = np.ascontiguousarray(P, dtype=np.float32)
+    index = faiss.IndexIVFFlat(faiss.IndexFlatL2(d), d, nlist)
+    index.cp.seed = int(seed)
+    index.cp.niter = IVF_KMEANS_ITER
+    index.cp.min_points_per_centroid = 1  # small inputs: no warning (the training sample is all points)
+    n_train = min(n_p, IVF_TRAIN_PER_LIST * nlist)
+    sample = np.sort(np.random.default_rng(seed).choice(n_p, n_train, replace=False))
+    index.train(P32[sample])
+    index.add(P32)
+    index.nprobe = int(min(nprobe, nlist))
+    _, cand = index.search(np.ascontiguousarray(Q, dtype=np.float32), int(min(candidates, n_p)))  # (n_q, c)
+    idx = _rerank(Q, P, cand)
+    none = np.flatnonzero(idx < 0)
+    if none.size:
+        idx[none] = _nn_gemm(Q[none], P, block)
+    return idx
+
+
 def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None = None,
-                      return_distance: bool = False, method: str = "auto"):
-    """Exact Euclidean nearest neighbour in ``points`` ``(n_p, d)`` of every row of ``queries`` ``(n_q, d)``.
+                      return_distance: bool = False, method: str = "auto", search: str = "exact"):
+    """Exact Euclidean nearest neighbour in ``points`` ``(n_p, d)`` of every row of ``queries`` ``(n_q, d)``
+    (or, with ``search="approximate"``, an approximate one).
 
     The answer is the index minimising the squared distance ``Σ_i (q_i − p_i)²`` computed in
     float64; **ties go to the smallest index**. It does not depend on ``method`` or ``block``:
@@ -251,6 +333,11 @@ def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None
       ``PROBE_QUERIES`` queries, timed, and the faster one answers the rest (a kd-tree's cost
       depends on how far the queries lie from the points).
 
+    ``search``: ``"exact"`` (default, all of the above), ``"approximate"`` (faiss inverted-file
+    index with an exact re-ranking of its candidates, module doc "Search at scale"; ``method`` is
+    then ignored; ``ImportError`` without faiss) or ``"auto"`` (approximate above
+    ``APPROX_MIN_PAIRS`` query-point pairs when faiss is installed, exact otherwise).
+
     Returns ``idx (n_q,)`` int64 (and the Euclidean distances ``(n_q,)`` if ``return_distance``).
     """
     Q = np.ascontiguousarray(queries, dtype=np.float64)
@@ -263,6 +350,11 @@ def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None
         raise ValueError("points is empty: nothing to match to")
     if method not in NN_METHODS:
         raise ValueError(f"method must be one of {NN_METHODS}, got {method!r}")
+    if search not in SEARCHES:
+        raise ValueError(f"search must be one of {SEARCHES}, got {search!r}")
+    if search == "auto":
+        big = float(Q.shape[0]) * float(P.shape[0]) > APPROX_MIN_PAIRS
+        search = "approximate" if big and have_faiss() else "exact"
     if block is None:  # ~4e6 distances a block; at least 64 rows while a block holds <= 2.5e8 (1 GB)
         block = max(1, int(4_000_000 // P.shape[0]), min(64, int(250_000_000 // P.shape[0])))
     block = int(block)
@@ -276,6 +368,8 @@ def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None
             method = "probe"
     if Q.shape[0] == 0:
         idx = np.zeros(0, dtype=np.int64)
+    elif search == "approximate":
+        idx = _nn_approximate(Q, P, block)
     elif method == "probe":
         idx = _nn_probe(Q, P, block)
     else:
@@ -530,7 +624,7 @@ def extended_embeddings(
 
 def from_fmap(
     C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, block: int | None = None, vertices=None,
-    **params
+    search: str = "auto", **params
 ) -> np.ndarray:
     """Point map ``p2p_21`` ``(n2,)`` (for each vertex of shape 2 a vertex of shape 1) from ``C_12`` ``(k2, k1)``.
 
@@ -550,6 +644,13 @@ def from_fmap(
     vertices : optional ``(m,)`` int array of shape-2 vertices to map (default: all). The answer
         is then ``(m,)``, equal to ``from_fmap(...)[vertices]`` (the search is exact per query), at
         ``m/n2`` of the search's cost: for evaluating a map on sampled vertices.
+    search : ``"auto"`` (default), ``"exact"`` or ``"approximate"`` (the nearest-neighbour search,
+        module doc "Search at scale"). ``"auto"`` is exact up to ``APPROX_MIN_PAIRS`` = 1e11
+        query-point pairs (``m`` or ``n2`` times ``n1``: every mesh of the paper, any pair up to
+        ~300k vertices each) and approximate above when faiss is installed (a faiss
+        inverted-file index, candidates re-ranked by exact distances; recall against the exact
+        answer measured in ``benchmarks/scale_1m.py``). ``"approximate"`` without faiss raises
+        ``ImportError``; ``"exact"`` is always exact (hours at a million vertices).
     **params : for the extended methods: ``t`` (heat time in shape 1's units; default
         ``t_scale / λ_{k1−1}``, closed form ``t_scale / λ_{n_eig−1}``), ``t_scale`` (1.0),
         ``n_eig`` (eigenpairs in the kernel, constant included; default ``min(200, basis_1.k,
@@ -572,6 +673,8 @@ def from_fmap(
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if search not in SEARCHES:
+        raise ValueError(f"search must be one of {SEARCHES}, got {search!r}")
     C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)
     k2, k1 = C.shape
     if vertices is not None:
@@ -594,4 +697,4 @@ def from_fmap(
         if method == "extended_closed_form":
             params["point"] = "closed_form"
         emb_1, emb_2, _ = extended_embeddings(C, basis_1, basis_2, vertices=vertices, **params)  # (n1, r), (m, r)
-    return nearest_neighbors(emb_2, emb_1, block=block)
+    return nearest_neighbors(emb_2, emb_1, block=block, search=search)
