@@ -23,6 +23,12 @@ def test_quick_benchmarks_run_and_their_answers_agree(tmp_path):
     doc = json.loads((tmp_path / "bench.json").read_text())
     assert doc["quick"] is True
     rows = {row["name"]: row for row in doc["benchmarks"]}
-    assert {"approach_b", "transfer", "default"} <= set(rows)
+    assert {"approach_b", "transfer", "default", "scale_1m"} <= set(rows)
     assert "unit-Euclidean" in rows["approach_b"]["baseline"] and "coefficients equal to" in rows["approach_b"]["check"]
+    assert rows["approach_b"]["floor_s"] > 0 and "floor" in rows["approach_b"]["check"]
+    # the million-vertex script's code paths at 5k vertices: the Cholesky eigensolver, the approximate
+    # search of the full point map, its recall and geodesic error against the exact conversion
+    scale = rows["scale_1m"]
+    assert "cholesky" in scale["what"] and "approximate search" in scale["what"]
+    assert "recall" in scale["check"] and "mean geodesic error" in scale["check"]
     assert (tmp_path / "bench.md").is_file()
