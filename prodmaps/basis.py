@@ -207,7 +207,7 @@ def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped", *,
     kind, mass : passed to :func:`prodmaps.laplacian`.
     solver : ``"auto"`` (default), ``"superlu"`` or ``"cholesky"``: the sparse factorisation of
         the eigensolver (:func:`prodmaps.eigensolver.smallest_eigenpairs`). ``"auto"`` uses the
-        optional sparse Cholesky (``cholespy``) from ``CHOLESKY_MIN_N`` = 50,000 vertices and
+        optional sparse Cholesky (``cholespy``) from ``CHOLESKY_MIN_N`` = 100,000 vertices and
         SuperLU below, so smaller meshes give exactly the bases of earlier releases; the two
         agree to the Lanczos tolerance (eigenvalues 1e-10 relative, subspaces 1e-8).
 
