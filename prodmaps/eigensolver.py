@@ -29,11 +29,10 @@ the constants that decide how eigenpairs are computed exist once:
   ``CHOLESKY_MIN_N`` unknowns when ``cholespy`` is installed, SuperLU otherwise, so every
   problem below that size (all the paper's meshes) is solved exactly as before. The two routes
   give the same eigenpairs up to the Lanczos tolerance (tested: eigenvalues to 1e-10 relative,
-  subspaces to 1e-8). Measured (``k = 40``, the embedded human subdivided, one core per solve,
-  on a 2-core machine under a load of 6-9, so absolute times are several times a quiet run's):
-  5002 vertices 0.78 s SuperLU / 0.54 s Cholesky; 80k 22-31 s / 29 s (parity: the safe shift
-  needs ~20 % more solves, 124 against 103, each 2-3x cheaper); 1.28M 607 s / 347 s (1.75x:
-  the nested-dissection Cholesky factor has far less fill than SuperLU's). Hence the threshold.
+  subspaces to 1e-8). The threshold is where the two routes measured level (the safe shift
+  needs more Lanczos solves, each cheaper; the nested-dissection Cholesky factor has far less fill
+  than SuperLU's at a million vertices): the timings are in the README's performance section
+  (``benchmarks/scale_1m.py``).
 """
 
 from __future__ import annotations

@@ -88,12 +88,9 @@ Search at scale (``search=`` of :func:`from_fmap` and :func:`nearest_neighbors`)
     :func:`from_fmap`) is approximate when the search compares more than
     ``APPROX_MIN_PAIRS`` = 1e11 query-point pairs and faiss is installed, exact otherwise:
     every mesh of the paper (and any pair up to ~300k vertices each) keeps the exact path and
-    its numbers. Measured on the 1.28M-vertex pair of ``benchmarks/scale_1m.py`` (standard
-    conversion, 39 + 1 dimensions, ground-truth map): recall against the exact answer 0.9995 on
-    2000 seeded vertices and the same mean geodesic error (0.02175 of sqrt(area), edge-graph
-    metric); faiss's exact flat search and its HNSW index were slower or worse (flat: 0.9785
-    recall from float32 near-ties and ~7 h; HNSW: 156 s to build, recall 0.92-0.95), and the
-    exact search here would take hours.
+    its numbers. The recall and geodesic-error cost against the exact answer, and why this index
+    (against faiss's flat and HNSW indexes), are measured by ``benchmarks/scale_1m.py`` (README,
+    performance section).
 """
 
 from __future__ import annotations
@@ -263,21 +260,17 @@ def _nn_probe(Q, P, block):
     return idx
 
 
-def _rerank(Q, P, cand):
-    """Among the candidates ``cand`` ``(n_q, c)`` (``-1``: none) of each query, the exact nearest by
-    float64 distances ``Σ (q − p)²``, ties to the smallest index; ``-1`` for a row without any."""
-    n_q, c = cand.shape
-    idx = np.empty(n_q, dtype=np.int64)
-    step = max(1, 4_000_000 // max(1, c * Q.shape[1]))
-    big = np.iinfo(np.int64).max
-    for s in range(0, n_q, step):  # blocks of queries, vectorised inside
-        cb = cand[s : s + step].astype(np.int64)
-        diff = Q[s : s + step, None, :] - P[np.maximum(cb, 0)]  # (b, c, d)
-        d2 = np.einsum("ijk,ijk->ij", diff, diff)
-        d2[cb < 0] = np.inf
-        best = d2.min(axis=1)
-        pick = np.where((d2 == best[:, None]) & (cb >= 0), cb, big).min(axis=1)
-        idx[s : s + step] = np.where(np.isfinite(best), pick, -1)
+def _rerank(Q, P, cand, block_rows: int = 1 << 18):
+    """Among the candidates ``cand`` ``(n_q, c)`` (``-1``: none) of each query, the exact nearest
+    (:func:`_exact_pick`: float64 distances, ties to the smallest index), by blocks of queries;
+    ``-1`` for a row without any."""
+    idx = np.full(cand.shape[0], -1, dtype=np.int64)
+    for s in range(0, cand.shape[0], block_rows):
+        cb = cand[s : s + block_rows].astype(np.int64)
+        has = cb >= 0
+        sub = np.flatnonzero(has.any(axis=1))  # rows with a candidate
+        rows, cols = np.nonzero(has[sub])
+        idx[s + sub] = _exact_pick(Q[s + sub], P, rows, cb[sub][rows, cols], sub.size)
     return idx
 
 

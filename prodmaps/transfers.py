@@ -391,7 +391,7 @@ class DefaultTransfer(TransferOperator):
                              f"constant counts); got k = {basis_1.k}: there are no products to add, use method='std'")
         if not (basis_1.mass_is_diagonal and basis_2.mass_is_diagonal):
             raise ValueError("the default extended transfer needs lumped (diagonal) masses; build the bases with "
-                             "mass='lumped' or pass rtol=... for the paper's Approach B")
+                             "mass='lumped', or use method='svd' (the paper's Approach B)")
         for name, v in (("g0", g0), ("p", p), ("floor", floor), ("h_min", h_min)):
             if not (np.isfinite(v) and v > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {v!r}")

@@ -451,7 +451,7 @@ def _study_sections(d: "_Doc", infos, base: Path, copy_figures: bool, dataset: s
         if not (info.report and info.doc):
             continue
         res = info.doc.get("results", {})
-        ds = dataset or res.get("dataset", "anny_humans")
+        ds = dataset or _run_dataset(info)
         blocks = importlib.import_module(info.report).report_blocks(res, DATASET_NAMES.get(ds, ds),
                                                                     main=dataset is None)
         if not blocks:
