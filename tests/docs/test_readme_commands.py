@@ -5,7 +5,7 @@ in :data:`STAND_INS`; a new command without one fails :func:`test_every_fenced_c
 Commands run as written where that is cheap; otherwise a stated cheaper stand-in runs the same
 code path:
 
-* ``make X`` runs ``make -n X`` (the recipe as make would run it) and then the recipe's own
+* ``make X`` runs ``make -n -B X`` (the recipe as make would run it) and then the recipe's own
   ``prodmaps`` command at smoke scale into a temporary folder (``make test`` is this suite; the
   docs build is ``tests/docs/test_docs.py``; ``make bench`` is ``tests/benchmarks``);
 * ``prodmaps reproduce`` runs with ``--profile smoke`` (the paper profile takes minutes) and
@@ -170,7 +170,9 @@ class Reader:
         return mapped
 
     def make_recipe(self, target: str) -> str:
-        p = self.run(["make", "-n", target, f"PYTHON={sys.executable}", f"VENV={Path(sys.executable).parents[1]}"])
+        # -B: the whole recipe, also when its targets are up to date (a fresh venv has nothing to do)
+        venv = Path(sys.executable).parents[1]
+        p = self.run(["make", "-n", "-B", target, f"PYTHON={sys.executable}", f"VENV={venv}"])
         return p.stdout
 
 
