@@ -52,7 +52,7 @@ own columns, ``a = D a'``; only the truncation and the penalties see ``D``):
     every column of ``sqrt(A) B`` scaled to unit norm. Free of the mesh's units.
 ``"area"``
     A-orthonormal factors in the mesh's own units (``D = I``): depends on the units of the
-    mesh (it was this package's only reading before 0.3). Kept to measure that dependence.
+    mesh. Kept to measure that dependence.
 ``"area@<s>"`` (e.g. ``"area@100"``)
     ``"area"`` as if the mesh were scaled by ``s`` first (metres to centimetres: 100): a
     degree-``d`` column is weighted by ``s^-d``. For studies of the unit dependence.

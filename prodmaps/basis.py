@@ -104,10 +104,12 @@ class Basis:
 
     @property
     def mass_is_diagonal(self) -> bool:
+        """True for a lumped mass held as its diagonal ``(n,)``, False for a sparse matrix."""
         return not sp.issparse(self.mass)
 
     @property
     def area(self) -> float:
+        """Total area, the sum of the mass ``A``."""
         return float(self.mass.sum())
 
     @property
@@ -130,9 +132,11 @@ class Basis:
         return self.vecs @ coefs
 
     def scaled(self, s: float) -> "Basis":
-        """The same basis on the mesh scaled by ``s``: eigenfunctions ``/ s``, eigenvalues ``/ s²``,
-        mass ``· s²`` (still A-orthonormal). ``b.scaled(1 / sqrt(b.area))`` is the unit-area basis that
-        NO17 fits on. Shares nothing with this basis' cache (the products of a rescaled basis differ)."""
+        """The same basis on the mesh scaled by ``s``: eigenfunctions ``/ s``, eigenvalues ``/ s²``, mass ``· s²``.
+
+        Still A-orthonormal. ``b.scaled(1 / sqrt(b.area))`` is the unit-area basis that NO17 fits on. Shares
+        nothing with this basis' cache (the products of a rescaled basis differ).
+        """
         s = float(s)
         if not (np.isfinite(s) and s > 0):
             raise ValueError(f"scale must be a positive number, got {s}")
@@ -208,8 +212,8 @@ def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped", *,
     solver : ``"auto"`` (default), ``"superlu"`` or ``"cholesky"``: the sparse factorisation of
         the eigensolver (:func:`prodmaps.eigensolver.smallest_eigenpairs`). ``"auto"`` uses the
         optional sparse Cholesky (``cholespy``) from ``CHOLESKY_MIN_N`` = 100,000 vertices and
-        SuperLU below, so smaller meshes give exactly the bases of earlier releases; the two
-        agree to the Lanczos tolerance (eigenvalues 1e-10 relative, subspaces 1e-8).
+        SuperLU below; the two agree to the Lanczos tolerance (eigenvalues 1e-10 relative,
+        subspaces 1e-8).
 
     Returns
     -------
@@ -278,14 +282,14 @@ def _eigenbasis_arrays(vertices, faces, name, k, kind, mass, solver="auto"):
 
 def eigenbases(meshes, k: int, kind: str = "cotan", mass: str = "lumped", *, jobs: int | None = None,
                solver: str = "auto") -> list:
-    """:func:`eigenbasis` of several meshes, in ``jobs`` worker processes (default: one per mesh,
-    at most the number of CPUs; ``jobs=1`` runs in this process); ``solver`` as in :func:`eigenbasis`.
+    """:func:`eigenbasis` of several meshes, in ``jobs`` worker processes (``solver`` as in :func:`eigenbasis`).
+
+    ``jobs`` defaults to one per mesh, at most the number of CPUs; ``jobs=1`` runs in this process.
 
     The sparse LU factorisation and the triangular solves of shift-invert Lanczos run on one core,
     so the eigenbases of a pair of large meshes take about the time of one on a 2-core machine
-    (a 1.28M-vertex pair, ``k = 40``: 232 s one after the other, see the README's performance
-    section). Each basis is what :func:`eigenbasis` returns for that mesh (same solver, same
-    arrays; the test compares them bit for bit).
+    (``docs/benchmarks.md``). Each basis is what :func:`eigenbasis` returns for that mesh (same
+    solver, same arrays; the test compares them bit for bit).
 
     Examples
     --------

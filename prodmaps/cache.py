@@ -69,6 +69,7 @@ class Cache:
         return value
 
     def put(self, key: Hashable, value) -> None:
+        """Store ``value`` under ``key``, evicting least recently used entries (too large a value is not kept)."""
         size = nbytes(value)
         if self.max_bytes is not None and size > self.max_bytes:
             return
@@ -87,6 +88,7 @@ class Cache:
         return len(self._data)
 
     def keys(self) -> list:
+        """The keys held, least recently used first."""
         return list(self._data)
 
     @property
@@ -95,6 +97,7 @@ class Cache:
         return sum(self._sizes.values())
 
     def clear(self) -> None:
+        """Drop every entry."""
         self._data.clear()
         self._sizes.clear()
 

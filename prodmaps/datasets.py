@@ -131,8 +131,9 @@ EMBEDDED = ("anny_humans",)
 
 
 def prepared() -> list[str]:
-    """Names of the datasets that can be loaded here: the embedded ones and those prepared
-    under the data root (a folder with shapes in ``shapes/*.ply``).
+    """Names of the datasets that can be loaded here: the embedded ones and those prepared under the data root.
+
+    A prepared dataset is a folder with shapes in ``shapes/*.ply``.
 
     Examples
     --------
@@ -148,8 +149,10 @@ def embedded_root() -> Path:
 
 
 def data_root() -> Path:
-    """Where prepared datasets live: ``$PRODMAPS_DATA`` if set, else ``$XDG_DATA_HOME/prodmaps``
-    (``~/.local/share/prodmaps``). The preparation scripts write there by default."""
+    """Where prepared datasets live: ``$PRODMAPS_DATA`` if set, else ``$XDG_DATA_HOME/prodmaps``.
+
+    That is ``~/.local/share/prodmaps`` by default. The preparation scripts write there by default.
+    """
     env = os.environ.get("PRODMAPS_DATA")
     if env:
         return Path(env).expanduser().resolve()
@@ -360,8 +363,9 @@ def _family_to_variant(root_str: str, name: str, vid: str) -> np.ndarray:
 
 
 def ground_truth(name: str, id_1: str, id_2: str) -> np.ndarray:
-    """Ground-truth point map ``p2p_21`` of shape ``(n2,)``: for each vertex of ``id_2`` its
-    corresponding vertex on ``id_1`` (see the module docstring for the rules with variants).
+    """Ground-truth point map ``p2p_21`` ``(n2,)``: for each vertex of ``id_2`` its vertex on ``id_1``.
+
+    The module docstring gives the rules with variants.
 
     Raises ``ValueError`` for shapes without a common triangulation (e.g. two TOSCA classes).
     """

@@ -14,25 +14,22 @@ the constants that decide how eigenpairs are computed exist once:
 * ``MID_SHIFT``: for a sparse matrix and no shift given, the shift is first placed inside the
   wanted part of the spectrum, ``σ = MID_SHIFT · 4πk / trace(M)`` (Weyl's law for a surface puts
   ``λ_k`` near ``4πk / area``). Shift-invert Lanczos then returns the ``k`` eigenvalues nearest
-  ``σ``, which converge faster than around 0 (no implicit restart for ``k = 200`` on 5k
-  vertices against one or more). They are the ``k`` smallest exactly when the farthest of them
-  is at least ``σ`` away from it (``W`` is semi-definite, so every eigenvalue below the largest
-  returned one is then within that distance); this is checked, and otherwise the problem is
-  solved again around the safe shift below 0.
+  ``σ``, which converge faster than around 0. They are the ``k`` smallest exactly when the
+  farthest of them is at least ``σ`` away from it (``W`` is semi-definite, so every eigenvalue
+  below the largest returned one is then within that distance); this is checked, and otherwise
+  the problem is solved again around the safe shift below 0.
 * The Lanczos start vector is ``ones(n)`` (deterministic reruns) and the tolerance is machine
   precision (``tol=0``).
 * ``solver`` (sparse route only): ``"superlu"`` factorises ``W - σM`` by SciPy's SuperLU (the
-  route above, bit-identical to earlier releases); ``"cholesky"`` by a sparse Cholesky
-  (CHOLMOD through the optional dependency ``cholespy``, ``pip install 'prodmaps[fast]'``)
-  around the safe shift below 0 only (``W - σM`` must be positive definite, so the shift inside
-  the spectrum is not used); ``"auto"`` (default) takes the Cholesky route from
-  ``CHOLESKY_MIN_N`` unknowns when ``cholespy`` is installed, SuperLU otherwise, so every
-  problem below that size (all the paper's meshes) is solved exactly as before. The two routes
-  give the same eigenpairs up to the Lanczos tolerance (tested: eigenvalues to 1e-10 relative,
-  subspaces to 1e-8). The threshold is where the two routes measured level (the safe shift
-  needs more Lanczos solves, each cheaper; the nested-dissection Cholesky factor has far less fill
-  than SuperLU's at a million vertices): the timings are in the README's performance section
-  (``benchmarks/scale_1m.py``).
+  route above); ``"cholesky"`` by a sparse Cholesky (CHOLMOD through the optional dependency
+  ``cholespy``, ``pip install 'prodmaps[fast]'``) around the safe shift below 0 only (``W - σM``
+  must be positive definite, so the shift inside the spectrum is not used); ``"auto"`` (default)
+  takes the Cholesky route from ``CHOLESKY_MIN_N`` unknowns when ``cholespy`` is installed,
+  SuperLU otherwise, so every problem below that size (all the paper's meshes) takes SuperLU. The
+  two routes give the same eigenpairs up to the Lanczos tolerance (tested: eigenvalues to 1e-10
+  relative, subspaces to 1e-8). The threshold is where the two routes cost the same (the safe
+  shift needs more Lanczos solves, each cheaper; the nested-dissection Cholesky factor has far
+  less fill than SuperLU's at a million vertices; timings: ``docs/benchmarks.md``).
 """
 
 from __future__ import annotations
@@ -62,9 +59,11 @@ def have_cholesky() -> bool:
 
 
 def _cholesky_inverse(K):
-    """``LinearOperator`` applying ``K⁻¹`` for a sparse symmetric positive definite ``K`` by a sparse
-    Cholesky factorisation (CHOLMOD, fill-reducing ordering, via ``cholespy``). Raises ``ImportError``
-    without ``cholespy`` and ``ValueError`` if ``K`` is not positive definite."""
+    """``LinearOperator`` applying ``K⁻¹`` for a sparse symmetric positive definite ``K`` (sparse Cholesky).
+
+    CHOLMOD with a fill-reducing ordering, via ``cholespy``. Raises ``ImportError`` without ``cholespy``
+    and ``ValueError`` if ``K`` is not positive definite.
+    """
     from scipy.sparse.linalg import LinearOperator
 
     try:

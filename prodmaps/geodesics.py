@@ -120,6 +120,7 @@ class DistanceRows:
         self.n_solved = 0
 
     def __call__(self, sources) -> np.ndarray:
+        """Distance rows ``(s, n)`` of ``sources``, as :func:`distances`, solving only sources not kept."""
         src = _check_sources(self.mesh, sources)
         need = np.unique(src[self._slot[src] < 0])
         if need.size:
@@ -244,9 +245,8 @@ def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=N
     not exactly zero at the source; entries where the map is exactly right are set to 0.
 
     Accuracy: the heat method smooths at the scale of about one edge, so it underestimates
-    very short distances (measured on a flat grid: 0.84 x the true distance for one edge,
-    0.94 for four, 0.97 for eight edges; within ~2 % beyond). Use ``method="exact"`` (slow)
-    or ``"graph"`` (upper bound) to bracket small errors when that matters.
+    distances of a few edges (``docs/benchmarks.md``). Use ``method="exact"`` (slow) or
+    ``"graph"`` (upper bound) to bracket small errors when that matters.
     """
     p = np.asarray(p2p_21)
     q = np.asarray(p2p_21_true)

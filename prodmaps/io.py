@@ -3,9 +3,8 @@
 * PLY is read with `trimesh <https://github.com/mikedh/trimesh>`_ (MIT, pinned in
   pyproject.toml; imported on the first PLY read, so ``import prodmaps`` does not load it),
   through :func:`trimesh.exchange.ply.load_ply` with ``fix_texture=False`` (no vertex
-  splitting: vertices stay in file order). It replaced plyfile, which is GPL-3.0 (prodmaps is
-  MIT; GPL packages are used only by data scripts and notebooks). meshio was not used: it
-  failed 19 of the 39 files in tests/data/variants. Every format (ASCII, binary little/big-
+  splitting: vertices stay in file order); prodmaps is MIT and imports no GPL package for
+  reading (the choice of reader: ``docs/benchmarks.md``). Every format (ASCII, binary little/big-
   endian), every property type name (``uchar``/``uint8``, ``int``/``int32``, ``uint``/
   ``uint32``, ...), any extra vertex or face property (normals, colours, texture coordinates,
   quality, flags, before or after the index list), face lists named ``vertex_indices`` or
@@ -17,10 +16,6 @@
   length"). Files with polygons, and files trimesh cannot read (truncated data, trailing
   bytes, blank lines, non-UTF-8 header comments), are read by the small numpy/struct reader
   here, which keeps polygons as written and names what is wrong with a broken file.
-  Timings (2 shared, busy cores; plyfile in brackets): the first PLY read pays trimesh's
-  import, 0.3-0.9 s once per process; then a 5002-vertex binary file takes 0.4-1.2 ms
-  (0.5-1.5 ms), a 100k-vertex one 7-19 ms binary (4-16 ms) and 1.1-2.6 s ASCII (3.2-5.8 s);
-  a 100k-vertex file with one quad, read here, 0.5 s binary and 1.3 s ASCII.
 * OFF and OBJ are plain line-based text formats, read here (mesh libraries' OBJ readers
   split or merge vertices because of texture coordinates and normals, and some triangulate
   polygons; see tests/data/variants/README.md). OFF: ``OFF`` with any of the ``ST``/``C``/
@@ -285,9 +280,11 @@ def _read_ply(fh):
 
 
 def _ply_binary_triangles(buf, fmt, elements, start, vert, face, index):
-    """``(vertices, faces)`` of a binary PLY whose elements up to the mesh's are fixed-size records
-    and whose faces are all triangles, read as structured views (no per-record work, no trimesh
-    import); None otherwise (then trimesh or the record-by-record reader)."""
+    """``(vertices, faces)`` of a binary all-triangle PLY of fixed-size records, read as structured views.
+
+    Elements up to the mesh's must be fixed-size records; no per-record work, no trimesh import. None
+    otherwise (then trimesh or the record-by-record reader).
+    """
     recs, pos = {}, start
     for el in elements:
         rec = _ply_fixed_records(buf, pos, el, fmt)
@@ -327,10 +324,12 @@ def _ply_trimesh(buf, fmt, elements, start, vert, face, index):
 
 
 def _ply_all_triangles(buf, fmt, elements, start, face, index) -> bool:
-    """Whether every face list has 3 indices, read cheaply (ASCII: one token per face line;
-    binary: a strided view). False also when only a full parse can tell (truncated file,
-    blank lines, lists before the index list, variable-length lists before the faces), and
-    for ASCII non-integers in integer face properties (trimesh would truncate '2.5' to 2)."""
+    """Whether every face list has 3 indices, read cheaply (ASCII: one token per face line; binary: a view).
+
+    False also when only a full parse can tell (truncated file, blank lines, lists before the index
+    list, variable-length lists before the faces), and for ASCII non-integers in integer face
+    properties (trimesh would truncate '2.5' to 2).
+    """
     before = elements[:elements.index(face)]
     k = [p.name for p in face.props].index(index)
     if fmt == "":  # ASCII: one element per line; the count follows the scalars before the list
@@ -368,9 +367,11 @@ def _ply_record_dtype(el, fmt, lengths):
 
 
 def _ply_fixed_records(buf, pos, el, fmt):
-    """A binary element as a structured view (fields ``name``, and ``name.n`` for a list's
-    count) if every list in it is as long as in its first record (checked), else None
-    (variable-length lists, negative counts, or not enough bytes)."""
+    """A binary element as a structured view, or None if its lists vary in length.
+
+    Fields ``name``, and ``name.n`` for a list's count, if every list in it is as long as in its first
+    record (checked); None for variable-length lists, negative counts, or not enough bytes.
+    """
     lengths, off = {}, pos
     for p in el.props:  # the first record's list lengths
         if p.count is not None:
@@ -398,8 +399,7 @@ def _ply_fixed_records(buf, pos, el, fmt):
 
 
 def _ply_binary_rows(buf, start, elements, fmt, wanted):
-    """Read the wanted properties of binary elements (in file order), with lists of any
-    length; raise a named MeshError if the data ends early or a list count is negative."""
+    """Read the wanted properties of binary elements (lists of any length); MeshError if cut or a count < 0."""
     codes = {"i1": "b", "u1": "B", "i2": "h", "u2": "H", "i4": "i", "u4": "I", "f4": "f", "f8": "d"}
     out, pos = {}, start
     for el in elements:
@@ -439,8 +439,7 @@ def _ply_binary_rows(buf, start, elements, fmt, wanted):
 
 
 def _ply_ascii_rows(buf, start, elements, fmt, wanted):
-    """Read the wanted properties of ASCII elements (in file order, one per line,
-    blank lines skipped); raise a named MeshError for missing lines or values that do not parse."""
+    """Read the wanted properties of ASCII elements (one per line); named MeshError for missing or bad values."""
     lines = [ln for ln in buf[start:].decode("latin-1").splitlines() if ln.strip()]
     out, row = {}, 0
     for el in elements:

@@ -120,6 +120,7 @@ class LocalizedHarmonics:
 
     @property
     def k(self) -> int:
+        """Number of localized functions."""
         return self.vecs.shape[1]
 
     def mass_inside(self) -> np.ndarray:

@@ -119,8 +119,7 @@ def face_mean_ratio(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 
 def face_radius_ratio(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Triangle quality ``2 r / R`` per face (inradius over circumradius), ``(m,)``: 1 equilateral,
-    0 degenerate.
+    """Triangle quality ``2 r / R`` per face (inradius over circumradius), ``(m,)``: 1 equilateral, 0 degenerate.
 
     The radius-ratio measure, from the edge lengths (Heron's formula); the variant recipes of
     :mod:`prodmaps.prepare.variants` count their thin triangles with it. :func:`face_mean_ratio` is
@@ -401,14 +400,17 @@ class Mesh:
 
     @property
     def n_vertices(self) -> int:
+        """Number of vertices ``n``."""
         return self.vertices.shape[0]
 
     @property
     def n_faces(self) -> int:
+        """Number of faces ``m``."""
         return self.faces.shape[0]
 
     @property
     def face_areas(self) -> np.ndarray:
+        """Area of every triangle, ``(m,)``."""
         return face_areas(self.vertices, self.faces)
 
     @property
@@ -418,13 +420,16 @@ class Mesh:
 
     @property
     def boundary_edges(self) -> np.ndarray:
+        """Edges used by one face only, ``(b, 2)`` (empty for a closed mesh)."""
         return boundary_edges(self.faces)
 
     @property
     def is_closed(self) -> bool:
+        """True when the mesh has no boundary edge."""
         return self.boundary_edges.shape[0] == 0
 
     def vertex_normals(self) -> np.ndarray:
+        """Area-weighted unit vertex normals, ``(n, 3)``."""
         return vertex_normals(self.vertices, self.faces)
 
     def __repr__(self) -> str:
@@ -514,8 +519,9 @@ def subdivide_midpoint(vertices, faces, levels: int = 1):
 
 
 def icosphere(subdivisions: int = 2, radius: float = 1.0, name: str = "icosphere") -> Mesh:
-    """A closed genus-0 sphere mesh: the icosahedron, ``subdivisions`` times midpoint-subdivided
-    (``10·4^s + 2`` vertices: 162 for ``s = 2``, 642 for ``s = 3``), projected on the sphere.
+    """A closed genus-0 sphere mesh: the icosahedron, ``subdivisions`` times midpoint-subdivided, on the sphere.
+
+    ``10·4^s + 2`` vertices: 162 for ``s = 2``, 642 for ``s = 3``.
 
     Handy for tests and examples: the Laplace–Beltrami spectrum is known (``l(l+1)/radius²`` with
     multiplicity ``2l+1``), every vertex is regular but the 12 original ones.

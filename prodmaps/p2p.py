@@ -31,11 +31,8 @@ Extended conversion (``method="extended"``, Sections 4.4 and 5.3)
 
     ``t`` (the paper gives none): default ``t_scale / λ_{k1−1}``, the eigenvalue of the source's
     last basis function (``t_scale = 1``). Shape 2 uses the same time relative to its area.
-    Measured (ground-truth 40 × 30 maps, 6 pairs, mean geodesic error / sqrt(area), std 0.0147
-    on FAUST, 0.0118 on the embedded humans): ``t_scale`` 0.3 → 0.0101 / 0.0112, 1 → 0.0099 /
-    0.0085, 3 → 0.0175 / 0.0126, 10 → 0.041 / 0.029: the gain needs a small ``t``. It also needs
-    the larger basis on the target (30 × 40: 0.041 / 0.046, worse than std on every pair) and
-    the truncation (``rtol`` 1e-6: 0.17 / 0.35; 1e-2: 0.0118 / 0.0088).
+    The gain over ``"std"`` needs a small ``t``, the larger basis on the target and the
+    truncation (the measurements: ``docs/benchmarks.md``).
 
     Cost and memory: the point functions are evaluated ``KERNEL_BLOCK_BYTES`` (64 MB) of
     ``(n, b)`` columns at a time and reduced to ``(K, b)`` coefficients at once, so no ``n × n``
@@ -45,7 +42,7 @@ Extended conversion (``method="extended"``, Sections 4.4 and 5.3)
     MB), so maps from one source reuse them.
 
     Precision: the two large products (the kernels ``Φ W Φ[x]ᵀ`` and their canonical
-    coefficients ``Ψᵀ A f``) run in float32 by default (``dtype``), 2.3x faster than float64;
+    coefficients ``Ψᵀ A f``) run in float32 by default (``dtype``), faster than float64;
     the embeddings then agree with the float64 ones to ~1e-6 relative (distances to 1e-5 in the
     tests) and the maps on the embedded humans are identical. ``dtype="float64"`` is the exact
     computation. Canonical coefficients come from ``Ψ = B_s D V_r Σ_r⁻¹`` ``(n, r)``, the
@@ -56,7 +53,7 @@ Extended conversion (``method="extended"``, Sections 4.4 and 5.3)
     are free of units) and the canonical coefficients are divided by ``sqrt(area_2)``; with the
     unit-free ``"euclidean"`` truncation the map does not change when a mesh is scaled.
 
-Closed form (``method="extended_closed_form"``, the conversion of releases before issue 33)
+Closed form (``method="extended_closed_form"``)
     The squared heat kernel from ``n_eig ≤ min(k1, k2)`` eigenpairs has closed-form
     coefficients in the extended basis of the same eigenpairs: with ``a_i = e^{−λ_i t} φ_i(x)``
     and the constant value ``c = φ0``::
@@ -70,8 +67,8 @@ Closed form (``method="extended_closed_form"``, the conversion of releases befor
     function of the point's spectral embedding ``(φ_i(x))_{i<k}``; its image through ``C̃`` is the
     same quadratic function of the transferred embedding. The products therefore carry no
     information about the point that the standard embedding lacks: the nearest neighbour is
-    decided by the same ``k`` numbers, compared with a distorted metric (measured: FAUST 0.0220
-    vs 0.0149 for the standard one; embedded humans 0.0126 vs 0.0084). Kept to measure that.
+    decided by the same ``k`` numbers, compared with a distorted metric (it loses to ``"std"`` on
+    FAUST and the embedded humans, ``docs/benchmarks.md``). Kept to measure that.
 
 Nearest neighbours are exact with ties to the smallest index (:func:`nearest_neighbors`): a
 kd-tree in low dimensions, blocked float32 matrix products with an exact float64 recheck of every
@@ -89,8 +86,8 @@ Search at scale (``search=`` of :func:`from_fmap` and :func:`nearest_neighbors`)
     ``APPROX_MIN_PAIRS`` = 1e11 query-point pairs and faiss is installed, exact otherwise:
     every mesh of the paper (and any pair up to ~300k vertices each) keeps the exact path and
     its numbers. The recall and geodesic-error cost against the exact answer, and why this index
-    (against faiss's flat and HNSW indexes), are measured by ``benchmarks/scale_1m.py`` (README,
-    performance section).
+    (against faiss's flat and HNSW indexes), are measured by ``benchmarks/scale_1m.py``
+    (``docs/benchmarks.md``).
 """
 
 from __future__ import annotations
@@ -147,10 +144,12 @@ def have_faiss() -> bool:
 
 
 def effective_dimension(P: np.ndarray) -> float:
-    """Participation ratio ``(Σ σ_i²)² / Σ σ_i⁴`` of the per-coordinate variances ``σ_i²`` of the
-    points ``(n, d)``: ``d`` for isotropic data, about the number of coordinates that carry the
-    spread otherwise (the extended embeddings: ~18 of 150; spectral embeddings of k
-    eigenfunctions: ~0.8 k). A kd-tree's cost grows with it, not with ``d``."""
+    """Participation ratio ``(Σ σ_i²)² / Σ σ_i⁴`` of the per-coordinate variances ``σ_i²`` of ``P``.
+
+    ``P`` is ``(n, d)``: ``d`` for isotropic data, about the number of coordinates that carry the spread
+    otherwise (the extended embeddings: ~18 of 150; spectral embeddings of k eigenfunctions: ~0.8 k).
+    A kd-tree's cost grows with it, not with ``d``.
+    """
     v = np.asarray(P, dtype=np.float64).var(axis=0)
     den = float(np.sum(v * v))
     return float(v.sum() ** 2 / den) if den > 0 else 0.0
@@ -175,8 +174,7 @@ def _exact_pick(Q, P, rows, cols, n_rows):
 
 
 def _nn_gemm(Q, P, block):
-    """Exact nearest neighbours by blocked float32 products on the leading coordinates, then an
-    exact float64 recheck of every candidate (see :func:`nearest_neighbors`)."""
+    """Exact nearest neighbours by float32 products on the leading coordinates, candidates rechecked in float64."""
     d = Q.shape[1]
     # coordinates by decreasing spread of the points (a permutation: distances unchanged); the first
     # r of them give lower bounds ‖q_r − p_r‖² ≤ ‖q − p‖²
@@ -236,13 +234,13 @@ def _nn_kdtree(Q, P, block, tree=None):
 
 
 def _nn_probe(Q, P, block):
-    """``"auto"`` between the kd-tree and the products when neither clearly wins: the first
-    ``PROBE_QUERIES`` queries by the kd-tree, the next as many by the products, both timed, and
-    the rest by the one that was faster per query. A kd-tree's cost depends on how far the
-    queries lie from the points, not only on the dimension (measured on 5k vertices, one
-    thread, 40 dimensions: 0.03 s for queries near the points, 0.2-0.3 s for the spectral
-    embeddings of ICP's first iterations, where the products take 0.04 s). Every query gets the
-    exact answer either way, so the choice never changes the result."""
+    """``"auto"`` between the kd-tree and the products when neither clearly wins, by timing both.
+
+    The first ``PROBE_QUERIES`` queries by the kd-tree, the next as many by the products, and the rest
+    by the one that was faster per query. A kd-tree's cost depends on how far the queries lie from the
+    points, not only on the dimension (``docs/benchmarks.md``). Every query gets the exact answer
+    either way, so the choice never changes the result.
+    """
     from scipy.spatial import cKDTree
 
     s = PROBE_QUERIES
@@ -261,9 +259,11 @@ def _nn_probe(Q, P, block):
 
 
 def _rerank(Q, P, cand, block_rows: int = 1 << 18):
-    """Among the candidates ``cand`` ``(n_q, c)`` (``-1``: none) of each query, the exact nearest
-    (:func:`_exact_pick`: float64 distances, ties to the smallest index), by blocks of queries;
-    ``-1`` for a row without any."""
+    """Among the candidates ``cand`` ``(n_q, c)`` (``-1``: none) of each query, the exact nearest.
+
+    :func:`_exact_pick`: float64 distances, ties to the smallest index, by blocks of queries; ``-1`` for
+    a row without any.
+    """
     idx = np.full(cand.shape[0], -1, dtype=np.int64)
     for s in range(0, cand.shape[0], block_rows):
         cb = cand[s : s + block_rows].astype(np.int64)
@@ -276,9 +276,11 @@ def _rerank(Q, P, cand, block_rows: int = 1 << 18):
 
 def _nn_approximate(Q, P, block, *, nprobe: int = IVF_NPROBE, candidates: int = IVF_CANDIDATES,
                     list_size: int = IVF_LIST_SIZE, seed: int = IVF_SEED):
-    """Approximate nearest neighbours by a faiss inverted-file index, candidates re-ranked exactly
-    (module doc, "Search at scale"). Deterministic for given inputs (seeded training sample, faiss'
-    seeded k-means). Rows whose scanned lists hold no point are searched exactly."""
+    """Approximate nearest neighbours by a faiss inverted-file index, candidates re-ranked exactly.
+
+    Module doc, "Search at scale". Deterministic for given inputs (seeded training sample, faiss'
+    seeded k-means). Rows whose scanned lists hold no point are searched exactly.
+    """
     try:
         import faiss
     except ImportError as e:
@@ -305,24 +307,24 @@ def _nn_approximate(Q, P, block, *, nprobe: int = IVF_NPROBE, candidates: int = 
 
 def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None = None,
                       return_distance: bool = False, method: str = "auto", search: str = "exact"):
-    """Exact Euclidean nearest neighbour in ``points`` ``(n_p, d)`` of every row of ``queries`` ``(n_q, d)``
-    (or, with ``search="approximate"``, an approximate one).
+    """Exact Euclidean nearest neighbour in ``points`` ``(n_p, d)`` of every row of ``queries`` ``(n_q, d)``.
+
+    With ``search="approximate"``, an approximate one.
 
     The answer is the index minimising the squared distance ``Σ_i (q_i − p_i)²`` computed in
     float64; **ties go to the smallest index**. It does not depend on ``method`` or ``block``:
 
     * ``"gemm"``: blocked brute force (``block`` query rows at a time, default about 4·10⁶
       distances per block, and at least 64 rows while a block stays under 2.5·10⁸ distances: with a
-      million points a block of 3 rows would stream all of them for every 3 queries, 3.2x slower)
+      million points a block of 3 rows would stream all of them for every 3 queries)
       by one float32 matrix product of ``[q, 1]`` and ``[−2p, ‖p‖²]``;
       every point within the rounding bound of a row's minimum is a candidate, and rows with
       several candidates are decided by the exact float64 distances of their candidates.
     * ``"kdtree"``: ``scipy.spatial.cKDTree`` (both cores), the two nearest per query; a query
       whose second neighbour is as close as the first up to rounding is decided by ``"gemm"``.
     * ``"auto"`` (default): ``"kdtree"`` in up to ``KDTREE_MAX_DIM`` dimensions, above when the
-      points' :func:`effective_dimension` is at most ``KDTREE_MAX_EFFECTIVE_DIM`` (measured:
-      the extended embedding at 29/39, 150 coordinates of effective dimension 18, 0.19 s by
-      kd-tree against 0.28 s by products) or when the brute force would compare more than
+      points' :func:`effective_dimension` is at most ``KDTREE_MAX_EFFECTIVE_DIM`` (as the extended
+      embedding's 150 coordinates at 29/39 are) or when the brute force would compare more than
       ``GEMM_MAX_PAIRS`` pairs; ``"gemm"`` otherwise. A kd-tree pick above ``PROBE_MIN_DIM``
       dimensions with at least ``4 * PROBE_QUERIES`` queries is checked: both methods answer
       ``PROBE_QUERIES`` queries, timed, and the faster one answers the rest (a kd-tree's cost
@@ -407,8 +409,7 @@ _HEAT_SQUARES_CACHE_BYTES = 2**28
 
 
 def _heat_squares_of_source(basis: Basis, t: float, n_eig: int, pairs: str) -> np.ndarray:
-    """:func:`heat_square_coefficients` of all vertices, kept in ``basis.cache`` up to 256 MB: ``t``
-    depends on the source basis only, so every map from the same source reuses them."""
+    """:func:`heat_square_coefficients` of all vertices, in ``basis.cache`` (256 MB): every map from it reuses them."""
     if basis.n * n_columns(basis.k - 1, 2, pairs) * 8 > _HEAT_SQUARES_CACHE_BYTES:
         return heat_square_coefficients(basis, t, n_eig, pairs)
     key = ("heat_square_coefficients", basis.k, float(t), int(n_eig), pairs)
@@ -504,7 +505,8 @@ def _canonical_functions(pb, op) -> tuple[np.ndarray, np.ndarray]:
     the canonical coefficients of any function are ``ã = Ψᵀ A f`` (Section 4.4: ``Σ Vᵀ a`` of its
     Approach B fit ``a = X Xᵀ B_sᵀ A f``). ``X`` comes from the operator's own ``Σ Vᵀ D⁻¹``
     (``op.canonical``), so the truncation is the operator's: ``X = D² (ΣVᵀD⁻¹)ᵀ Σ⁻²``, with
-    ``Σ² = (ΣVᵀD⁻¹) D² (ΣVᵀD⁻¹)ᵀ`` solved rather than assumed diagonal."""
+    ``Σ² = (ΣVᵀD⁻¹) D² (ΣVᵀD⁻¹)ᵀ`` solved rather than assumed diagonal.
+    """
     def compute():
         E = pb.expand()  # (K, K_u): solver -> basis coefficients; Eᵀ E = I
         sV = np.asarray(op.canonical(E.toarray()))  # (r, K_u) = Σ Vᵀ D⁻¹ in the solver columns
@@ -521,9 +523,10 @@ def _canonical_functions(pb, op) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _source_embedding(b1: Basis, basis_1: Basis, pb1, op1, *, point, t, n_eig, block_bytes, dtype) -> np.ndarray:
-    """Canonical coefficients ``(n1, r1)`` of every source point's function in its own extended
-    basis (``Ψ1ᵀ A1 f``), blocked; kept in the source basis' cache (up to 256 MB): they do not
-    depend on the map."""
+    """Canonical coefficients ``(n1, r1)`` of every source point's function in its own extended basis.
+
+    ``Ψ1ᵀ A1 f``, blocked; kept in the source basis' cache (up to 256 MB): they do not depend on the map.
+    """
     def compute():
         APsi = _canonical_functions(pb1, op1)[0].astype(dtype, copy=False)  # (n1, r1)
         out = np.empty((b1.n, APsi.shape[1]))

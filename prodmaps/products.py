@@ -159,10 +159,12 @@ class ProductBasis:
 
     @property
     def n(self) -> int:
+        """Number of vertices ``n``."""
         return self.base.n
 
     @property
     def mass(self):
+        """The mass ``A`` of the base basis."""
         return self.base.mass
 
     @property
@@ -233,8 +235,10 @@ class ProductBasis:
         return "solver" in self.cache
 
     def solver_scale(self) -> np.ndarray | None:
-        """``sqrt(#orderings)`` ``(K_u,)`` of the unique columns in the solver basis (``None`` for
-        ``pairs="unique"``, whose solver basis is the basis itself): ``B_s = B_unique * scale``."""
+        """``sqrt(#orderings)`` ``(K_u,)`` of the unique columns in the solver basis: ``B_s = B_unique * scale``.
+
+        ``None`` for ``pairs="unique"``, whose solver basis is the basis itself.
+        """
         if self.pairs == "unique":
             return None
         return self.cache.get("scale", lambda: np.sqrt(n_orderings(self.unique_index)))
@@ -243,7 +247,8 @@ class ProductBasis:
         """Yield ``(rows slice, B_s[rows])`` blocks of about ``block_bytes``.
 
         When one block holds every row (at most ``block_bytes``) it is kept (:attr:`kept_block`)
-        and the next product reuses it: the same array, so the same numbers."""
+        and the next product reuses it: the same array, so the same numbers.
+        """
         uidx = self.unique_index
         scale = self.solver_scale()
         step = max(1, int(self.block_bytes // (8 * uidx.shape[0])))

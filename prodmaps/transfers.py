@@ -143,8 +143,9 @@ _BLOCK_ROWS = 1 << 16
 
 
 def _source_parts(basis_1: Basis):
-    """``(H (k1, Kp), σ² (r,), V (Kp, r), g_PP (Kp,), ext_u)`` of the residual stage, cached on the
-    source; ``g_PP`` holds the squared area norms ``||φ_l φ_m||²_A1`` of the products.
+    """``(H (k1, Kp), σ² (r,), V (Kp, r), g_PP (Kp,), ext_u)`` of the residual stage, cached on the source.
+
+    ``g_PP`` holds the squared area norms ``||φ_l φ_m||²_A1`` of the products.
 
     The Gram matrix is the unique product basis' (:func:`prodmaps.products.unique_solver_gram`,
     which Approach B builds too).
@@ -268,9 +269,11 @@ class StandardTransfer(TransferOperator):
         return self.basis_1.project(check_functions(F, self.basis_1.n))
 
     def apply(self, F) -> np.ndarray:
+        """``Φ2 C_12 Φ1ᵀ A1 F``: the transfer of ``F`` to shape 2 (:meth:`TransferOperator.apply`)."""
         return self.basis_2.vecs @ (self.C @ self.coefficients(F))
 
     def approximate(self, F) -> np.ndarray:
+        """``Φ1 Φ1ᵀ A1 F``: the A-orthogonal projection of ``F`` on ``span Φ1``."""
         return self.basis_1.vecs @ self.coefficients(F)
 
 
@@ -326,9 +329,11 @@ class ExtendedTransfer(TransferOperator):
         return self.approximation.coefficients(check_functions(F, self.basis_1.n))
 
     def apply(self, F) -> np.ndarray:
+        """``B2 C~ a``: the transfer of ``F`` to shape 2 (:meth:`TransferOperator.apply`)."""
         return self.extended_basis_2.evaluate(self.extended_map @ self.coefficients(F))
 
     def approximate(self, F) -> np.ndarray:
+        """``B1 a``: the fit of ``F`` in the source's extended basis."""
         return self.extended_basis_1.evaluate(self.coefficients(F))
 
 
@@ -465,19 +470,23 @@ class DefaultTransfer(TransferOperator):
         return F.ndim == 1, a0, self._W.T @ q  # (r_kept, m) filtered direction coefficients
 
     def apply(self, F) -> np.ndarray:
+        """The standard transfer plus the filtered product directions (module doc, step 4)."""
         one, a0, c = self._stages(F)
         g = self._Psi @ a0 + self._Y @ c
         return g[:, 0] if one else g
 
     def coefficients(self, F) -> np.ndarray:
-        """Coefficients ``(K_u,)``/``(K_u, m)`` in :attr:`extended_basis` (unique pairs) of the fit on
-        shape 1; ``pm.extend_fmap(C, b1, b2, pairs="unique") @ coefficients`` transfers them."""
+        """Coefficients ``(K_u,)``/``(K_u, m)`` in :attr:`extended_basis` (unique pairs) of the fit on shape 1.
+
+        ``pm.extend_fmap(C, b1, b2, pairs="unique") @ coefficients`` transfers them.
+        """
         one, a0, c = self._stages(F)
         w = self._V @ c  # (Kp, m) product coefficients
         coefs = np.vstack([a0 - self._D @ c - self.H @ w, w])  # Φ1 (a0 - D c) + Q w = Φ1 (a0 - D c - H w) + P1 w
         return coefs[:, 0] if one else coefs
 
     def approximate(self, F) -> np.ndarray:
+        """The fit on shape 1 that the transfer carries: ``B1`` times :meth:`coefficients`."""
         return self.extended_basis.evaluate(self.coefficients(F))
 
     def __repr__(self) -> str:

@@ -27,9 +27,11 @@ def _neighbour_pairs(points: np.ndarray, radius: float):
 
 
 def _linear_weights(coord: np.ndarray, n_bins: int, circular: bool):
-    """Split a continuous bin coordinate (bin centres at integers 0..n_bins-1) between the two
-    nearest bins: returns ``(lo, hi, w_lo, w_hi)``. Non-circular coordinates are clamped to the
-    end bins (all weight to the end bin outside the centre range)."""
+    """Split a continuous bin coordinate between the two nearest bins: ``(lo, hi, w_lo, w_hi)``.
+
+    Bin centres are at integers 0..n_bins-1. Non-circular coordinates are clamped to the end bins (all
+    weight to the end bin outside the centre range).
+    """
     if circular:
         base = np.floor(coord)
         frac = coord - base
@@ -56,8 +58,9 @@ def shot(
     normals: np.ndarray | None = None,
     chunk_pairs: int = 2_000_000,
 ) -> np.ndarray:
-    """SHOT descriptor [TSDS10] at every vertex, ``(n, n_azimuth·n_elevation·n_radial·n_bins)``
-    (352 with the defaults), rows of unit Euclidean length.
+    """SHOT descriptor [TSDS10] at every vertex, ``(n, n_azimuth·n_elevation·n_radial·n_bins)``.
+
+    352 columns with the defaults; rows of unit Euclidean length.
 
     What is implemented
     -------------------

@@ -67,6 +67,7 @@ ZERO_EIGENVALUE_REL = 1e-8
 
 
 def as_1d_finite(x, name: str, positive: bool = False) -> np.ndarray:
+    """``x`` as a non-empty finite 1D float64 array (``> 0`` with ``positive``), else ``ValueError`` naming ``name``."""
     arr = np.atleast_1d(np.asarray(x, dtype=np.float64))
     if arr.ndim != 1 or arr.size == 0:
         raise ValueError(f"{name} must be a non-empty 1-D sequence of numbers, got shape {arr.shape}")

@@ -46,8 +46,9 @@ def awft(
     curvature_smooth: int = 1,
     hks_t_rel: float = 0.01,
 ) -> np.ndarray:
-    """AWFT descriptor [MRCB16] at every vertex, ``(n, len(taus)·n_operators·len(functions))``
-    (30 columns with the defaults: 3 windows x (4 angles + isotropic) x 2 functions).
+    """AWFT descriptor [MRCB16] at every vertex, ``(n, len(taus)·n_operators·len(functions))``.
+
+    30 columns with the defaults: 3 windows x (4 angles + isotropic) x 2 functions.
 
     What is implemented (one column per window ``ℓ``, operator ``(α, θ)`` and function ``f``):
 

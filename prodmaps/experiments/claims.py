@@ -92,7 +92,6 @@ def _mean(values) -> float:
 
 def _comparators(mode: str) -> dict:
     """``lower`` / ``not_higher`` for one way of judging (``exact``, ``pessimistic``, ``optimistic``)."""
-
     if mode == "exact":  # the one tie rule of prodmaps.experiments.compare
         return {"lower": compare.lower, "not_higher": compare.not_higher}
 
@@ -152,6 +151,7 @@ class Verdict:
 
     @property
     def evidence(self) -> str:
+        """The evidence of the first judged setting (paper, rule, default), after the oracle's if it was judged."""
         oracle = self.settings.get("oracle", {})
         gate = oracle.get("evidence") if oracle.get("holds") is not None else None  # missing: said once below
         for s in ("paper", "rule", "default"):
@@ -161,6 +161,7 @@ class Verdict:
         return gate or "results not found"
 
     def to_dict(self) -> dict:
+        """The verdict as a JSON-ready dict: claim id, where, subset, verdict and settings."""
         return {"id": self.claim.id, "where": self.claim.where, "subset": self.subset, "verdict": self.verdict,
                 "settings": {k: {kk: vv for kk, vv in v.items()} for k, v in self.settings.items()}}
 
@@ -263,9 +264,11 @@ def _evidence(template: str, margin, env: dict) -> str:
 
 
 def _reading_rows(values: dict, reading: str | None) -> tuple[dict, set]:
-    """Family rows of one reading: rows labelled ``"HKS (textbook)"`` (a family under a reading
-    other than the run's) are dropped, or, for ``reading="textbook"``, take the place of ``"HKS"``.
-    Returns the values and the set of readings found."""
+    """Family rows of one reading: the values and the set of readings found.
+
+    Rows labelled ``"HKS (textbook)"`` (a family under a reading other than the run's) are dropped, or,
+    for ``reading="textbook"``, take the place of ``"HKS"``.
+    """
     from .families import PAPER_LABELS
 
     labels = set(PAPER_LABELS.values())

@@ -8,20 +8,17 @@ Two numbers are compared by their **relative** difference ``d = (a - b) / max(|a
   different BLAS kernels, thread counts or LAPACK builds put into a result.
 * otherwise ``a`` is **better** (lower error) when ``a < b`` and **worse** when ``a > b``.
 
-``TIE_REL = 1e-5`` is measured, not guessed: between the OpenBLAS kernels ``Prescott`` (the
-plainest) and ``Haswell``, every value of the smoke profile above 1e-10 moved by at most 7.4e-7
-relative (an order-4 product basis at ``rtol = 1e-6``; direct solves move by 1e-16 to 1e-10,
-NO17 and FISTA fits and large transfer gains by 1e-8 to 5e-7), so two errors that are equal by
-construction stay a tie on every machine, with a factor of ten to spare. A difference of 1e-5
-relative between two errors is far below anything the paper's two-decimal tables resolve.
+``TIE_REL = 1e-5`` is ten times the largest drift of a smoke-profile value between OpenBLAS
+kernels (``Prescott`` and ``Haswell``; the measurement: ``docs/benchmarks.md``), so two errors
+that are equal by construction stay a tie on every machine; it is far below anything the paper's
+two-decimal tables resolve.
 
 :data:`ROUNDING_REL` is the wider band the claims ledger uses to say that a verdict is decided by
 a margin so thin that rounding could flip it (``"holds within rounding"``, see
 :mod:`prodmaps.experiments.claims`): comparisons whose relative difference lies between
 ``TIE_REL`` and ``ROUNDING_REL`` are taken both ways and the verdict says so if it depends on them.
-``ROUNDING_REL = 1e-3`` covers the widest drift measured on one machine: Approach A with p = 1 (a
-FISTA fit stopped on its optimality conditions) moves by up to 7e-4 relative per pair between one
-and two BLAS threads.
+``ROUNDING_REL = 1e-3`` covers the widest drift between one and two BLAS threads on one machine
+(Approach A with p = 1, a FISTA fit stopped on its optimality conditions; ``docs/benchmarks.md``).
 
 Counts of comparisons (``n_products_better`` in the tables, wins over pairs in the point-map
 study, cells in the default-transfer study) are reported as ``{"better": n, "tie": n, "worse": n}``
@@ -61,8 +58,7 @@ def relative_difference(a: float, b: float) -> float:
 
 
 def outcome(a: float, b: float, rel: float = TIE_REL) -> str:
-    """``"better"`` if error ``a`` is lower than ``b`` by more than ``rel`` relative, ``"worse"`` if
-    higher by more than that, else ``"tie"``.
+    """``"better"`` / ``"worse"`` if error ``a`` is below / above ``b`` by more than ``rel`` relative, else ``"tie"``.
 
     Examples
     --------
@@ -85,8 +81,9 @@ def is_tie(a: float, b: float, rel: float = TIE_REL) -> bool:
 
 
 def tie_mask(a, b, rel: float = TIE_REL) -> np.ndarray:
-    """:func:`is_tie` elementwise on arrays of errors: ``|a - b| <= rel * max(|a|, |b|)``
-    (``True`` where both are 0); broadcasts like ``a - b``.
+    """:func:`is_tie` elementwise on arrays of errors, broadcasting like ``a - b``.
+
+    ``|a - b| <= rel * max(|a|, |b|)``, ``True`` where both are 0.
 
     Examples
     --------

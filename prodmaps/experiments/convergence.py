@@ -33,8 +33,9 @@ SCALES = (0.0, 0.5, 1.0)  # positions reported in the sensitivity table
 
 
 def spectral_descriptors(basis, s_hks: float, s_wks: float, hks_weights=("reversed", "sog09")):
-    """HKS and WKS columns ``(n, 1 + len(hks_weights))`` from ``basis`` at relative positions ``s``
-    in [0, 1]: the HKS under the first reading, the WKS, then the HKS under the other readings.
+    """HKS and WKS columns ``(n, 1 + len(hks_weights))`` from ``basis`` at relative positions ``s`` in [0, 1].
+
+    The HKS under the first reading, the WKS, then the HKS under the other readings.
 
     Returns ``(F, t, e)`` with the HKS time ``t`` and the WKS energy ``e`` used.
     """

@@ -64,8 +64,11 @@ def _shaded_mesh(ax, V, F, view, facecolors=None, shade=True):
 
 def plot_cross_field(V, F, z, *, ax=None, view="front", n_glyphs=1500, glyph_scale=0.5,
                      show_singularities=True, color="tab:blue", seed=0):
-    """Shaded mesh with crosses (two segments per sampled face) and singularities (red: positive
-    index, blue: negative). ``z`` ``(m,)`` is a 4-power field in the face frames. Returns the axes."""
+    """Shaded mesh with crosses (two segments per sampled face) and singularities; returns the axes.
+
+    Singularities: red for a positive index, blue for a negative one. ``z`` ``(m,)`` is a 4-power field
+    in the face frames.
+    """
     import matplotlib.pyplot as plt
     from matplotlib.collections import LineCollection
 
@@ -145,9 +148,11 @@ def pairs_figure(per_pair: dict, ks, kinds, baselines=("independent", "copy"), m
 
 def quads_pairs_figure(per_pair: dict, ks, kinds=("std", "ext", "default"), baselines=("independent", "pushforward"),
                        measures=("irregular_match_fraction", "irregular_low_match_fraction")):
-    """Per-pair strip charts of quad-mesh measures (default: the fractions of irregular vertices paired
-    through the ground truth, all and at low-curvature places), one row per measure and one column
-    per k, for every design; the baselines as marks."""
+    """Per-pair strip charts of quad-mesh measures, one row per measure and one column per k, per design.
+
+    Default measures: the fractions of irregular vertices paired through the ground truth, all and at
+    low-curvature places; the baselines as marks.
+    """
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(len(measures), len(ks), figsize=(3.6 * len(ks), 2.8 * len(measures)), squeeze=False,
@@ -171,10 +176,12 @@ def quads_pairs_figure(per_pair: dict, ks, kinds=("std", "ext", "default"), base
 
 
 def plot_quad_mesh(V, F, Vq, Q, polygons=(), *, ax=None, view="front", title=None, irregular=None):
-    """A polygon mesh drawn over its surface ``(V, F)``: quads ``Q`` ``(q, 4)`` light blue over the
-    surface shaded orange, so the regions the other ``polygons`` close (holes next to singularities,
-    often large and far from planar) show as orange surface; front-facing quads in painter's order
-    (orthographic ``view``); ``irregular`` vertex ids of ``Vq`` as red dots."""
+    """A polygon mesh drawn over its surface ``(V, F)``: quads ``Q`` ``(q, 4)`` light blue, surface orange.
+
+    The regions the other ``polygons`` close (holes next to singularities, often large and far from
+    planar) show as orange surface; front-facing quads in painter's order (orthographic ``view``);
+    ``irregular`` vertex ids of ``Vq`` as red dots.
+    """
     import matplotlib.pyplot as plt
     from matplotlib.collections import PolyCollection
 

@@ -223,11 +223,13 @@ def pair_measures(fr1, fr2, mesh_1, mesh_2, z1, z2, gt, g1, g2, *, params=None) 
 
 
 def quad_mesh_of(mesh: Mesh, z, size: float):
-    """Quad mesh of one shape from its cross field ``z`` at quad edge ``size·sqrt(area)``
-    (:mod:`prodmaps.fields.quadmesh`): ``(stats, (V, Q, polygons, irregular), irregular valences)``,
+    """Quad mesh of one shape from its cross field ``z`` at quad edge ``size·sqrt(area)``.
+
+    Returns ``(stats, (V, Q, polygons, irregular), irregular valences)`` (:mod:`prodmaps.fields.quadmesh`),
     the stats being :func:`~prodmaps.fields.quadmesh.quad_mesh_stats`' without the vertex lists plus
     the parametrisation's flipped faces, integer error, ``h``, the field's singularities and
-    ``polygons_near_singularities`` (non-quad faces with a corner within 2 quad sizes of one)."""
+    ``polygons_near_singularities`` (non-quad faces with a corner within 2 quad sizes of one).
+    """
     from scipy.spatial import cKDTree
 
     from ..fields.quadmesh import extract_quads, quad_mesh_stats, seamless_parametrization
@@ -247,9 +249,10 @@ def quad_mesh_of(mesh: Mesh, z, size: float):
 
 
 def quad_meshes_pair(mesh_1: Mesh, mesh_2: Mesh, z1, z2, gt: dict, size: float, *, sides=None) -> dict:
-    """Quad meshes of both shapes from their cross fields (:mod:`prodmaps.fields.quadmesh`: an
-    integer-grid parametrisation, its quads and one polygon per hole) and how their irregular
-    vertices correspond through the ground truth.
+    """Quad meshes of both shapes from their cross fields, and how their irregular vertices correspond.
+
+    :mod:`prodmaps.fields.quadmesh`: an integer-grid parametrisation, its quads and one polygon per hole;
+    the correspondence is through the ground truth.
 
     ``size`` is the quad edge over ``sqrt(area)`` (of each shape). Returns ``{"stats": {"source",
     "target": quad_mesh_stats without the vertex list, plus the parametrisation's flipped faces,
@@ -411,8 +414,7 @@ def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT
 
 
 def _ranks(info: dict) -> dict:
-    """The Approach-B ranks a consistency problem kept and the largest transfer gain of its kept
-    source directions (``"ext"``), for the results."""
+    """Approach-B ranks kept by a consistency problem and the largest gain of its kept ``"ext"`` directions."""
     out = {key: int(info[key]) for key in ("rank_1", "rank_2") if key in info}
     if "gain_max" in info:
         out["gain_max"] = float(info["gain_max"])
@@ -420,8 +422,9 @@ def _ranks(info: dict) -> dict:
 
 
 def summarize_pairs(per_pair: dict, ks, kinds=JOINT_KINDS, measure: str = "angle_regular_deg") -> dict:
-    """Across pairs, per k and kind: mean, standard deviation, min, max of ``measure``, and for each
-    extended kind how many pairs it beats ``"std"`` on (``n_better``, of ``n_pairs``).
+    """Across pairs, per k and kind: mean, sd, min, max of ``measure``, and the pairs it beats ``"std"`` on.
+
+    ``n_better`` of ``n_pairs``, for each extended kind.
 
     Also ``cells``: ``{kind: {"<pair>|k<k>": value}}`` (every pair and k, for the claims ledger) and
     ``pooled``: ``{kind: mean, std, min, max over all cells}``.
@@ -449,12 +452,14 @@ def summarize_pairs(per_pair: dict, ks, kinds=JOINT_KINDS, measure: str = "angle
 
 
 def summarize_quads(per_pair: dict) -> dict:
-    """Across pairs, per group (``"k<k>"`` or ``"baselines"``) and design: mean, sd, min and max of
-    the irregular-vertex match fractions (all, and at low-curvature places: ``..._low_...``), the
-    quad count and quad fraction (source and target meshes pooled), the totals of open and
-    non-manifold edges; ``n_better`` / ``n_better_low``: pairs on which an extended design pairs
+    """Across pairs, per group (``"k<k>"`` or ``"baselines"``) and design: summaries of the quad meshes.
+
+    Mean, sd, min and max of the irregular-vertex match fractions (all, and at low-curvature places:
+    ``..._low_...``), the quad count and quad fraction (source and target meshes pooled), the totals of
+    open and non-manifold edges; ``n_better`` / ``n_better_low``: pairs on which an extended design pairs
     more irregular vertices than ``"std"`` at the same k; ``cells`` / ``cells_low``:
-    ``{design: {"<pair>|<group>": fraction}}`` for the ledger, ``pooled`` / ``pooled_low`` over them."""
+    ``{design: {"<pair>|<group>": fraction}}`` for the ledger, ``pooled`` / ``pooled_low`` over them.
+    """
     groups, cells, cells_low = {}, {}, {}
     first = next(iter(per_pair.values()))["quads"]
     F, FL = "irregular_match_fraction", "irregular_low_match_fraction"
@@ -568,9 +573,11 @@ def setting_summary(study: dict, setting: str) -> dict:
 
 
 def verdict_table(study: dict, ks, measures=("angle_regular_deg", "angle_mean_deg")) -> list[dict]:
-    """Per setting, measure and k: on how many pairs ``C~`` (``"ext"``), the default transfer, the
-    oracle (``"p2p"``) and no map beat ``C`` (lower angle), with their means: what the ledger's
-    Figure 14 verdicts are judged on (a claim is judged only where the oracle beats ``C``)."""
+    """Per setting, measure and k: on how many pairs ``C~``, the default, the oracle and no map beat ``C``.
+
+    ``C~`` is ``"ext"``, the oracle ``"p2p"``; beating is a lower angle; with their means. The ledger's
+    Figure 14 verdicts are judged on this (a claim is judged only where the oracle beats ``C``).
+    """
     rows = []
     for setting in SETTINGS:
         if setting != "joint" and setting not in study["summary"]:
@@ -586,9 +593,12 @@ def verdict_table(study: dict, ks, measures=("angle_regular_deg", "angle_mean_de
 
 
 def verdict_lines(study: dict, ks) -> list[str]:
-    """Text lines of :func:`verdict_table` (per setting, measure and k: the pairs on which C~, the
-    oracle, the default transfer and no map beat C) and of the instability diagnostics per pair
-    (smallest singular value of C, largest transfer gain of C~'s kept source directions)."""
+    """Text lines of :func:`verdict_table` and of the instability diagnostics per pair.
+
+    The table: per setting, measure and k, the pairs on which C~, the oracle, the default transfer and
+    no map beat C; the diagnostics: smallest singular value of C, largest transfer gain of C~'s kept
+    source directions.
+    """
     lines = ["per setting, measure and k: pairs on which each design beats C (lower angle to the ground-truth "
              "push-forward)"]
     for r in verdict_table(study, ks):
@@ -607,8 +617,7 @@ def verdict_lines(study: dict, ks) -> list[str]:
 
 
 def study_lines(study: dict, ks) -> list[str]:
-    """Text lines of a :func:`figure14_joint_study`: the summary per setting and k, the baselines and
-    the quad meshes per pair (what the notebook prints)."""
+    """Text lines of a :func:`figure14_joint_study`: summary per setting and k, baselines, quad meshes per pair."""
     lines = []
     for setting, title in SETTINGS.items():
         if setting != "joint" and setting not in study["summary"]:

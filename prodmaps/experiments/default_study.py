@@ -30,12 +30,12 @@ METHODS = ("std", "B", "B_gain", "default")
 
 
 def condition_key(map_kind: str, size, kind: str) -> str:
+    """The results key ``"<map_kind>/<k1>_<k2>/<kind>"`` of one condition of the study."""
     return f"{map_kind}/{size[0]}_{size[1]}/{kind}"
 
 
 def variant_pairs(dataset: str, n: int | None = None) -> list:
-    """``(source, variant)`` pairs: each remeshed variant from its base shape and from another pose
-    of the same subject (the first ``n`` of them)."""
+    """The first ``n`` ``(source, variant)`` pairs: each variant from its base shape and another pose of it."""
     out = []
     for vid in datasets.variants(dataset):
         base = datasets.base_shape(dataset, vid)
@@ -114,8 +114,10 @@ def single_function_excess(result, pairs) -> dict:
 
 
 def summary(errors: dict, single: dict | None = None) -> dict:
-    """Worst (method - std) over every condition x family, cells above std + 0.01, mean ratios;
-    with ``single`` (:func:`single_function_excess` per condition) the same per single function."""
+    """Worst (method - std) over every condition x family, cells above std + 0.01, mean ratios.
+
+    With ``single`` (:func:`single_function_excess` per condition) the same per single function.
+    """
     out = {}
     for m in ("our_B", "our_B_gainrule", "our_default"):
         # an excess between errors that tie (compare.is_tie: equal up to rounding, e.g. a function in
@@ -138,8 +140,7 @@ def summary(errors: dict, single: dict | None = None) -> dict:
 
 
 def figure(results: dict):
-    """Three heat maps (paper B, gain rule, default): log2 of the transfer error over the standard
-    transfer's, per condition (rows) and family (columns); blue below std, red above."""
+    """Heat maps (paper B, gain rule, default) of log2(error / std's) per condition and family; blue below std."""
     import matplotlib.colors as mcolors
 
     from .results import setup_matplotlib
@@ -173,11 +174,13 @@ REPORT_NAMES = {"our_B": "paper B (rtol 1e-3)", "our_B_gainrule": "B with the ga
 
 
 def report_blocks(results: dict, dataset: str, *, main: bool = True) -> list:
-    """The study's section of the report, as ``(kind, *args)`` blocks (``("h", level, text)``,
-    ``("p", text)``, ``("table", header, rows)``): per method, the cells and single functions worse
-    than the standard transfer, and the conclusion on the default, computed from ``results``.
-    ``dataset`` is the display name, named in the heading of a per-dataset section (``main=False``);
-    none without a summary."""
+    """The study's section of the report, as ``(kind, *args)`` blocks, computed from ``results``.
+
+    Blocks are ``("h", level, text)``, ``("p", text)``, ``("table", header, rows)``: per method, the cells
+    and single functions worse than the standard transfer, and the conclusion on the default. ``dataset``
+    is the display name, named in the heading of a per-dataset section (``main=False``); none without a
+    summary.
+    """
     summ = results.get("summary", {})
     if not summ:
         return []

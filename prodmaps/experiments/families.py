@@ -86,6 +86,8 @@ __all__ = ["FAMILIES", "PAPER_LABELS", "READINGS", "PUBLISHED_READINGS", "READIN
 
 @dataclass(frozen=True)
 class FamilySpec:
+    """A function family of the tables: name, the paper's row label, default count, whether it uses ``k_M``."""
+
     name: str
     paper_label: str  # row label in the paper's tables
     m: int | None  # default number of functions (None: fixed by the family)
@@ -181,8 +183,7 @@ def resolve_reading(entry: str, reading_set: str = "textbook") -> tuple[str, str
 
 
 def entry_label(entry: str, reading_set: str = "textbook") -> str:
-    """Row label of a family entry: the paper's label, with the reading when the entry names one
-    that differs from the set's (``"HKS:textbook"`` under ``"published"`` -> ``"HKS (textbook)"``)."""
+    """Row label of a family entry: the paper's, with a reading that is not the set's (``"HKS (textbook)"``)."""
     fam, reading = split_entry(entry)
     if reading is None or reading == resolve_reading(fam, reading_set)[1]:
         return PAPER_LABELS[fam]

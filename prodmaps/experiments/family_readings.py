@@ -133,10 +133,12 @@ def score_table(errors_by_size: dict, published: dict, label: str) -> dict:
 
 
 def choose(scores_by_reading: dict) -> str:
-    """The reading with the most ``std`` cells within ±0.02; ties: the smaller mean |diff| of the
-    ``std`` cells at the paper's two decimals (smaller differences are draw noise), then the order
-    of :data:`~prodmaps.experiments.families.READINGS` (the textbook first, then the readings
-    closest to the definition's text). Approach B's cells are not used."""
+    """The reading with the most ``std`` cells within ±0.02; Approach B's cells are not used.
+
+    Ties: the smaller mean |diff| of the ``std`` cells at the paper's two decimals (smaller differences
+    are draw noise), then the order of :data:`~prodmaps.experiments.families.READINGS` (the textbook
+    first, then the readings closest to the definition's text).
+    """
     order = list(scores_by_reading)
 
     def key(name):
@@ -170,10 +172,12 @@ SUMMARY_HEADER = ["family", "chosen reading (std control)", "std textbook", "std
 
 
 def report_blocks(results: dict, dataset: str, *, main: bool = True) -> list:
-    """The study's section of the report, as ``(kind, *args)`` blocks (``("h", level, text)``,
-    ``("p", text)``, ``("table", header, rows)``): what the study shows, owned by the study.
-    ``dataset`` is the display name; the section is the same in the main report and in a
-    per-dataset one (``main``); none without scores."""
+    """The study's section of the report, as ``(kind, *args)`` blocks: what the study shows.
+
+    Blocks are ``("h", level, text)``, ``("p", text)``, ``("table", header, rows)``. ``dataset`` is the
+    display name; the section is the same in the main report and in a per-dataset one (``main``); none
+    without scores.
+    """
     if not results.get("scores"):
         return []
     rows = summary_rows(results)
@@ -213,8 +217,7 @@ def summary_text(results: dict) -> str:
 
 
 def figure(results: dict):
-    """Per family, ``std`` cells within ±0.02 for every reading (bars), the chosen one marked;
-    Approach B's count beside it (hatched) for information."""
+    """Per family, ``std`` cells within ±0.02 per reading (bars, the chosen one marked; Approach B's hatched)."""
     import matplotlib.pyplot as plt
 
     fams = list(results["scores"])

@@ -18,8 +18,9 @@ __all__ = ["fourier_products", "fourier_indicator"]
 
 
 def fourier_products(n_samples: int, n_functions: int) -> dict:
-    """Figure 2: the first ``n_functions`` Fourier functions, their pairwise products, the rank of
-    the extended basis (``2k + 1``) and the caption's dependency ``φ1⊙φ1 + φ2⊙φ2 + λ φ0 = 0``.
+    """Figure 2: the first ``n_functions`` Fourier functions, their pairwise products and their rank.
+
+    The rank of the extended basis is ``2k + 1``; the caption's dependency is ``φ1⊙φ1 + φ2⊙φ2 + λ φ0 = 0``.
 
     Returns ``{"results": ..., "x": (n,), "matrix": (n, K), "labels": [...], "k": k}``.
     """
@@ -42,8 +43,10 @@ def fourier_products(n_samples: int, n_functions: int) -> dict:
 
 
 def fourier_indicator(n_samples: int, k_values, interval, rtol: float = 1e-3, pairs: str = "ordered") -> dict:
-    """Figure 3: an indicator of ``interval`` (fractions of the period) reconstructed with the
-    first ``k_M + 1`` Fourier functions and with their pairwise products (Approach B, ``rtol``).
+    """Figure 3: an indicator of ``interval`` reconstructed without and with pairwise products.
+
+    ``interval`` is in fractions of the period; the first ``k_M + 1`` Fourier functions, then also their
+    pairwise products (Approach B, ``rtol``).
 
     Returns ``{"results": ..., "x": (n,), "f": (n,), "recon": {k_M: (standard, products)}, "rows": [...]}``.
     """

@@ -19,9 +19,11 @@ __all__ = ["write_dirty_copy", "write_broken_examples", "user_landmark_pairs", "
 
 
 def write_dirty_copy(mesh, path) -> tuple[int, int]:
-    """Write ``mesh`` with real-world defects: a duplicated face, a face repeating a vertex, a small
-    triangle floating beside the body and an unreferenced vertex. Returns the file's
-    ``(n_vertices, n_faces)``."""
+    """Write ``mesh`` with real-world defects; returns the file's ``(n_vertices, n_faces)``.
+
+    The defects: a duplicated face, a face repeating a vertex, a small triangle floating beside the body
+    and an unreferenced vertex.
+    """
     V, F = mesh.vertices, mesh.faces
     far = V.max(0) + 1.0
     V_dirty = np.vstack([V, far, far + [0.01, 0, 0], far + [0, 0.01, 0], V.mean(0)])  # last vertex unreferenced
@@ -31,8 +33,7 @@ def write_dirty_copy(mesh, path) -> tuple[int, int]:
 
 
 def write_broken_examples(mesh, folder, valid_file) -> dict:
-    """Write files the repairs cannot fix: a non-manifold edge (a third face on an edge) and a
-    truncated copy (the first 60 % of ``valid_file``). Returns ``{name: path}``."""
+    """Write files the repairs cannot fix, a non-manifold edge and a truncated copy: ``{name: path}``."""
     folder = Path(folder)
     V, F = mesh.vertices, mesh.faces
     V_nm = np.vstack([V, V[F[0, 0]] + [0.0, 0.0, 0.02]])
@@ -66,8 +67,11 @@ def user_landmark_pairs(landmarks, mesh_2, p2p_21, kept_1, kept_2, n_file_1: int
 
 
 def user_function(spec: str, mesh, kept) -> np.ndarray:
-    """The function to transfer: ``"x"``, ``"y"``, ``"z"``, ``"indicator"`` (top 30 % of the height)
-    or a ``.txt``/``.npy`` file with one value per vertex of mesh 1's file."""
+    """The function to transfer: ``"x"``, ``"y"``, ``"z"``, ``"indicator"`` or a file of values.
+
+    ``"indicator"`` is the top 30 % of the height; a ``.txt``/``.npy`` file holds one value per vertex of
+    mesh 1's file.
+    """
     X = mesh.vertices
     if spec in ("x", "y", "z"):
         return X[:, "xyz".index(spec)].copy()
@@ -78,8 +82,11 @@ def user_function(spec: str, mesh, kept) -> np.ndarray:
 
 
 def resolve_path(path, dataset: str) -> Path:
-    """A user path as given (absolute, or relative to the working directory) if it exists, else
-    relative to the dataset's folder (so the defaults point into the embedded data)."""
+    """A user path as given if it exists, else relative to the dataset's folder.
+
+    As given: absolute, or relative to the working directory; the dataset's folder makes the defaults
+    point into the embedded data.
+    """
     from ..datasets import dataset_dir
 
     p = Path(path)

@@ -1,4 +1,4 @@
-"""Study ``study_no17``: which computed-map recipe reproduces Table 2's standard transfer column?
+"""Study ``study_no17``: the computed-map recipe that reproduces Table 2's standard transfer column.
 
 Table 2 (computed NO17 maps, ``k_M/k_N = 29/39``) prints, for the standard transfer
 ``Φ_N C Φ_Mᵀ A_M f``, errors close to those of the ground-truth map (Table 6): hk k 0.13 vs 0.09,

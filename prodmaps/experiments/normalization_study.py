@@ -150,9 +150,11 @@ def best_reading(scores: dict, method: str = "our_B") -> str | None:
 
 
 def figure(results: dict):
-    """Left: published cells reproduced (within ±0.02) per reading, std / A / B. Right: Approach B's
-    transfer error against the published value, cell by cell, for each reading (the diagonal is
-    agreement; grey band ±0.02)."""
+    """Left: published cells reproduced (within ±0.02) per reading; right: Approach B's errors by cell.
+
+    Left, per reading, std / A / B. Right: Approach B's transfer error against the published value, for
+    each reading (the diagonal is agreement; grey band ±0.02).
+    """
     import matplotlib.pyplot as plt
 
     names = list(results["scores"])
@@ -199,11 +201,13 @@ def figure(results: dict):
 
 
 def report_blocks(results: dict, dataset: str, *, main: bool = True) -> list:
-    """The study's section of the report, as ``(kind, *args)`` blocks (``("h", level, text)``,
-    ``("p", text)``, ``("table", header, rows)``): which reading of Approach B reproduces the
-    published cells, the scores per reading and every Approach B cell with its closest reading
-    (:func:`explain_cell`). ``dataset`` is the display name; the same section in the main report
-    and in a per-dataset one (``main``); none without scores."""
+    """The study's section of the report, as ``(kind, *args)`` blocks: which reading reproduces the cells.
+
+    Blocks are ``("h", level, text)``, ``("p", text)``, ``("table", header, rows)``: which reading of
+    Approach B reproduces the published cells, the scores per reading and every Approach B cell with
+    its closest reading (:func:`explain_cell`). ``dataset`` is the display name; the same section in
+    the main report and in a per-dataset one (``main``); none without scores.
+    """
     scores, errors = results.get("scores", {}), results.get("errors", {})
     if not scores:
         return []

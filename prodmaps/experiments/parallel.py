@@ -113,9 +113,11 @@ class _Dispatch:
         return s if s is not None and s < self.workers else None
 
     def next(self, slot: int):
-        """The next task for ``slot`` (None when none is left): its own keys' tasks first, then a
-        new task (its key is then held by ``slot``), then the last task of the slot with the most
-        waiting (its key moves to ``slot``)."""
+        """The next task for ``slot`` (None when none is left).
+
+        Its own keys' tasks first, then a new task (its key is then held by ``slot``), then the last task
+        of the slot with the most waiting (its key moves to ``slot``).
+        """
         if self.own[slot]:
             return self.own[slot].popleft()
         while self.new:
@@ -232,8 +234,7 @@ _STORES: dict = {}
 
 
 def worker_store(spec):
-    """The ShapeStore of ``spec`` in this process, built once and kept (its memory is reused);
-    a ShapeStore is returned as it is."""
+    """The ShapeStore of ``spec`` in this process, built once and kept (a ShapeStore is returned as is)."""
     from .store import ShapeStore
 
     if isinstance(spec, ShapeStore):

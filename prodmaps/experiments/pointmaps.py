@@ -11,8 +11,7 @@ target vertex a source vertex) by :func:`prodmaps.p2p.from_fmap`, three conversi
                             compared through canonical coefficients; ``t = 1/λ`` of the source's
                             last basis function;
 ``"extended_closed_form"``  the same kernel built in closed form from the map's own eigenpairs
-                            (the conversion before issue 33; it cannot beat ``"std"``, see
-                            :mod:`prodmaps.p2p`).
+                            (it cannot beat ``"std"``, see :mod:`prodmaps.p2p`).
 
 Maps: ground truth (Figure 12) or NO17 (Figure 13,
 :mod:`prodmaps.experiments.maps`). Error (Kim et al. 2011): heat-method geodesic distance on the
@@ -113,10 +112,12 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
 
 def _recovery_pair(store: ShapeStore, ip: int, s1: str, item, k_target: int, k_source: int, maps,
                    no17_k_descr: int) -> tuple:
-    """One pair ``s1 -> item[0]``, evaluated at the target vertices ``item[1]``: ``(row,
-    {(map, conversion): errors (n_eval,)}, seconds, {conversion|"no17": seconds})``. The conversions
-    get the store's whole bases: ``C`` uses their first ``k_source``/``k_target`` columns, the
-    extended conversion's heat kernel all of them."""
+    """One pair ``s1 -> item[0]``, evaluated at the target vertices ``item[1]``.
+
+    Returns ``(row, {(map, conversion): errors (n_eval,)}, seconds, {conversion|"no17": seconds})``.
+    The conversions get the store's whole bases: ``C`` uses their first ``k_source``/``k_target``
+    columns, the extended conversion's heat kernel all of them.
+    """
     s2, ev = item
     t0 = time.perf_counter()
     timing = {**dict.fromkeys(CONVERSIONS, 0.0), "no17": 0.0}

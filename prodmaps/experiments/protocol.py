@@ -165,8 +165,11 @@ def _measures(collect) -> bool:
 
 
 def _protocol_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, s: ProtocolSettings, collect) -> dict:
-    """One pair at every size: ``{"cols", "seconds", "sizes": {(k_M, k_N): {"errors", "map_dev",
-    "rank", "gain_rtol"}}}`` with ``errors[stage][method]`` the ``(m,)`` per-column errors."""
+    """One pair at every size: ``{"cols", "seconds", "sizes": {(k_M, k_N): {...}}}``.
+
+    Each size holds ``"errors"``, ``"map_dev"``, ``"rank"``, ``"gain_rtol"``, with
+    ``errors[stage][method]`` the ``(m,)`` per-column errors.
+    """
     from .. import datasets
 
     t0 = time.perf_counter()
@@ -321,6 +324,7 @@ class AreaCurves:
             self._curves[c][st][m].append(by_family)
 
     def __call__(self, ip, size, F, G, cols, b1, b2, outputs):
+        """Measure one pair and size and keep the record (:meth:`measure` then :meth:`add`)."""
         self.add(ip, size, self.measure(ip, size, F, G, cols, b1, b2, outputs))
 
     def __getstate__(self):  # a worker gets the settings; the curves stay with the caller

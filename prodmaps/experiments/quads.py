@@ -7,7 +7,7 @@ point map recovered from ``C`` carry a coarse quad mesh of the source onto the t
 (:func:`prodmaps.p2p.from_fmap`): ``"std"`` [OBCS*12], ``"extended"`` (Section 4.4: squared heat
 kernels on the mesh from 200 eigenpairs, the experiments store's big basis, fitted in the extended
 basis of the map's ``k + 1`` functions) and ``"extended_closed_form"`` (the kernel from the map's own
-eigenpairs, the conversion before issue 33).
+eigenpairs).
 
 Steps: :func:`coarse_remesh` (pymeshlab quadric decimation, then isotropic remeshing),
 :func:`pair_triangles` (greedy pairing of adjacent triangles into quads), snapping the quad vertices
@@ -142,8 +142,9 @@ def polygon_soup(Vq: np.ndarray, quads: np.ndarray, tris: np.ndarray, values: np
 
 def point_map_quad_transport(dataset: str, source_id: str, target_id: str, ks, *, edge_length: float = 0.06,
                              target_faces: int = 800, verbose: bool = True) -> dict:
-    """Transport a coarse quad-dominant mesh of the source to the target through point maps
-    recovered from the ground-truth ``C_21`` of size ``(k+1, k+1)``, by every conversion of
+    """Transport a coarse quad-dominant mesh of the source to the target through recovered point maps.
+
+    The point maps come from the ground-truth ``C_21`` of size ``(k+1, k+1)``, by every conversion of
     :data:`prodmaps.experiments.pointmaps.CONVERSIONS` (module doc).
 
     Sending source points to the target needs, for each *source* vertex, a target vertex ``p2p_12``

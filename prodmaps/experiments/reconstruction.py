@@ -82,8 +82,9 @@ def coordinate_reconstruction(mesh, ks, ks_curve=(), *, pairs: str = "ordered", 
 
 
 def higher_order_reconstruction(mesh, n_eig: int, orders, rtols, *, verbose: bool = True) -> dict:
-    """Figure 5: the coordinates from ``n_eig`` eigenfunctions (constant included) and their
-    products up to each order (multisets, ``pairs="unique"``), at each Approach B threshold.
+    """Figure 5: the coordinates from ``n_eig`` eigenfunctions and their products, at each Approach B rtol.
+
+    ``n_eig`` counts the constant; products up to each order (multisets, ``pairs="unique"``).
 
     Returns ``{"results": {errors, sizes}, "recon": {(rtol key, order): X}}``; order 1 is the
     plain projection.
@@ -123,8 +124,9 @@ def higher_order_reconstruction(mesh, n_eig: int, orders, rtols, *, verbose: boo
 
 def indicator_region(mesh, ks, region_center, region_radius: float, *, threshold: float = 0.5,
                      pairs: str = "ordered", rtol: float = 1e-3) -> dict:
-    """Figure 6: the indicator of a Euclidean ball approximated without and with products, and the
-    region recovered by thresholding at ``threshold``.
+    """Figure 6: a Euclidean ball's indicator approximated without and with products, and its region.
+
+    The region is recovered by thresholding at ``threshold``.
 
     Scores: ``rel_l2`` (relative L2 error), ``sym_diff = area(R̂ Δ R) / area(R)``,
     ``iou = area(R̂ ∩ R) / area(R̂ ∪ R)``, ``recovered_area_fraction``. Returns
@@ -164,9 +166,11 @@ def indicator_region(mesh, ks, region_center, region_radius: float, *, threshold
 
 def lmh_reconstruction(mesh, *, k_mh: int, k_global: int, k_local: int, region_top_fraction: float,
                        mu_region: float, mu_orth: float, pairs: str = "ordered", rtol: float = 1e-3) -> dict:
-    """Figure 10: coordinates in MH (``k_mh`` eigenfunctions) and in MH + LMH (``k_global``
-    eigenfunctions plus ``k_local`` localized harmonics of the top ``region_top_fraction`` of the
-    height), each without and with products; errors on the whole surface and in the region.
+    """Figure 10: coordinates in MH and in MH + LMH, each without and with products.
+
+    MH: ``k_mh`` eigenfunctions; MH + LMH: ``k_global`` eigenfunctions plus ``k_local`` localized
+    harmonics of the top ``region_top_fraction`` of the height. Errors on the whole surface and in the
+    region.
 
     Returns ``{"results": ..., "region": (n,) bool, "recon": {"MH"|"LMH": (X_std, X_prod)}}``.
     """

@@ -160,8 +160,7 @@ def render_grid(panels, *, ncols=None, titles=None, captions=None, suptitle=None
 
 # ------------------------------------------------------------------ shared figure conventions
 def error_colormap():
-    """Reconstruction-error colours: light grey (small) to dark red (large), as the paper's
-    "decreasing from dark red to white", but grey so well-reconstructed parts stay visible."""
+    """Reconstruction-error colours, light grey (small) to dark red (large): the paper's, grey instead of white."""
     import matplotlib.colors as mcolors
 
     return mcolors.LinearSegmentedColormap.from_list(
@@ -183,8 +182,10 @@ def camera_bounds(*vertex_arrays) -> np.ndarray:
 
 
 def rendering_available(render_images: bool = True) -> bool:
-    """Probe off-screen rendering (in a subprocess: a missing GL backend crashes VTK) and print
-    why not; without rendering a notebook still computes and writes every number."""
+    """Probe off-screen rendering in a subprocess (a missing GL backend crashes VTK) and print why not.
+
+    Without rendering a notebook still computes and writes every number.
+    """
     ok, reason = probe_rendering() if render_images else (False, "render_images=False")
     print("rendering:", reason)
     return ok

@@ -64,10 +64,12 @@ class DiskCache:
         self.enabled = bool(enabled)
 
     def path(self, kind: str, key: dict) -> Path:
+        """The ``.npz`` file of ``kind`` and ``key`` (named by a hash of the key's JSON)."""
         digest = sha256_bytes(json.dumps(key, sort_keys=True, default=str).encode())[:32]
         return self.folder / f"{kind}_{digest}.npz"
 
     def get(self, kind: str, key: dict, compute) -> dict:
+        """The arrays ``{name: array}`` of ``(kind, key)``: read from disk, or computed and stored."""
         if not self.enabled:
             return compute()
         path = self.path(kind, key)
@@ -115,12 +117,15 @@ class ShapeStore:
         return self._mesh[sid]
 
     def distance_rows(self, sid: str) -> DistanceRows:
-        """Heat-method distance rows of shape ``sid``, kept across calls
-        (:class:`prodmaps.geodesics.DistanceRows`: the same numbers, each source solved once).
-        Rows of the two most recently used shapes are kept (memory ``8 n`` bytes a row)."""
+        """Heat-method distance rows of shape ``sid``, kept across calls (each source solved once).
+
+        :class:`prodmaps.geodesics.DistanceRows`, the same numbers. Rows of the two most recently used
+        shapes are kept (memory ``8 n`` bytes a row).
+        """
         return self._rows.get(sid, lambda: DistanceRows(self.mesh(sid)))
 
     def mesh_key(self, sid: str) -> str:
+        """The content hash of shape ``sid``'s mesh (:func:`prodmaps.cache.mesh_key`), memoised."""
         return self.memo.get(("mesh_key", sid), lambda: mesh_key(self.mesh(sid)))
 
     def basis(self, sid: str, k: int | None = None) -> Basis:
@@ -144,8 +149,7 @@ class ShapeStore:
         return full.truncate(int(k))
 
     def descriptor(self, sid: str, name: str, **options) -> np.ndarray:
-        """The full SHOT (``"shot"``) or AWFT (``"awft"``) matrix of ``sid``
-        (:func:`prodmaps.descriptors.shot` / :func:`~prodmaps.descriptors.awft` with ``options``)."""
+        """The SHOT (``"shot"``) or AWFT (``"awft"``) matrix of ``sid`` (:mod:`prodmaps.descriptors`, ``options``)."""
         from .. import descriptors
 
         if name not in DESCRIPTOR_CODE:
@@ -158,9 +162,11 @@ class ShapeStore:
                              lambda: self.disk.get(name, key, lambda: {"D": fn(self.mesh(sid), **options)})["D"])
 
     def family_cache(self, sid: str, families=(), options: dict | None = None) -> Cache:
-        """The :class:`Cache` handed to :func:`prodmaps.experiments.families.make_family` for
-        source ``sid``, holding the SHOT/AWFT matrices the requested ``families`` need (computed
-        with ``options``, the family's options, when given)."""
+        """The :class:`Cache` for :func:`prodmaps.experiments.families.make_family` on source ``sid``.
+
+        It holds the SHOT/AWFT matrices the requested ``families`` need (computed with ``options``, the
+        family's options, when given).
+        """
         cache = self._family_cache.setdefault(sid, Cache(max_entries=16))
         for fam, name in (("SHOT", "shot"), ("AWFT", "awft")):
             opts = dict(options or {}) if list(families) == [fam] else {}
@@ -191,9 +197,11 @@ class ShapeStore:
         return F, pfam.pull_back(F, p2p_21), cols
 
     def family(self, sid_1: str, name: str, *, k_M: int, seed: int, options: dict | None = None) -> np.ndarray:
-        """The functions ``(n1, m)`` of family ``name`` on ``sid_1``
-        (:func:`prodmaps.experiments.families.make_family` with ``options``, default none), stored on
-        disk: the tables, Figure 8 and the studies draw the same families on the same pairs."""
+        """The functions ``(n1, m)`` of family ``name`` on ``sid_1``, stored on disk.
+
+        :func:`prodmaps.experiments.families.make_family` with ``options`` (default none); the tables,
+        Figure 8 and the studies draw the same families on the same pairs.
+        """
         options = dict(options or {})
         key = {"mesh": self.mesh_key(sid_1), "n_eig": self.n_eig, "kind": self.kind, "family": name,
                "k_M": int(k_M), "seed": int(seed), "code": code_fingerprint(*FAMILY_CODE)}

@@ -161,7 +161,7 @@ def _study_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, *, sizes, map_
                 return v.reshape(nf, m).mean(axis=1)
 
             def source_side(filters):
-                """filter factors (nf, K_u) -> (X, approximations, approx errors, coef norms): no map."""
+                """Filter factors (nf, K_u) -> (X, approximations, approx errors, coef norms): no map."""
                 nf = len(filters)
                 X = cf[:, None, :] * (filters / np.maximum(w, 1e-300)).T[:, :, None]  # (K_u, nf, m)
                 X = X.reshape(cf.shape[0], nf * m)  # one GEMM for all filters
@@ -215,8 +215,7 @@ _LS = {"gt": "-", "computed": "--"}
 
 
 def figure_error_vs_threshold(results: dict, axis_name: str, xlabel: str, mark: float):
-    """Transfer error vs ``rtol`` (``axis_name="rtol"``) or ridge ``ε`` (``"eps"``), one panel per
-    family; thin horizontal lines: the standard transfer; stars: the gain rule's choice."""
+    """Transfer error vs ``rtol`` or ridge ``ε`` (``axis_name``) per family; lines: std; stars: the gain rule."""
     summary = results["summary"]
     xs = results["rtols"] if axis_name == "rtol" else results["eps"]
     plt, color = _setting_colors(summary)
@@ -250,8 +249,10 @@ def figure_error_vs_threshold(results: dict, axis_name: str, xlabel: str, mark: 
 
 
 def figure_why(results: dict, gains: dict, families=("XYZ", "Indicator", "WKS")):
-    """Left: transfer gains of the singular directions vs ``σ_i/σ_max``; right: the split of the
-    transfer error into its approximation and map parts vs ``rtol``, for two families."""
+    """Left: transfer gains of the singular directions vs ``σ_i/σ_max``; right: the transfer error's split.
+
+    The split is into its approximation and map parts vs ``rtol``, for two families.
+    """
     summary, RT, paper_rtol = results["summary"], results["rtols"], results["paper_rtol"]
     plt, color = _setting_colors(summary)
     labels = list(next(iter(summary.values())))
@@ -292,10 +293,12 @@ def figure_why(results: dict, gains: dict, families=("XYZ", "Indicator", "WKS"))
 
 
 def report_blocks(results: dict, dataset: str, *, main: bool = True) -> list:
-    """The study's section of the report, as ``(kind, *args)`` blocks (``("h", level, text)``,
-    ``("p", text)``, ``("ul", items)``): the transfer gains kept at the paper's threshold and how the
-    gain rule compares with it, computed from ``results``. Shown once, with the report's own
-    results (``main``); ``dataset`` (its display name) is not part of the text."""
+    """The study's section of the report, as ``(kind, *args)`` blocks, computed from ``results``.
+
+    Blocks are ``("h", level, text)``, ``("p", text)``, ``("ul", items)``: the transfer gains kept at the
+    paper's threshold and how the gain rule compares with it. Shown once, with the report's own results
+    (``main``); ``dataset`` (its display name) is not part of the text.
+    """
     if not main:
         return []
     gains = results.get("median_max_gain_of_kept_directions", {})

@@ -154,6 +154,7 @@ class ConsistencyProblem:
 
     # ------------------------------------------------------------------ pieces for solvers
     def laplacian(self, side: int):
+        """The connection Laplacian of ``N``-power fields on shape ``side`` (1 or 2), cached."""
         key = ("L", side)
         if key not in self._cache:
             fr = self.fr_1 if side == 1 else self.fr_2
@@ -176,8 +177,10 @@ def _check_C(C, k1, k2):
 
 def _checked_inputs(basis_1: Basis, basis_2: Basis, fr_1: Frames, fr_2: Frames, C_12, kind: str, tests,
                     p2p_21, span_k):
-    """Validate :func:`consistency_problem`'s inputs: ``(C (k2, k1) or None, b1, b2, tests, p2p_21)``
-    with the bases truncated to the map's sizes and ``tests`` defaulted for the kind."""
+    """Validate :func:`consistency_problem`'s inputs: ``(C (k2, k1) or None, b1, b2, tests, p2p_21)``.
+
+    The bases are truncated to the map's sizes and ``tests`` defaulted for the kind.
+    """
     if kind not in KINDS:
         raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
     if kind == "p2p":
@@ -236,9 +239,11 @@ def images_of_tests(b1: Basis, b2: Basis, C, tests: str, p2p_21=None):
 
 
 def scaled_actions(fr_1: Frames, fr_2: Frames, F1, F2, mass_1, N: int, power):
-    """The degree-N actions' factors ``(H1 (m1, J), H2 (m2, J))`` of the test functions ``F1`` and
-    their images ``F2``: ``g^N |g|^(p-N)`` of their complex gradients, each test scaled to unit
-    A-norm of its vertex-averaged ``|∇f|^p`` on shape 1 (``p = N`` when ``power`` is None)."""
+    """The degree-N actions' factors ``(H1 (m1, J), H2 (m2, J))`` of the tests ``F1`` and their images ``F2``.
+
+    ``g^N |g|^(p-N)`` of their complex gradients, each test scaled to unit A-norm of its vertex-averaged
+    ``|∇f|^p`` on shape 1 (``p = N`` when ``power`` is None).
+    """
     g1 = complex_gradient(fr_1) @ F1  # (m1, J)
     g2 = complex_gradient(fr_2) @ F2
     p = N if power is None else float(power)
@@ -248,8 +253,7 @@ def scaled_actions(fr_1: Frames, fr_2: Frames, F1, F2, mass_1, N: int, power):
 
 
 def _ext_transfer(C, Ct, b1: Basis, b2: Basis, ext2, proj2: SpanProjector, rtol: float, normalization):
-    """``"ext"``: ``Tr = canonical(C~ a(h))``, ``a(h)`` the library's Approach-B coefficients of ``h``
-    on shape 1, and the transfer gain of the kept source directions."""
+    """``"ext"``: ``Tr = canonical(C~ a(h))``, ``a(h)`` Approach B's coefficients, and the kept directions' gain."""
     ext1 = product_basis(b1, 2, "unique")
     proj1 = span_projector(ext1, rtol, normalization)
     if Ct is None:
@@ -263,8 +267,7 @@ def _ext_transfer(C, Ct, b1: Basis, b2: Basis, ext2, proj2: SpanProjector, rtol:
 
 
 def _default_transfer(C, b1: Basis, b2: Basis, Q2):
-    """``"default"``: ``Tr = Q2ᵀ A2 S(h)``, ``S`` the default transfer (linear in ``h``), applied to
-    blocks of the identity."""
+    """``"default"``: ``Tr = Q2ᵀ A2 S(h)``, ``S`` the default transfer (linear in ``h``), on blocks of the identity."""
     op = transfer_operator(C, b1, b2, "default")
     M2 = (Q2 * b2.mass[:, None]).T  # (r, n2)
     Tr = np.empty((Q2.shape[1], b1.n))
@@ -277,8 +280,9 @@ def _default_transfer(C, b1: Basis, b2: Basis, Q2):
 
 
 def comparison_span(kind: str, C, Ct, b1: Basis, b2: Basis, *, rtol: float, normalization=None, p2p_21=None):
-    """The span on shape 2 in which the actions are compared and the transfer of source functions
-    into it: ``(Q2 (n2, r), Tr (r, n1), info)``.
+    """The span on shape 2 in which the actions are compared, and the transfer of source functions into it.
+
+    Returns ``(Q2 (n2, r), Tr (r, n1), info)``.
 
     ``"std"``: ``Q2 = Φ2``, ``Tr = C Φ1ᵀ A1``; every other kind compares in the span the library's
     Approach B operator keeps in the target's extended basis (one truncation, its normalisation):
@@ -332,7 +336,7 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
         library's operator (``ProductBasis.operator("svd", rtol=rtol)``): the same truncation as
         :func:`prodmaps.approximate` and the ``"svd"`` transfer.
     normalization : that operator's column normalisation (default: the library's
-        ``"euclidean"``; ``"area"`` is the reading this module used before issue 34, kept to
+        ``"euclidean"``; ``"area"``, A-orthonormal factors without column weights, is kept to
         measure it).
     p2p_21 : ``(n2,)`` point map, only for ``kind="p2p"``; ``span_k`` its basis size if ``C_12`` is None.
     power : magnitude exponent ``p`` of the action (:func:`~prodmaps.fields.operators.field_action`):

@@ -64,10 +64,12 @@ class Frames:
 
     @property
     def n_vertices(self) -> int:
+        """Number of vertices ``n``."""
         return self.vertices.shape[0]
 
     @property
     def n_faces(self) -> int:
+        """Number of faces ``m``."""
         return self.faces.shape[0]
 
     @property
@@ -181,8 +183,7 @@ def transport_angles(fr: Frames) -> np.ndarray:
 
 
 def corner_angles(V: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Interior angle in radians at each corner ``(m, 3)`` (corner ``c`` of face ``f`` at ``F[f, c]``);
-    :func:`polygon_corner_degrees` is the polygons' (any corner count, degrees)."""
+    """Interior angle in radians at each corner ``(m, 3)`` (see :func:`polygon_corner_degrees` for polygons)."""
     P = V[F]  # (m, 3, 3)
     out = np.empty(F.shape)
     for c in range(3):
@@ -193,8 +194,9 @@ def corner_angles(V: np.ndarray, F: np.ndarray) -> np.ndarray:
 
 
 def polygon_corner_degrees(P: np.ndarray) -> np.ndarray:
-    """Interior angles in **degrees** ``(m, c)`` at the corners of polygons ``P`` ``(m, c, 3)``
-    (corners in cyclic order, any ``c``): the quad measures of Figure 14.
+    """Interior angles in **degrees** ``(m, c)`` at the corners of polygons ``P`` ``(m, c, 3)``.
+
+    Corners in cyclic order, any ``c``: the quad measures of Figure 14.
 
     Unlike :func:`corner_angles` (triangles of a mesh, radians, by ``arctan2``), by ``arccos`` of
     the normalised dot product of the two edges at each corner.

@@ -23,11 +23,10 @@ action is a linear least-squares problem. ``p = N`` is the polynomial form ``Re(
 (a degree-N form in ``f``; for ``N = 1`` exactly the derivation ``D_X f``). ``p = 0`` keeps the
 gradient direction only: it is natural under *conformal* maps too, which matters between
 poses of a body: the ``|∇f|^4`` weight of ``p = 4`` amplifies the metric distortion of the
-map, and on ``anny_000 -> anny_003`` a few stretched faces dominated it (the exact
-push-forward then left 87% of the ground-truth-oracle energy at k = 10, against 5% with
-``p = 0``). We use ``p = 0`` by default. Either way, the functions the action produces from
-basis functions are high-frequency (powers of gradients), which a small standard basis cannot
-represent and products of basis functions represent much better. ACBCO17 relate cross fields
+map, and on ``anny_000 -> anny_003`` a few stretched faces dominated it (``docs/benchmarks.md``).
+We use ``p = 0`` by default. Either way, the functions the action produces from basis functions
+are high-frequency (powers of gradients), which a small standard basis cannot represent and
+products of basis functions represent much better. ACBCO17 relate cross fields
 across shapes through their action on functions in the same spirit (only real-valued functions
 cross the map); this particular action is our choice, see :mod:`prodmaps.fields.consistency`.
 
@@ -59,10 +58,9 @@ class SpanProjector:
     norm, the paper's Approach B) and ``from_basis(a) = Σ_r V_rᵀ D⁻¹ a`` the span coordinates of
     ``B a``.
 
-    Before issue 34 this class truncated on its own, on A-orthonormal factors with no column weights
-    (the ``"area"`` reading): on the embedded humans it kept rank 18/37/95 at k = 5/10/20 where
-    the library keeps 12/28/64, and the kept small directions made the transported actions of
-    the test functions wrong by 10-87 %. ``normalization="area"`` still gives that reading.
+    ``normalization="area"`` truncates A-orthonormal factors with no column weights: it keeps more
+    small directions, which make the transported actions of the test functions wrong
+    (``docs/benchmarks.md``).
     """
 
     def __init__(self, operator):
@@ -96,8 +94,9 @@ class SpanProjector:
 
 
 def span_projector(basis, rtol: float = 1e-3, normalization: str | None = None) -> SpanProjector:
-    """:class:`SpanProjector` of a :class:`prodmaps.ProductBasis` (or a Basis) at the Approach-B
-    threshold ``rtol``, through the library's cached operator ``basis.operator("svd", ...)``.
+    """:class:`SpanProjector` of a :class:`prodmaps.ProductBasis` (or a Basis) at the Approach-B threshold ``rtol``.
+
+    Built through the library's cached operator ``basis.operator("svd", ...)``.
 
     ``normalization``: the operator's column normalisation (default: the library's,
     :data:`prodmaps.approx.DEFAULT_NORMALIZATION`).
@@ -113,8 +112,10 @@ def span_projector(basis, rtol: float = 1e-3, normalization: str | None = None) 
 
 
 def powered_gradients(G: np.ndarray, N: int = 4, power: float | None = None, eps: float = 1e-3) -> np.ndarray:
-    """``g^N |g|^(p - N)`` for complex gradients ``G`` ``(m,)`` or ``(m, J)``: the ``N``-th power of
-    the gradient direction times the magnitude to the ``p = power`` (default ``p = N``: ``g^N``).
+    """``g^N |g|^(p - N)`` for complex gradients ``G`` ``(m,)`` or ``(m, J)``.
+
+    The ``N``-th power of the gradient direction times the magnitude to the ``p = power`` (default
+    ``p = N``: ``g^N``).
 
     For ``p < N`` the direction of a vanishing gradient is round-off, so the result is faded out
     by ``|g|² / (|g|² + ε²)`` with ``ε = eps`` times the RMS of ``|g|`` over the faces (per column).

@@ -63,9 +63,11 @@ _CORNERS = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], dtype=np.int64)  # unit-sq
 
 
 def _seam_edges(TT, TTi, cuts, mismatch):
-    """Seam edges once each: ``(f, e, g, eg, r)``, face ``f``'s edge ``e`` (corners ``e, e+1``) is
-    face ``g``'s edge ``eg`` (``TT``, ``TTi``: igl's triangle-triangle adjacency); ``r`` the
-    mismatch ``(mod 4)`` seen from ``f``."""
+    """Seam edges once each: ``(f, e, g, eg, r)``.
+
+    Face ``f``'s edge ``e`` (corners ``e, e+1``) is face ``g``'s edge ``eg`` (``TT``, ``TTi``: igl's
+    triangle-triangle adjacency); ``r`` the mismatch ``(mod 4)`` seen from ``f``.
+    """
     fs, es = np.nonzero(cuts)
     g, eg = TT[fs, es], TTi[fs, es]
     keep = (g >= 0) & (fs < g)
@@ -256,9 +258,10 @@ class _Seams:
         return fixed, _relation_arrays(rels), t, off
 
     def chain_relations(self, t: np.ndarray, chains: np.ndarray, *, at_nodes: bool = True):
-        """``(copy, start, k, tau)`` arrays of the seam ends on ``chains`` (a mask over chains, their
-        translations ``t`` known), ``p(other) = R^rot_c p(ref) + t_c``; only those at regular
-        vertices unless ``at_nodes``."""
+        """``(copy, start, k, tau)`` arrays of the seam ends on ``chains`` (a mask over chains, ``t`` known).
+
+        ``p(other) = R^rot_c p(ref) + t_c``; only those at regular vertices unless ``at_nodes``.
+        """
         v, a, b, c = self.relations()
         sel = chains[c] if at_nodes else chains[c] & ~self.node[v]
         return b[sel], a[sel], self.rot_c[c[sel]], t[c[sel]]
@@ -321,8 +324,11 @@ def comb_and_cut(mesh: Mesh, z: np.ndarray) -> dict:
 
 
 def _transition_rows(rot, a_f, a_g, b_f, b_g, nc: int) -> sp.csr_matrix:
-    """Rows of ``(p_g(x) - R p_f(x)) - (p_g(y) - R p_f(y))`` ``(2 ne, 2 nc)``: the transition of every
-    seam edge holds with the same translation at its two ends ``x``, ``y`` (copies ``a``, ``b``)."""
+    """Rows ``(2 ne, 2 nc)`` of ``(p_g(x) - R p_f(x)) - (p_g(y) - R p_f(y))``.
+
+    The transition of every seam edge holds with the same translation at its two ends ``x``, ``y``
+    (copies ``a``, ``b``).
+    """
     ne = rot.size
     R = _ROT[rot]
     rr, cc, vv = [], [], []
@@ -341,9 +347,12 @@ def _transition_rows(rot, a_f, a_g, b_f, b_g, nc: int) -> sp.csr_matrix:
 
 
 def continuous_system(A, b, seams, nc: int, weight: float):
-    """Step 2 (module doc): the continuous problem ``(A0, b0, pin)``: the field alignment ``(A, b)``
-    plus, with ``weight``, the seam transitions as soft constraints with free translations per
-    edge, and ``pin`` fixing the first cut vertex at the origin (the solution's translation)."""
+    """Step 2 (module doc): the continuous problem ``(A0, b0, pin)``.
+
+    The field alignment ``(A, b)`` plus, with ``weight``, the seam transitions as soft constraints with
+    free translations per edge, and ``pin`` fixing the first cut vertex at the origin (the solution's
+    translation).
+    """
     pin = sp.csr_matrix(([1.0, 1.0], ([0, 1], [0, nc])), shape=(2, 2 * nc))
     if seams is None:
         return sp.vstack([A, pin]).tocsr(), np.concatenate([b, np.zeros(2)]), pin
@@ -361,8 +370,7 @@ def _solve_uv(A, b, nc: int) -> np.ndarray:
 
 
 def _soft_rows(seams, fixed: dict, rels, t, nc: int):
-    """Rows ``(M, rhs)`` pulling the continuous solve towards the constraints decided so far (the
-    fixed copies ``fixed``, the relations ``rels`` and the chains whose translation ``t`` is known)."""
+    """Rows ``(M, rhs)`` pulling the continuous solve towards ``fixed``, ``rels`` and the chains with known ``t``."""
     fc = np.fromiter(fixed.keys(), dtype=np.int64, count=len(fixed))
     fp = np.array(list(fixed.values())).reshape(-1, 2)
     cp, st, kk, tau = _concat_relations(rels, seams.chain_relations(t, np.isfinite(t[:, 0])))
@@ -388,10 +396,12 @@ def _resolve(fixed: dict, rels, t, *, seams, A0, b0, nc: int, weight: float) -> 
 
 
 def _hard_constraints(seams, fixed_d: dict, node_rels, t_c, nc: int):
-    """The final solve's variables: ``(Smat (2nc, 2nf), s0 (2nc,), any_fixed)`` with the cut
-    vertices' ``(u, v) = Smat y + s0`` for the free unknowns ``y``: the singular node copies fixed,
-    every other copy of a seam vertex eliminated through its chain (regular vertices) or its node's
-    chains (regular nodes)."""
+    """The final solve's variables: ``(Smat (2nc, 2nf), s0 (2nc,), any_fixed)``.
+
+    The cut vertices' ``(u, v) = Smat y + s0`` for the free unknowns ``y``: the singular node copies
+    fixed, every other copy of a seam vertex eliminated through its chain (regular vertices) or its
+    node's chains (regular nodes).
+    """
     S = seams
     elim_c, elim_ref, elim_k, elim_t = _concat_relations(
         S.chain_relations(t_c, np.ones(S.n_chains, bool), at_nodes=False), node_rels)
@@ -428,10 +438,12 @@ def _hard_constraints(seams, fixed_d: dict, node_rels, t_c, nc: int):
 
 
 def integer_solve(A, b, seams, uv: np.ndarray, I: np.ndarray, A0, b0, pin, *, weight: float, batches: int):
-    """Step 3 (module doc): round the nodes and translations along the chain tree (re-solving the
-    continuous problem ``(A0, b0)`` between ``batches``), then solve the alignment ``(A, b)`` with
-    them as hard constraints. Returns ``(uv (nc, 2), off)``: ``off`` the largest distance of a
-    rounded non-root node or translation from the integers."""
+    """Step 3 (module doc): round the nodes and translations, then solve the alignment with them fixed.
+
+    Rounding follows the chain tree (re-solving the continuous problem ``(A0, b0)`` between
+    ``batches``); the alignment ``(A, b)`` takes them as hard constraints. Returns ``(uv (nc, 2), off)``:
+    ``off`` the largest distance of a rounded non-root node or translation from the integers.
+    """
     nc = uv.shape[0]
     resolve = partial(_resolve, seams=seams, A0=A0, b0=b0, nc=nc, weight=weight)
     fixed_d, node_rels, t_c, off = seams.round_nodes(uv, I, resolve=resolve, batches=batches)
@@ -454,8 +466,10 @@ def _seam_translations(seams, uv: np.ndarray):
 
 
 def _face_transitions(m: int, fs, es, g, eg, rot, t_edge):
-    """Per face and local edge ``(rot (m, 3), trans (m, 3, 2))``: the transition into the
-    neighbour's chart, ``p_g = R^rot p_f + trans`` (identity off the seams)."""
+    """Per face and local edge ``(rot (m, 3), trans (m, 3, 2))``: the transition into the neighbour's chart.
+
+    ``p_g = R^rot p_f + trans`` (identity off the seams).
+    """
     out_rot = np.zeros((m, 3), np.int64)
     trans = np.zeros((m, 3, 2))
     if fs.size:
@@ -559,8 +573,7 @@ def _apply(rot, t, p):
 
 
 def _cells(U: np.ndarray, ok: np.ndarray, grid, eps: float):
-    """The cells: unit squares with a positive-area overlap with a (non-folded) triangle (separating
-    axes), as fragments ``(cf (c,) face, cij (c, 2) lower corner)`` and their lookup."""
+    """The cells (unit squares overlapping a non-folded triangle) as fragments ``(cf, cij)``, and their lookup."""
     lo = np.floor(U.min(axis=1)).astype(np.int64)
     hi = np.ceil(U.max(axis=1)).astype(np.int64) - 1
     lo[~ok], hi[~ok] = 0, -1
@@ -581,9 +594,11 @@ def _cells(U: np.ndarray, ok: np.ndarray, grid, eps: float):
 
 
 def _cell_links(U: np.ndarray, ok: np.ndarray, TT: np.ndarray, rot, trans, cells: "_Keys", eps: float):
-    """The cell fragments across every edge (once): those crossed by the open edge, each paired with
-    the fragment in the neighbour's chart. Returns ``(ia, ib, r, t)``: fragment ``ib``'s chart is
-    ``R^r (fragment ia's chart) + t``."""
+    """The cell fragments across every edge (once); returns ``(ia, ib, r, t)``.
+
+    Those crossed by the open edge, each paired with the fragment in the neighbour's chart: fragment
+    ``ib``'s chart is ``R^r (fragment ia's chart) + t``.
+    """
     m = U.shape[0]
     ef, ee = np.nonzero((TT > np.arange(m)[:, None]))
     eg = TT[ef, ee]
@@ -611,10 +626,12 @@ def _cell_links(U: np.ndarray, ok: np.ndarray, TT: np.ndarray, rot, trans, cells
 
 
 def _cell_charts(nfr: int, cls: np.ndarray, n_cls: int, links, cij: np.ndarray):
-    """The chart of every cell fragment relative to its class's first fragment, ``p_root = R^k p + tau``,
-    walked along the ``links`` (:func:`_cell_links`). Returns ``(kk (c,), tau (c, 2), ref_cell (c, 2),
+    """The chart of every cell fragment relative to its class's first fragment, ``p_root = R^k p + tau``.
+
+    Walked along the ``links`` (:func:`_cell_links`). Returns ``(kk (c,), tau (c, 2), ref_cell (c, 2),
     bad_cls (n_cls,))``: ``ref_cell`` the unit square of its class in the root chart, ``bad_cls`` the
-    classes whose fragments name different squares (not a proper cell)."""
+    classes whose fragments name different squares (not a proper cell).
+    """
     ia, ib, r_, t_ = links
     kk = np.full(nfr, -1)
     tau = np.zeros((nfr, 2))
@@ -647,7 +664,8 @@ def _integer_points(U, e1, e2, det, ok, TT, rot, trans, grid, eps: float):
 
     Returns ``(pts, pf, pid, n_pts, first, lam)``: ``pts`` the lookup of the per-face points, ``pf``
     their face, ``pid`` their point id, ``first`` one per-face point of every id and ``lam``
-    ``(p, 3)`` the barycentric coordinates of the per-face points."""
+    ``(p, 3)`` the barycentric coordinates of the per-face points.
+    """
     plo = np.ceil(U.min(axis=1) - eps).astype(np.int64)
     phi = np.floor(U.max(axis=1) + eps).astype(np.int64)
     plo[~ok], phi[~ok] = 0, -1
@@ -676,9 +694,11 @@ def _integer_points(U, e1, e2, det, ok, TT, rot, trans, grid, eps: float):
 
 
 def _quads_of_cells(cf, cij, cls, n_cls: int, charts, pts: "_Keys", pid) -> np.ndarray:
-    """The quads ``(q, 4)``: the consistent cell classes with exactly one integer point per corner
-    slot of their root square, four slots, four distinct points (the corners of every fragment in
-    its closed triangle, by slot of the root square)."""
+    """The quads ``(q, 4)``: the consistent cell classes with one distinct integer point per corner slot.
+
+    Exactly one integer point per corner slot of their root square, four slots, four distinct points
+    (the corners of every fragment in its closed triangle, by slot of the root square).
+    """
     kk, tau, ref_cell, bad_cls = charts
     fr_idx = np.repeat(np.arange(cf.size), 4)
     corner = (cij[:, None, :] + _CORNERS[None]).reshape(-1, 2)
@@ -702,8 +722,7 @@ def _quads_of_cells(cf, cij, cls, n_cls: int, charts, pts: "_Keys", pid) -> np.n
 
 
 def _manifold_quads(Q: np.ndarray, n_pts: int):
-    """Drop quads that reuse a directed edge or make an edge non-manifold, until none does:
-    ``(Q, n_dropped)``."""
+    """Drop quads that reuse a directed edge or make an edge non-manifold, until none does: ``(Q, n_dropped)``."""
     n_dropped = 0
     while Q.size:
         E = np.stack([Q, np.roll(Q, -1, axis=1)], axis=2).reshape(-1, 2)

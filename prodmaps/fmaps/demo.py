@@ -26,7 +26,8 @@ def _shape_descriptors(basis: Basis, lms: np.ndarray, k: int, n_descr: int, step
 
     Kept in a small LRU (``MEMO_BYTES``): experiments fit many maps from the same shape with the
     same landmarks (every pair with the same source), and the result is a pure function of the
-    basis and the arguments, so a kept array is the array a new computation would give."""
+    basis and the arguments, so a kept array is the array a new computation would give.
+    """
     key = (id(basis), k, lms.tobytes(), int(n_descr), int(step), bool(scaled))
     if key in _memo:
         return _memo.get(key, None)[1]

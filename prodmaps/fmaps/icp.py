@@ -17,7 +17,7 @@ __all__ = ["icp_refine"]
 
 def icp_refine(C_12, basis_1: Basis, basis_2: Basis, n_iter: int = 5, *, orthogonal: bool = True,
                return_p2p: bool = False):
-    """Refine ``C_12`` ``(k2, k1)`` by alternating point-map conversion and map re-estimation.
+    r"""Refine ``C_12`` ``(k2, k1)`` by alternating point-map conversion and map re-estimation.
 
     Each of the ``n_iter`` iterations converts the current map to a point map with the standard
     nearest-neighbour rule (:func:`prodmaps.p2p.from_fmap` with ``method="std"`` [OBCS*12], ``p2p_21``
@@ -27,7 +27,7 @@ def icp_refine(C_12, basis_1: Basis, basis_2: Basis, n_iter: int = 5, *, orthogo
     ``orthogonal`` (the refinement of the NO17 authors' demo), replaces ``C_12`` by the closest
     partial isometry ``U I_{k2×k1} Vᵀ`` of ``W = U Σ Vᵀ``; otherwise by ``W`` itself. The size
     never changes (contrast :func:`prodmaps.fmaps.zoomout`, which grows it). The demo estimates
-    ``W`` by Euclidean least squares ``Φ2 \\ Φ1[p2p_21]``; here it is the ``A2``-orthogonal
+    ``W`` by Euclidean least squares ``Φ2 \ Φ1[p2p_21]``; here it is the ``A2``-orthogonal
     projection, the convention of every map in this package (they agree for a uniform mass).
 
     Returns ``C_12`` (``(k2, k1)``), and with ``return_p2p`` also the point map of the last

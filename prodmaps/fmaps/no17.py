@@ -187,6 +187,7 @@ class NO17Terms:
 
     @property
     def shape(self) -> tuple[int, int]:
+        """Shape ``(k2, k1)`` of the maps this energy is defined on."""
         return (self.D2.shape[0], self.D1.shape[0])
 
 

@@ -28,6 +28,7 @@ __all__ = ["main", "build_parser"]
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``prodmaps`` command-line parser, one subcommand per action."""
     p = argparse.ArgumentParser(prog="prodmaps", description="Reproduce the paper's figures and tables.")
     p.add_argument("--version", action="version", version=f"prodmaps {_version()}")
     sub = p.add_subparsers(dest="command", required=True)
@@ -234,8 +235,7 @@ def _cmd_claims(a) -> int:
 
 
 def _check_results_folder(folder: Path, runs) -> None:
-    """Refuse a folder that holds no run of ``runs`` (a typo, or the ``--out`` root instead of
-    ``OUT/<profile>``), naming the folder expected."""
+    """Refuse a folder holding no run of ``runs`` (a typo, or the ``--out`` root), naming the folder expected."""
     if not folder.is_dir():
         raise FileNotFoundError(f"{folder}: no such results folder; expected OUT/<profile>, e.g. results/paper")
     if not any((folder / r / "results.json").is_file() for r in runs):

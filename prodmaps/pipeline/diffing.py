@@ -59,6 +59,8 @@ class Finding:
 
 @dataclass
 class DiffReport:
+    """What a run's diff against its baseline found: the values' and images' findings and notes."""
+
     run_dir: str
     baseline_dir: str
     findings: list = field(default_factory=list)
@@ -67,19 +69,23 @@ class DiffReport:
 
     @property
     def failures(self) -> list:
+        """The findings outside their tolerance."""
         return [f for f in self.findings if not f.ok]
 
     @property
     def ok(self) -> bool:
+        """True when no finding failed."""
         return not self.failures
 
     def counts(self) -> dict:
+        """Values and images compared and failed: ``values``, ``values_failed``, ``images``, ``images_failed``."""
         nums = [f for f in self.findings if f.kind != "image"]
         imgs = [f for f in self.findings if f.kind == "image"]
         return {"values": len(nums), "values_failed": sum(not f.ok for f in nums),
                 "images": len(imgs), "images_failed": sum(not f.ok for f in imgs)}
 
     def to_markdown(self, max_rows: int = 50) -> str:
+        """The report as Markdown: counts, then at most ``max_rows`` drifted values, images and notes."""
         c = self.counts()
         verdict = "PASS" if self.ok else "FAIL"
         lines = [f"## diff {verdict}: `{self.run_dir}` vs baseline `{self.baseline_dir}`", "",
@@ -184,8 +190,7 @@ def diff_results(new: dict, base: dict, tolerances: dict | None = None) -> list[
 
 
 def image_rms(a, b) -> float:
-    """RMS of the pixel difference of two equally sized uint8 arrays (0-255 scale), as
-    ``matplotlib.testing.compare.calculate_rms`` computes it."""
+    """RMS of two equal-sized uint8 images' difference (0-255), as ``matplotlib.testing.compare.calculate_rms``."""
     from matplotlib.testing.compare import calculate_rms
 
     return float(calculate_rms(np.asarray(a, dtype=np.int16), np.asarray(b, dtype=np.int16)))

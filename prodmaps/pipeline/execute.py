@@ -66,7 +66,7 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
     notebook with the traceback is still written, and rendered as HTML). ``timeout`` is per
     cell, in seconds. With ``html`` the executed notebook is also written as ``executed.html``.
     Once the last cell has run the kernel is stopped at once with its process group (every
-    output is written by then): a graceful shutdown waits 2.5 s for the children of a kernel
+    output is written by then): a graceful shutdown waits seconds for the children of a kernel
     whose notebook used worker processes (:mod:`prodmaps.experiments.parallel`), because the
     kernel signals and awaits multiprocessing's resource tracker, which ignores the signal.
     ``shown_out_dir`` replaces ``out_dir`` in the executed notebook's injected parameters cell
@@ -129,6 +129,8 @@ def _show_out_dir(executed: Path, actual: str, shown: str, notebook_shown: str |
 # ------------------------------------------------------------------------------ run loop
 @dataclass
 class RunResult:
+    """The outcome of one run: name, status (``"ok"``, ``"skipped"``, ``"failed"``), time, folder, error."""
+
     name: str
     status: str  # "ok", "skipped", "failed"
     seconds: float = 0.0
@@ -136,6 +138,7 @@ class RunResult:
     error: str = ""
 
     def to_dict(self) -> dict:
+        """The fields as a dict (JSON-ready)."""
         return dict(self.__dict__)
 
 
@@ -273,8 +276,7 @@ MANIFEST_PACKAGES = ("numpy", "scipy", "trimesh", "threadpoolctl", "robust-lapla
 
 
 def run_environment(root=None) -> dict:
-    """What a run's numbers depend on beyond its inputs: package versions, the BLAS in use
-    (threadpoolctl: library, version, kernel, threads) and the project's git commit."""
+    """What a run's numbers depend on beyond its inputs: package versions, the BLAS in use, the git commit."""
     from importlib import metadata
 
     versions = {}
@@ -358,8 +360,11 @@ def _literal(text):
 
 
 def _same_kind(value, default) -> bool:
-    """A value may replace ``default`` if the default is None (any value: the profile decides) or of
-    the same kind (bool, number, string, list/tuple, dict); ``None`` always resets to the profile."""
+    """Whether a value may replace ``default``: any if the default is None, else one of the same kind.
+
+    Kinds: bool, number, string, list/tuple, dict (if the default is None the profile decides);
+    ``None`` always resets to the profile.
+    """
     if default is None or value is None:
         return True
     if isinstance(default, bool) or isinstance(value, bool):
@@ -372,8 +377,7 @@ DEFAULT_DATASET = "anny_humans"
 
 
 def profile_folder(out, profile: str, dataset: str | None = None) -> Path:
-    """``OUT/<profile>`` for the default data, ``OUT/<profile>-<dataset>`` for another dataset
-    (``--dataset faust`` writes beside the embedded-data runs, never over them)."""
+    """``OUT/<profile>`` for the default data, else ``OUT/<profile>-<dataset>`` (beside those, never over them)."""
     out = Path(out).resolve()
     return out / (profile if dataset in (None, DEFAULT_DATASET) else f"{profile}-{dataset}")
 

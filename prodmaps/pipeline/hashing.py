@@ -48,8 +48,7 @@ def library_hash() -> str:
 
 
 def data_hash(dataset: str | None) -> str:
-    """Cheap fingerprint of a dataset's files: its ``SHA256SUMS`` bytes if present, else the
-    relative paths, sizes and modification times of its files. ``"none"`` if no dataset."""
+    """Cheap fingerprint of a dataset's files: ``SHA256SUMS``, else paths, sizes and times (``"none"`` if none)."""
     if not dataset:
         return "none"
     from .. import datasets

@@ -69,13 +69,13 @@ class Run:
     dataset_figures: bool = False  # its figures shown in every dataset's section of the report
 
     def parameters(self, profile: str) -> dict:
+        """A copy of this run's parameters under ``profile`` (empty if it sets none)."""
         return dict(self.params.get(profile, {}))
 
 
 # ------------------------------------------------------------------------------ registry
 def find_project_root(start=None) -> Path:
-    """The nearest folder at or above ``start`` (default: the working directory) holding
-    ``paper/runs.toml``: the project whose notebooks are reproduced."""
+    """The project root: the nearest folder at or above ``start`` (default: cwd) holding ``paper/runs.toml``."""
     here = Path(start or Path.cwd()).resolve()
     for folder in (here, *here.parents):
         if (folder / REGISTRY).is_file():
@@ -161,13 +161,11 @@ def load_registry(path=None) -> dict[str, Run]:
 
 
 class BareWord(str):
-    """A ``-p key=value`` value that parses as no literal (JSON, TOML or Python): kept as a string,
-    accepted only for a parameter whose default is a string (``dataset=faust``)."""
+    """A ``-p key=value`` value that parses as no literal, kept as a string (only where the default is one)."""
 
 
 def parse_param(text: str):
-    """``key=value`` -> ``(key, value)``; value read as JSON, else a TOML literal, else a Python
-    literal, else a string (a :class:`BareWord`)."""
+    """``key=value`` -> ``(key, value)``: JSON, else TOML, else Python literal, else a :class:`BareWord` string."""
     if "=" not in text:
         raise ValueError(f"parameter {text!r} must look like key=value")
     key, raw = text.split("=", 1)
@@ -195,6 +193,7 @@ def parse_param(text: str):
 
 
 def parse_params(items) -> dict:
+    """``{name: value}`` of ``name=value`` items (``-p``), each by :func:`parse_param`."""
     return dict(parse_param(t) for t in (items or []))
 
 

@@ -271,8 +271,11 @@ def _show(path: Path, registry=None) -> str:
 
 
 def _shown_results(path: Path, base: Path, registry=None) -> str:
-    """A results folder as the report names it: relative to the project (``results/paper/fig02``)
-    when inside it, else relative to the report's folder (never a machine's absolute path)."""
+    """A results folder as the report names it, never by a machine's absolute path.
+
+    Relative to the project (``results/paper/fig02``) when inside it, else relative to the report's
+    folder.
+    """
     try:
         return Path(path).resolve().relative_to(project_root(registry)).as_posix()
     except ValueError:
@@ -315,8 +318,7 @@ SYSTEMATIC_DIFFERENCES = [
 
 
 def _verdict_cell(v) -> str:
-    """The verdict, then the verdict under each other family reading the run carries (the
-    textbook HKS beside the published one: ``"holds (textbook families: does not hold)"``)."""
+    """The verdict, then under each other family reading of the run: ``"holds (textbook families: does not hold)"``."""
     head = f"**{v.verdict}**" if v.verdict == "does not hold" else v.verdict
     return head + "".join(f" ({r} families: {x})" for r, x in ledger.reading_verdicts(v).items())
 
@@ -326,8 +328,11 @@ def _link(path: Path, base: Path, text: str) -> str:
 
 
 def _nb_link(run_folder: Path, base: Path, text: str, notebooks: dict | None = None) -> str:
-    """Link to a run's executed notebook, or (a published report, ``notebooks`` given) to the
-    committed source notebook of the run: ``results/`` is not committed, the notebooks are."""
+    """Link to a run's executed notebook, or in a published report to the run's committed notebook.
+
+    A published report (``notebooks`` given) links the source notebook: ``results/`` is not committed,
+    the notebooks are.
+    """
     if notebooks is None:
         return _link(run_folder / "executed.html", base, text)
     nb = notebooks.get(Path(run_folder).name)
@@ -442,10 +447,12 @@ def _table_summaries(d: "_Doc", infos, published_rows, matches,
 
 
 def _study_sections(d: "_Doc", infos, base: Path, copy_figures: bool, dataset: str | None = None) -> set:
-    """The sections the studies own: every run whose registry entry names a ``report`` module, in
-    registry order, as that module's ``report_blocks(results, dataset name, main=...)`` gives it,
-    followed by the run's figures; ``dataset`` for a prepared dataset's section (``main=False``).
-    Returns the names of the runs shown."""
+    """The sections the studies own; returns the names of the runs shown.
+
+    Every run whose registry entry names a ``report`` module, in registry order, as that module's
+    ``report_blocks(results, dataset name, main=...)`` gives it, followed by the run's figures;
+    ``dataset`` for a prepared dataset's section (``main=False``).
+    """
     shown = set()
     for info in infos:
         if not (info.report and info.doc):

@@ -18,8 +18,10 @@ class SchedulerError(ValueError):
 
 
 def _check_reachable(address: str, timeout: float = 5.0) -> None:
-    """Fail at once, with the address, when nothing listens at a ``tcp://host:port`` scheduler address
-    (Dask's own client retries for its whole connect timeout and then raises a bare traceback)."""
+    """Fail at once, with the address, when nothing listens at a ``tcp://host:port`` scheduler address.
+
+    Dask's own client retries for its whole connect timeout and then raises a bare traceback.
+    """
     import socket
     from urllib.parse import urlsplit
 
@@ -41,9 +43,11 @@ def _check_reachable(address: str, timeout: float = 5.0) -> None:
 
 
 def thread_env(jobs: int) -> dict:
-    """With several notebooks at once, cap BLAS threads and the experiments' worker processes
-    (``PRODMAPS_WORKERS``, :mod:`prodmaps.experiments.parallel`; unless the user set it) so they
-    do not oversubscribe the CPUs."""
+    """With several notebooks at once, cap BLAS threads and worker processes so they do not oversubscribe.
+
+    The workers are the experiments' (``PRODMAPS_WORKERS``, :mod:`prodmaps.experiments.parallel`),
+    capped unless the user set it.
+    """
     if jobs <= 1:
         return {}
     n = str(max(1, (os.cpu_count() or 1) // jobs))

@@ -1,5 +1,7 @@
-"""Preparing datasets the package may not ship: FAUST and TOSCA from the user's own download, and
-derived meshes with a different connectivity (with their ground-truth maps).
+"""Preparing datasets the package may not ship: FAUST and TOSCA, and derived meshes.
+
+FAUST and TOSCA come from the user's own download; derived meshes have a different connectivity
+(with their ground-truth maps).
 
 One module each: :mod:`.archive` (safe archive reading — nothing extracted under its own name,
 zip-slip and zip-bomb refused — and atomic output), :mod:`.faust`, :mod:`.tosca`,

@@ -6,6 +6,7 @@ from .archive import run_cli
 
 
 def main(argv=None) -> int:
+    """Run ``python -m prodmaps.prepare faust|tosca|variants [options]``; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
     commands = {"faust": "faust", "tosca": "tosca", "variants": "variants"}
     if not argv or argv[0] not in commands:

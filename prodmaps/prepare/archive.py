@@ -37,8 +37,7 @@ class PrepareError(Exception):
 
 
 def default_data_root() -> Path:
-    """Where prepared datasets go by default: :func:`prodmaps.datasets.data_root`
-    (``$PRODMAPS_DATA``, else ``~/.local/share/prodmaps``)."""
+    """Where prepared datasets go by default: :func:`prodmaps.datasets.data_root` (``$PRODMAPS_DATA`` if set)."""
     from ..datasets import data_root
 
     return data_root()
@@ -111,6 +110,7 @@ class Archive:
             ) from None
 
     def close(self):
+        """Close the archive (nothing to do for a folder)."""
         if self._zip is not None:
             self._zip.close()
 

@@ -178,6 +178,7 @@ def prepare_faust(archive, data_root=None, *, force: bool = False, n_shapes: int
 
 
 def main(argv=None) -> None:
+    """Command line of the FAUST preparation (``python -m prodmaps.prepare faust``)."""
     ap = argument_parser(__doc__, "replace an existing prepared faust/ folder")
     ap.add_argument("--archive", required=True, action="append",
                     help="MPI-FAUST.zip, an unpacked folder, or a folder holding some tr_reg_XXX.ply/.off; "

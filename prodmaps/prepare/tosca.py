@@ -179,6 +179,7 @@ def prepare_tosca(archive, data_root=None, *, force: bool = False, repair: bool 
 
 
 def main(argv=None) -> None:
+    """Command line of the TOSCA preparation (``python -m prodmaps.prepare tosca``)."""
     ap = argument_parser(__doc__, "replace an existing prepared tosca/ folder")
     ap.add_argument("--archive", required=True, help="toscahires-asci.zip (or the unpacked folder)")
     ap.add_argument("--repair", action="store_true",

@@ -1,4 +1,4 @@
-"""Derived meshes with different connectivity and a ground-truth map to the original.
+r"""Derived meshes with different connectivity and a ground-truth map to the original.
 
 For a prepared dataset (``anny_humans``, ``faust``, ``tosca``) and chosen family shapes, writes
 ``<root>/<dataset>/remeshed/<id>_<recipe>.ply`` and ``<id>_<recipe>.gt_to_family.txt`` (one
@@ -17,7 +17,7 @@ shipped anny variants, see ``prodmaps/data/anny_humans/SOURCE.md``):
 
 Usage (from the repository):
 
-    python data_scripts/make_variants.py --dataset faust --shapes tr_reg_000 tr_reg_001 \\
+    python data_scripts/make_variants.py --dataset faust --shapes tr_reg_000 tr_reg_001 \
         [--recipes remesh_iso remesh_nonuniform thin] [--data-root DIR] [--seed 0] [--force]
 """
 
@@ -57,10 +57,12 @@ def _iso(v, f, scale, iterations=10):
 
 
 def remesh_iso(v, f, *, scale=1.15, **_):
+    """Recipe ``remesh_iso``: isotropic remeshing at ``scale`` x the mean edge length (module doc)."""
     return _iso(v, f, scale)
 
 
 def remesh_nonuniform(v, f, *, axis=0, coarse_ratio=0.25, **_):
+    """Recipe ``remesh_nonuniform``: a fine remesh, one side of the median decimated (module doc)."""
     v1, f1 = _iso(v, f, 0.8)
     cut = float(np.median(v1[:, axis]))
     c = "xyz"[axis]
@@ -75,6 +77,7 @@ def remesh_nonuniform(v, f, *, axis=0, coarse_ratio=0.25, **_):
 
 
 def thin(v, f, *, seed=0, fraction=0.85, **_):
+    """Recipe ``thin``: a ``fraction`` of the faces split 1-to-3 near a corner (module doc)."""
     rng = np.random.default_rng(seed)
     m = f.shape[0]
     split = rng.random(m) < fraction  # (m,)
@@ -122,6 +125,7 @@ def make_variant(mesh, recipe: str, **params):
 def make_variants(dataset: str, shape_ids, recipes=RECIPES, data_root=None, *, seed: int = 0, axis: int = 0,
                   coarse_ratio: float = 0.25, iso_scale: float = 1.15, force: bool = False,
                   verbose: bool = True) -> list[Path]:
+    """Write the ``recipes`` variants of ``shape_ids`` and their ground truth; returns the files written."""
     import prodmaps as pm
     import prodmaps.datasets as ds
 
@@ -170,6 +174,7 @@ def make_variants(dataset: str, shape_ids, recipes=RECIPES, data_root=None, *, s
 
 
 def main(argv=None) -> None:
+    """Command line of the variants (``python -m prodmaps.prepare variants``)."""
     ap = argument_parser(__doc__, "replace existing variant files")
     ap.add_argument("--dataset", required=True, choices=("anny_humans", "faust", "tosca"))
     ap.add_argument("--shapes", nargs="+", required=True, help="family shape ids, e.g. tr_reg_000")
