@@ -1,4 +1,4 @@
-"""File helpers shared by the whole package: SHA-256 digests, atomic writes, TOML.
+"""File helpers shared by the whole package: SHA-256 digests, atomic writes, TOML, JSON.
 
 One implementation each: dataset checksums (:func:`prodmaps.datasets.verify_checksums`), the
 preparation scripts, the pipeline's run hashes and every writer of results or caches use them;
@@ -9,10 +9,11 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import json
 import os
 from pathlib import Path
 
-__all__ = ["sha256_file", "sha256_bytes", "atomic_path", "parse_toml"]
+__all__ = ["sha256_file", "sha256_bytes", "atomic_path", "parse_toml", "read_json"]
 
 _CHUNK = 1 << 20
 
@@ -69,3 +70,11 @@ def parse_toml(text: str) -> dict:
             raise ModuleNotFoundError("reading TOML (paper/runs.toml, the claims ledger) on Python 3.10 needs "
                                       "`pip install tomli`") from exc
     return tomllib.loads(text)
+
+
+def read_json(path, default=None):
+    """The JSON document at ``path``, or ``default`` when it is missing or not JSON."""
+    try:
+        return json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return default

@@ -69,13 +69,13 @@ from __future__ import annotations
 
 import fnmatch
 import importlib.resources
-import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..files import parse_toml
+from ..files import parse_toml, read_json
 from . import compare
 from .compare import ROUNDING_REL
+from .results import flatten
 
 __all__ = ["Claim", "Verdict", "load_ledger", "evaluate", "evaluate_folder", "verdicts_for_run",
            "format_table", "setting_mark", "reading_verdicts", "LEDGER", "VERDICTS"]
@@ -178,14 +178,12 @@ def load_ledger(path=None) -> dict[str, Claim]:
         if missing:
             raise ValueError(f"claims ledger: claim {cid!r} lacks {missing}")
         out[cid] = Claim(
-            id=cid, where=e["where"], quote=e["quote"], runs=tuple(e["runs"]), values=dict(e["values"]),
-            holds=rule["holds"], margin=rule.get("margin", ""), evidence=rule.get("evidence", ""),
-            notebook=e.get("notebook", ""), settings=e.get("settings", ""),
-            subsets=tuple(e.get("subsets", ("all",))), method=e.get("method", "our_B"),
-            method_rule=e.get("method_rule", "our_B_gainrule"), method_default=e.get("method_default", "our_default"),
-            note=e.get("note", ""), smoke_verdict=_per_subset(cid, e.get("smoke_verdict", {})),
-            demonstrable=rule.get("demonstrable", ""), demonstrable_margin=rule.get("demonstrable_margin", ""),
-            demonstrable_evidence=rule.get("demonstrable_evidence", ""))
+            id=cid, runs=tuple(e["runs"]), values=dict(e["values"]), subsets=tuple(e.get("subsets", ("all",))),
+            smoke_verdict=_per_subset(cid, e.get("smoke_verdict", {})),
+            **{k: e[k] for k in ("where", "quote", "notebook", "settings", "method", "method_rule", "method_default",
+                                 "note") if k in e},
+            **{k: rule[k] for k in ("holds", "margin", "evidence", "demonstrable", "demonstrable_margin",
+                                    "demonstrable_evidence") if k in rule})
     return out
 
 
@@ -203,33 +201,31 @@ def _gate(claim: Claim, results: dict, subset: str) -> dict:
     Evaluated on the values that do not name ``{method}`` (typically an oracle and ``C``), with
     the exact tie rule. ``{"holds": bool | None, "margin": ..., "evidence": str}``.
     """
-    env = dict(_FUNCS)
     try:
-        for name, path in claim.values.items():
-            if "{method}" not in path:
-                env[name] = _lookup(path.replace("{subset}", SUBSET_SUFFIX[subset]), results)
+        env = {**_FUNCS, **_values(claim, results, subset)}
     except _Missing as exc:
         return {"holds": None, "evidence": f"not measured: {exc}"}
-    scope = {"__builtins__": {}, **env, **_comparators("exact")}
     try:
-        holds = bool(eval(claim.demonstrable, scope))  # noqa: S307 - the ledger is package data
-        margin = eval(claim.demonstrable_margin, scope) if claim.demonstrable_margin else None  # noqa: S307
-    except (KeyError, NameError, TypeError, ZeroDivisionError, ValueError) as exc:
+        holds = bool(_eval(claim.demonstrable, env))
+        margin = _eval(claim.demonstrable_margin, env) if claim.demonstrable_margin else None
+    except _RULE_ERRORS as exc:
         return {"holds": None, "evidence": f"not measured: rule.demonstrable failed ({type(exc).__name__}: {exc})"}
     return {"holds": holds, "margin": margin, "evidence": _evidence(claim.demonstrable_evidence, margin, env)}
 
 
-def _flatten(obj, prefix: str = "") -> dict:
-    out = {}
-    if isinstance(obj, dict) and obj:
-        for k, v in obj.items():
-            out.update(_flatten(v, f"{prefix}.{k}" if prefix else str(k)))
-    elif isinstance(obj, list) and obj and not all(isinstance(v, (int, float)) for v in obj):
-        for i, v in enumerate(obj):
-            out.update(_flatten(v, f"{prefix}.{i}" if prefix else str(i)))
-    else:
-        out[prefix] = obj
-    return out
+_RULE_ERRORS = (KeyError, NameError, TypeError, ZeroDivisionError, ValueError)
+
+
+def _values(claim: Claim, results: dict, subset: str, method: str | None = None) -> dict:
+    """The claim's values for one subset and product ``method`` (None: only the values that do not
+    name ``{method}``)."""
+    return {name: _lookup(path.replace("{method}", method or "").replace("{subset}", SUBSET_SUFFIX[subset]), results)
+            for name, path in claim.values.items() if method is not None or "{method}" not in path}
+
+
+def _eval(expr: str, env: dict, mode: str = "exact"):
+    """A rule's expression on the values ``env``, with the comparators of one way of judging."""
+    return eval(expr, {"__builtins__": {}, **env, **_comparators(mode)})  # noqa: S307 - the ledger is package data
 
 
 class _Missing(LookupError):
@@ -237,10 +233,11 @@ class _Missing(LookupError):
 
 
 def _lookup(path: str, results: dict):
+    """The value of ``"<run>:<dotted key>"`` in ``{run: flattened results or None}``."""
     run, _, key = path.partition(":")
-    if run not in results or results[run] is None:
+    flat = results.get(run)
+    if flat is None:
         raise _Missing(f"run {run!r} not available")
-    flat = results[run]["_flat"]
     if "*" not in key:
         if key not in flat:
             raise _Missing(f"{run}:{key} not in the results")
@@ -291,24 +288,17 @@ def _reading_rows(values: dict, reading: str | None) -> tuple[dict, set]:
 
 
 def _judge(claim: Claim, results: dict, method: str, subset: str, reading: str | None = None) -> dict:
-    env = dict(_FUNCS)
     try:
-        looked = {name: _lookup(path.replace("{method}", method).replace("{subset}", SUBSET_SUFFIX[subset]), results)
-                  for name, path in claim.values.items()}
+        looked, found = _reading_rows(_values(claim, results, subset, method), reading)
     except _Missing as exc:
         return {"holds": None, "evidence": f"not measured: {exc}"}
-    looked, found = _reading_rows(looked, reading)
     if reading is not None and reading not in found:
         return {"holds": None, "evidence": f"not measured: no family under the {reading} reading"}
-    env.update(looked)
+    env = {**_FUNCS, **looked}
     try:
-        ways = {}
-        for mode in _MODES:
-            scope = {"__builtins__": {}, **env, **_comparators(mode)}  # one namespace: generators see the values
-            ways[mode] = bool(eval(claim.holds, scope))  # noqa: S307 - the ledger is package data, not user input
-        scope = {"__builtins__": {}, **env, **_comparators("exact")}
-        margin = eval(claim.margin, scope) if claim.margin else None  # noqa: S307
-    except (KeyError, NameError, TypeError, ZeroDivisionError, ValueError) as exc:
+        ways = {mode: bool(_eval(claim.holds, env, mode)) for mode in _MODES}  # one namespace: generators see env
+        margin = _eval(claim.margin, env) if claim.margin else None
+    except _RULE_ERRORS as exc:
         return {"holds": None, "evidence": f"not measured: rule failed on these results ({type(exc).__name__}: {exc})"}
     holds = ways["optimistic"]
     within_rounding = ways["optimistic"] != ways["pessimistic"]
@@ -321,7 +311,7 @@ def _judge(claim: Claim, results: dict, method: str, subset: str, reading: str |
 
 def evaluate(claim: Claim, results: dict) -> list[Verdict]:
     """Verdicts of ``claim`` (one per subset) from ``{run: results document or None}``."""
-    prepared = {r: ({"_flat": _flatten(d.get("results", d))} if d else None) for r, d in results.items()}
+    prepared = {r: (flatten(d.get("results", d), number_lists=True) if d else None) for r, d in results.items()}
     out = []
     for subset in claim.subsets:
         settings = {"paper": _judge(claim, prepared, claim.method, subset)}
@@ -356,20 +346,12 @@ def reading_verdicts(v: "Verdict") -> dict:
     return {k.partition(":")[2]: s["verdict"] for k, s in v.settings.items() if k.startswith("reading:")}
 
 
-def _read(folder: Path) -> dict | None:
-    p = folder / "results.json"
-    try:
-        return json.loads(p.read_text())
-    except (OSError, ValueError):
-        return None
-
-
 def evaluate_folder(results_dir, ledger=None) -> list[Verdict]:
     """Verdicts of every ledger claim from a results folder (``results/paper``: one subfolder per run)."""
     results_dir = Path(results_dir)
     claims = load_ledger(ledger)
     runs = {r for c in claims.values() for r in c.runs}
-    docs = {r: _read(results_dir / r) for r in runs}
+    docs = {r: read_json(results_dir / r / "results.json") for r in runs}
     return [v for c in claims.values() for v in evaluate(c, docs)]
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from ..files import atomic_path
 
 __all__ = ["write_results", "read_results", "save_figure", "setup_matplotlib", "to_jsonable",
-           "resolve_profile"]
+           "resolve_profile", "flatten"]
 
 
 def to_jsonable(obj):
@@ -67,6 +67,21 @@ def write_results(out_dir, results: dict, parameters: dict) -> Path:
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
     return path
+
+
+def flatten(obj, prefix: str = "", number_lists: bool = False) -> dict:
+    """Nested dicts/lists -> ``{dotted.key: leaf}``; empty containers are kept as leaves, and so
+    are lists of numbers with ``number_lists``."""
+    if isinstance(obj, dict) and obj:
+        items = obj.items()
+    elif isinstance(obj, list) and obj and not (number_lists and all(isinstance(v, (int, float)) for v in obj)):
+        items = enumerate(obj)
+    else:
+        return {prefix: obj}
+    out = {}
+    for k, v in items:
+        out.update(flatten(v, f"{prefix}.{k}" if prefix else str(k), number_lists))
+    return out
 
 
 def read_results(out_dir) -> dict:

@@ -188,34 +188,30 @@ def _cmd_diff(a) -> int:
     except Exception:
         runs = {}
     new, base = Path(a.run_dir), Path(a.baseline_dir)
+    thr = DEFAULT_PNG_THRESHOLD if a.png_threshold is None else a.png_threshold
     if not (new / "results.json").is_file() and new.is_dir() and not a.run:  # two profile folders
         names = sorted(p.parent.name for p in new.glob("*/results.json"))
         if not names:
             raise FileNotFoundError(f"{new}: neither a run folder (results.json) nor a profile folder "
                                     "(<run>/results.json)")
-        thr = DEFAULT_PNG_THRESHOLD if a.png_threshold is None else a.png_threshold
         missing = [n for n in names if not (base / n / "results.json").is_file()]
         ok = not missing
         for n in names:
-            if n in missing:
-                continue
-            rep = diff_runs(new / n, base / n, runs[n].tolerances if n in runs else {}, png_threshold=thr,
-                            diff_dir=(Path(a.diff_dir) / n) if a.diff_dir else None)
-            print(rep.to_markdown())
-            ok &= rep.ok
+            if n not in missing:
+                rep = diff_runs(new / n, base / n, runs[n].tolerances if n in runs else {}, png_threshold=thr,
+                                diff_dir=(Path(a.diff_dir) / n) if a.diff_dir else None)
+                print(rep.to_markdown())
+                ok &= rep.ok
         print(f"{len(names) - len(missing)} run(s) compared" + (f"; no baseline for {missing}" if missing else ""))
         return 0 if ok else 1
     if new.name != base.resolve().name and not a.run and new.name in runs and base.resolve().name in runs:
         raise ValueError(f"refusing to diff run {new.name!r} against the baseline of another run "
                          f"{base.resolve().name!r}; pass --run NAME if that is what you mean")
-    name = a.run or Path(a.baseline_dir).resolve().name
-    tolerances = {}
-    if name in runs:
-        tolerances = runs[name].tolerances
-    elif a.run:
+    name = a.run or base.resolve().name
+    if a.run and name not in runs:
         raise ValueError(f"run {a.run!r} is not in the registry")
-    thr = DEFAULT_PNG_THRESHOLD if a.png_threshold is None else a.png_threshold
-    rep = diff_runs(a.run_dir, a.baseline_dir, tolerances, png_threshold=thr, diff_dir=a.diff_dir)
+    rep = diff_runs(a.run_dir, a.baseline_dir, runs[name].tolerances if name in runs else {}, png_threshold=thr,
+                    diff_dir=a.diff_dir)
     print(rep.to_markdown())
     return 0 if rep.ok else 1
 

@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..experiments.results import flatten
+
 __all__ = ["DEFAULT_RTOL", "DEFAULT_ATOL", "DEFAULT_PNG_THRESHOLD", "DEFAULT_IGNORE", "Finding",
            "DiffReport", "diff_runs", "diff_results", "diff_images", "flatten", "tolerance_for",
            "image_rms"]
@@ -123,20 +125,6 @@ def _fmt(v) -> str:
 
 
 _MISSING = object()
-
-
-def flatten(obj, prefix: str = "") -> dict:
-    """Nested dicts/lists -> ``{dotted.key: leaf}``; empty containers are kept as leaves."""
-    out = {}
-    if isinstance(obj, dict) and obj:
-        for k, v in obj.items():
-            out.update(flatten(v, f"{prefix}.{k}" if prefix else str(k)))
-    elif isinstance(obj, list) and obj:
-        for i, v in enumerate(obj):
-            out.update(flatten(v, f"{prefix}.{i}" if prefix else str(i)))
-    else:
-        out[prefix] = obj
-    return out
 
 
 def tolerance_for(key: str, tolerances: dict | None) -> dict:

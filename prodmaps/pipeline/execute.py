@@ -42,7 +42,7 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..files import sha256_file
+from ..files import read_json, sha256_file
 from .hashing import run_hash
 from .notebooks import declared_parameters, export_html
 from .registry import PROFILES, BareWord, load_registry, project_root
@@ -170,13 +170,8 @@ def _shown_path(final: Path, root: Path, outside: str | None = "<out>") -> str:
 
 def _relocate_out_dir(results: Path, tmp: Path, final: Path, root: Path) -> None:
     """Rewrite ``parameters.out_dir`` in results.json from the temporary to the final folder."""
-    if not results.is_file():
-        return
-    try:
-        doc = json.loads(results.read_text())
-    except ValueError:
-        return
-    par = doc.get("parameters")
+    doc = read_json(results)
+    par = doc.get("parameters") if isinstance(doc, dict) else None
     if isinstance(par, dict) and isinstance(par.get("out_dir"), str) and Path(par["out_dir"]) == tmp:
         par["out_dir"] = _shown_path(final, root)
         results.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")
@@ -277,15 +272,7 @@ MANIFEST_PACKAGES = ("numpy", "scipy", "trimesh", "threadpoolctl", "robust-lapla
 
 def run_environment(root=None) -> dict:
     """What a run's numbers depend on beyond its inputs: package versions, the BLAS in use, the git commit."""
-    from importlib import metadata
-
-    versions = {}
-    for name in ("prodmaps", *MANIFEST_PACKAGES):
-        try:
-            versions[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            pass
-    blas = []
+    versions = package_versions(("prodmaps", *MANIFEST_PACKAGES))
     try:
         import numpy  # noqa: F401  (loads the BLAS threadpoolctl reports)
         from threadpoolctl import threadpool_info
@@ -295,6 +282,19 @@ def run_environment(root=None) -> dict:
     except Exception:  # threadpoolctl missing or failing: the manifest says so, the run goes on
         blas = []
     return {"versions": versions, "blas": blas, "commit": git_commit(root)}
+
+
+def package_versions(names) -> dict:
+    """``{package: version}`` of the installed packages among ``names``."""
+    from importlib import metadata
+
+    versions = {}
+    for name in names:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            pass
+    return versions
 
 
 def git_commit(root=None) -> str:
@@ -314,13 +314,7 @@ def git_commit(root=None) -> str:
 
 
 def _is_current(run_dir: Path, h: str) -> bool:
-    man = run_dir / "manifest.json"
-    if not man.is_file():
-        return False
-    try:
-        m = json.loads(man.read_text())
-    except ValueError:
-        return False
+    m = read_json(run_dir / "manifest.json", {})
     if m.get("hash") != h or m.get("status") != "ok":
         return False
     outs = m.get("outputs", {})
@@ -517,8 +511,7 @@ def _safe_execute(task) -> dict:
     try:
         return _execute_task(task)
     except Exception as exc:  # e.g. the output folder is not writable
-        msg = f"could not run: {type(exc).__name__}: {exc}"
-        return RunResult(task["name"], "failed", 0.0, task["run_dir"], msg).to_dict()
+        return _failed(task, "could not run", exc)
 
 
 def _collect(fut, task) -> dict:
@@ -526,8 +519,11 @@ def _collect(fut, task) -> dict:
     try:
         return fut.result()
     except Exception as exc:  # worker died (e.g. killed by the OOM killer)
-        msg = f"worker crashed: {type(exc).__name__}: {exc}"
-        return RunResult(task["name"], "failed", 0.0, task["run_dir"], msg).to_dict()
+        return _failed(task, "worker crashed", exc)
+
+
+def _failed(task, what: str, exc: Exception) -> dict:
+    return RunResult(task["name"], "failed", 0.0, task["run_dir"], f"{what}: {type(exc).__name__}: {exc}").to_dict()
 
 
 def summary(results: list[RunResult]) -> str:

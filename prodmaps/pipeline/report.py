@@ -36,6 +36,8 @@ from pathlib import Path
 from ..experiments import claims as ledger
 from ..experiments import compare
 from ..experiments.published import PUBLISHED_CSV, TABLE_KEYS, load_published, match_entries
+from ..files import read_json
+from .execute import package_versions
 from .registry import RegistryError, load_registry, project_root
 
 __all__ = ["collect_runs", "build_report", "publish", "PublishError", "partial_problems", "kept_dataset"]
@@ -60,13 +62,6 @@ class RunInfo:
     dataset_figures: bool = False  # its figures in every dataset's section (registry key `dataset_figures`)
 
 
-def _read_json(p: Path) -> dict:
-    try:
-        return json.loads(p.read_text())
-    except (OSError, ValueError):
-        return {}
-
-
 def collect_runs(results_dir, registry=None) -> list[RunInfo]:
     """Registered runs (registry order) plus any other run folders found in ``results_dir``."""
     results_dir = Path(results_dir)
@@ -86,8 +81,8 @@ def collect_runs(results_dir, registry=None) -> list[RunInfo]:
         if n in runs:
             info.reproduces, info.title = runs[n].reproduces, runs[n].title
             info.report, info.dataset_figures = runs[n].report, runs[n].dataset_figures
-        info.doc = _read_json(folder / "results.json")
-        info.manifest = _read_json(folder / "manifest.json")
+        info.doc = read_json(folder / "results.json", {})
+        info.manifest = read_json(folder / "manifest.json", {})
         if info.manifest:
             info.status = info.manifest.get("status", "?")
             info.seconds = info.manifest.get("seconds")
@@ -246,40 +241,20 @@ def _git_commit(registry=None) -> str:
         return "unknown"
 
 
-def _installed_versions() -> list[str]:
-    from importlib import metadata
-
-    out = []
-    for p in _PACKAGES:
-        try:
-            out.append(f"{p} {metadata.version(p)}")
-        except metadata.PackageNotFoundError:
-            pass
-    return out
-
-
 def _rel(path: Path, start: Path) -> str:
     return Path(os.path.relpath(Path(path).resolve(), Path(start).resolve())).as_posix()
 
 
-def _show(path: Path, registry=None) -> str:
-    """Path relative to the registry's project when inside it, else absolute."""
-    try:
-        return Path(path).resolve().relative_to(project_root(registry)).as_posix()
-    except ValueError:  # RegistryError is a ValueError: no project found
-        return str(path)
-
-
-def _shown_results(path: Path, base: Path, registry=None) -> str:
-    """A results folder as the report names it, never by a machine's absolute path.
+def _shown(path: Path, base: Path | None, registry=None) -> str:
+    """A folder as the report names it, never by a machine's absolute path.
 
     Relative to the project (``results/paper/fig02``) when inside it, else relative to the report's
-    folder.
+    folder ``base`` or, without ``base``, as given.
     """
     try:
         return Path(path).resolve().relative_to(project_root(registry)).as_posix()
-    except ValueError:
-        return _rel(path, base)
+    except ValueError:  # RegistryError is a ValueError: no project found
+        return str(path) if base is None else _rel(path, base)
 
 
 def _num(v, signed=False) -> str:
@@ -342,11 +317,11 @@ def _nb_link(run_folder: Path, base: Path, text: str, notebooks: dict | None = N
 def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: dict | None = None,
                     notebooks: dict | None = None, kept: dict | None = None) -> None:
     d.h(2, "Claims of the paper, judged on these results")
-    lead = {}
+    by_claim: dict = {}
     for v in verdicts:
-        lead.setdefault(v.claim.id, {})[v.subset] = v
-    d.counts(f"Totals over {len(lead)} claims", {
-        k: sum(1 for subs in lead.values() if subs.get("all", next(iter(subs.values()))).verdict == k)
+        by_claim.setdefault(v.claim.id, {})[v.subset] = v
+    d.counts(f"Totals over {len(by_claim)} claims", {
+        k: sum(1 for subs in by_claim.values() if subs.get("all", next(iter(subs.values()))).verdict == k)
         for k in ledger.VERDICTS})
     others = others or {}
     other_verdicts = {}
@@ -372,9 +347,6 @@ def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: 
         "*default* say whether the rule holds at the paper's settings, with the threshold rule and with the "
         "library's default extended transfer. Table claims are also judged on intra- and inter-subject "
         "pairs separately.")
-    by_claim: dict = {}
-    for v in verdicts:
-        by_claim.setdefault(v.claim.id, {})[v.subset] = v
     if others or kept:
         d.p("Verdict columns per dataset: *" + DATASET_NAMES.get("anny_humans", "anny_humans") + "* (the default "
             "data, always) and " + ", ".join(f"*{DATASET_NAMES.get(ds, ds)}*" for ds in [*others, *kept])
@@ -510,7 +482,7 @@ def _dataset_section(d: "_Doc", ds: str, folder: Path, infos, published_rows, ba
             if isinstance(p, (list, tuple)) and len(p) == 2 and list(p) not in pairs:
                 pairs.append(list(p))
                 shapes.update(p)
-    d.p(f"Runs on `{ds}` (`{_shown_results(folder, base)}`): " + ", ".join(f"`{i.name}`" for i in present) + ". "
+    d.p(f"Runs on `{ds}` (`{_shown(folder, base)}`): " + ", ".join(f"`{i.name}`" for i in present) + ". "
         + (f"Shapes: {', '.join(f'`{x}`' for x in sorted(shapes))}. " if shapes else "")
         + (f"{len(pairs)} ordered (source, target) pairs in the tables: "
            + ", ".join(f"{a}→{b}" for a, b in pairs) + "." if pairs else ""))
@@ -566,7 +538,7 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
     d = _Doc()
     d.h(1, "Reproduction report: Improved Functional Mappings via Product Preservation")
     d.p("Nogneng, Melzi, Rodolà, Castellani, Bronstein, Ovsjanikov, Eurographics 2018. "
-        f"Generated by `{generated_by}` from `{_show(results_dir, registry)}` on "
+        f"Generated by `{generated_by}` from `{_shown(results_dir, None, registry)}` on "
         f"{_dt.datetime.now(_dt.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}, "
         f"code at commit `{_git_commit(registry)}`; Python {platform.python_version()} on {platform.system()} "
         f"{platform.machine()}.")
@@ -593,17 +565,15 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
                               base, copy_figures)
 
     d.h(2, "Runs")
-    rows = []
-    for i in infos:
-        rows.append([f"`{i.name}`", i.reproduces, i.status, "" if i.seconds is None else f"{i.seconds:.1f}",
-                     len(i.figures), _nb_link(i.folder, base, "notebook" if notebooks is not None
-                                              else "executed notebook", notebooks)])
-    d.table(["run", "reproduces", "status", "time (s)", "figures", "read"], rows)
+    read = "notebook" if notebooks is not None else "executed notebook"
+    d.table(["run", "reproduces", "status", "time (s)", "figures", "read"],
+            [[f"`{i.name}`", i.reproduces, i.status, "" if i.seconds is None else f"{i.seconds:.1f}", len(i.figures),
+              _nb_link(i.folder, base, read, notebooks)] for i in infos])
     failed = [i.name for i in infos if i.status not in ("ok",)]
     if failed:
         d.p("**Failed or not run:** " + ", ".join(f"`{n}`" for n in failed)
             + ". A failed run keeps `error.txt` and `executed.ipynb` in its folder.")
-    d.p("Environment: " + ", ".join(_installed_versions()) + ".")
+    d.p("Environment: " + ", ".join(f"{p} {v}" for p, v in package_versions(_PACKAGES).items()) + ".")
 
     d.h(2, "Figures")
     for i in infos:
@@ -612,13 +582,9 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
         d.h(3, f"{i.name}" + (f" — {i.reproduces}" if i.reproduces else ""))
         if i.title:
             d.p(i.title)
-        line = f"Status **{i.status}**" + (f", {i.seconds:.1f} s" if i.seconds is not None else "")
-        d.p(
-            line
-            + f"; outputs in `{_shown_results(i.folder, base, registry)}`; "
-            + _nb_link(i.folder, base, "notebook" if notebooks is not None else "executed notebook", notebooks)
-            + "; every number in `results.json`."
-        )
+        d.p(f"Status **{i.status}**" + (f", {i.seconds:.1f} s" if i.seconds is not None else "")
+            + f"; outputs in `{_shown(i.folder, base, registry)}`; " + _nb_link(i.folder, base, read, notebooks)
+            + "; every number in `results.json`.")
         if i.status == "failed" and (i.folder / "error.txt").is_file():
             d.code("\n".join((i.folder / "error.txt").read_text().splitlines()[:15]))
         _figures(d, i, base, copy_figures)
