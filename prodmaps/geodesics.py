@@ -40,7 +40,7 @@ import scipy.sparse as sp
 
 from .mesh import Mesh, check_vertex_indices, edges
 
-__all__ = ["distances", "DistanceRows", "all_pairs", "map_error", "error_curve", "cache_dir", "mesh_key"]
+__all__ = ["distances", "DistanceRows", "all_pairs", "map_error", "error_curve", "cache_dir", "mesh_key", "edge_graph"]
 
 _METHODS = ("heat", "graph", "exact")
 
@@ -66,7 +66,8 @@ def _check_sources(mesh: Mesh, sources) -> np.ndarray:
     return check_vertex_indices(src, mesh.n_vertices, "source")
 
 
-def _edge_graph(mesh: Mesh) -> sp.csr_matrix:
+def edge_graph(mesh: Mesh) -> sp.csr_matrix:
+    """The mesh's edges as a symmetric sparse graph ``(n, n)`` weighted by their lengths."""
     e, _ = edges(mesh.faces)  # (E, 2)
     w = np.linalg.norm(mesh.vertices[e[:, 0]] - mesh.vertices[e[:, 1]], axis=1)  # (E,)
     n = mesh.n_vertices
@@ -176,7 +177,7 @@ def distances(mesh: Mesh, sources, method: str = "heat", *, t_coef: float = 1.0)
     if method == "graph":
         from scipy.sparse.csgraph import dijkstra
 
-        return np.atleast_2d(dijkstra(_edge_graph(mesh), directed=False, indices=src)).reshape(src.size, -1)
+        return np.atleast_2d(dijkstra(edge_graph(mesh), directed=False, indices=src)).reshape(src.size, -1)
     if method == "exact":
         return _exact(mesh, src)
     return _HeatSolver(mesh, t_coef)(src)

@@ -1,7 +1,7 @@
 """Small matplotlib helpers for cross fields and quad meshes (orthographic views, no GL).
 
 Views are orthographic projections with a depth test on a coarse screen grid, so crosses and
-singularities on hidden parts are not drawn. ``VIEWS`` follow :mod:`prodmaps.experiments.render`: the
+singularities on hidden parts are not drawn. ``VIEWS`` are :mod:`prodmaps.experiments.render`'s: the
 embedded humans are z-up and face -y. All functions return matplotlib objects and draw
 deterministically (fixed sub-sampling seed).
 """
@@ -12,17 +12,10 @@ import numpy as np
 
 from ..fields.crossfield import field_vectors, singularities
 from ..fields.frames import tangent_frames
+from .render import VIEWS
 
 __all__ = ["VIEWS", "plot_cross_field", "joint_figure", "pairs_figure", "quads_pairs_figure", "plot_quad_mesh",
            "quad_figure"]
-
-VIEWS = {
-    "front": ((0.0, -1.0, 0.0), (0.0, 0.0, 1.0)),
-    "back": ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
-    "side": ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
-    "top": ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
-}
-
 
 def _camera(view):
     d, up = (np.asarray(x, float) for x in VIEWS[view])
@@ -110,18 +103,38 @@ def joint_figure(mesh_1, mesh_2, fields: dict, names, *, titles=None, view="fron
     ``fields`` maps a name to ``(z1, z2)`` (e.g. ``figure14_joint_pair(..., keep_fields=True)["fields"]``
     re-keyed by name). Returns the figure.
     """
+    def draw(ax, name, r, mesh):
+        plot_cross_field(mesh.vertices, mesh.faces, fields[name][r], ax=ax, view=view, n_glyphs=n_glyphs)
+        if r == 0:
+            ax.set_title((titles or {}).get(name, name), fontsize=8)
+
+    return _source_target_figure(mesh_1, mesh_2, [n for n in names if n in fields], draw, suptitle)
+
+
+def _source_target_figure(mesh_1, mesh_2, names, draw, suptitle):
+    """One column per design, source (top) and target (bottom): ``draw(ax, name, row, mesh)``."""
     import matplotlib.pyplot as plt
 
-    names = [n for n in names if n in fields]
     fig, axes = plt.subplots(2, len(names), figsize=(2.4 * len(names), 7.0), squeeze=False)
     for c, name in enumerate(names):
         for r, mesh in enumerate((mesh_1, mesh_2)):
-            plot_cross_field(mesh.vertices, mesh.faces, fields[name][r], ax=axes[r, c], view=view, n_glyphs=n_glyphs)
-        axes[0, c].set_title((titles or {}).get(name, name), fontsize=8)
+            draw(axes[r, c], name, r, mesh)
     if suptitle:
         fig.suptitle(suptitle, fontsize=9)
     fig.tight_layout(rect=(0, 0, 1, 0.97) if suptitle else None)
     return fig
+
+
+def _strip_chart(ax, names, kinds: dict, baselines: dict, title: str) -> None:
+    """One panel of per-pair values: ``kinds`` (dots, side by side) and ``baselines`` (marks) map a
+    label to its values per pair (None: not drawn)."""
+    x = np.arange(len(names))
+    for j, (kd, v) in enumerate(kinds.items()):
+        ax.plot(x + 0.1 * (j - len(kinds) / 2), [np.nan if t is None else t for t in v], "o", ms=4, label=kd)
+    for (b, v), mk in zip(baselines.items(), ("k_", "kx")):
+        ax.plot(x, [np.nan if t is None else t for t in v], mk, ms=9, label=b)
+    ax.set_xticks(x, [n.replace("anny_", "").replace("tr_reg_", "") for n in names], rotation=60, fontsize=6)
+    ax.set_title(title, fontsize=9)
 
 
 def pairs_figure(per_pair: dict, ks, kinds, baselines=("independent", "copy"), measure="angle_regular_deg"):
@@ -130,16 +143,10 @@ def pairs_figure(per_pair: dict, ks, kinds, baselines=("independent", "copy"), m
 
     fig, axes = plt.subplots(1, len(ks), figsize=(3.6 * len(ks), 3.2), squeeze=False, sharey=True)
     names = list(per_pair)
-    x = np.arange(len(names))
     for a, k in zip(axes[0], ks):
-        for j, kd in enumerate(kinds):
-            a.plot(x + 0.1 * (j - len(kinds) / 2), [per_pair[n][f"k{k}"][kd][measure] for n in names], "o", ms=4,
-                   label=kd)
-        for b, mk in zip(baselines, ("k_", "kx")):
-            v = [per_pair[n]["baselines"].get(b, {}).get(measure, np.nan) for n in names]
-            a.plot(x, [np.nan if t is None else t for t in v], mk, ms=9, label=b)
-        a.set_xticks(x, [n.replace("anny_", "").replace("tr_reg_", "") for n in names], rotation=60, fontsize=6)
-        a.set_title(f"k = {k}", fontsize=9)
+        _strip_chart(a, names, {kd: [per_pair[n][f"k{k}"][kd][measure] for n in names] for kd in kinds},
+                     {b: [per_pair[n]["baselines"].get(b, {}).get(measure) for n in names] for b in baselines},
+                     f"k = {k}")
     axes[0, 0].set_ylabel(measure.replace("_", " "), fontsize=8)
     axes[0, -1].legend(fontsize=6)
     fig.tight_layout()
@@ -158,17 +165,11 @@ def quads_pairs_figure(per_pair: dict, ks, kinds=("std", "ext", "default"), base
     fig, axes = plt.subplots(len(measures), len(ks), figsize=(3.6 * len(ks), 2.8 * len(measures)), squeeze=False,
                              sharey="row")
     names = list(per_pair)
-    x = np.arange(len(names))
+    quads = [per_pair[n]["quads"] for n in names]
     for row, measure in zip(axes, measures):
         for a, k in zip(row, ks):
-            for j, kd in enumerate(kinds):
-                v = [per_pair[n]["quads"][f"k{k}"][kd][measure] for n in names]
-                a.plot(x + 0.1 * (j - len(kinds) / 2), [np.nan if t is None else t for t in v], "o", ms=4, label=kd)
-            for b, mk in zip(baselines, ("k_", "kx")):
-                v = [per_pair[n]["quads"]["baselines"][b][measure] for n in names]
-                a.plot(x, [np.nan if t is None else t for t in v], mk, ms=9, label=b)
-            a.set_xticks(x, [n.replace("anny_", "").replace("tr_reg_", "") for n in names], rotation=60, fontsize=6)
-            a.set_title(f"quad meshes, k = {k}", fontsize=9)
+            _strip_chart(a, names, {kd: [q[f"k{k}"][kd][measure] for q in quads] for kd in kinds},
+                         {b: [q["baselines"][b][measure] for q in quads] for b in baselines}, f"quad meshes, k = {k}")
         row[0].set_ylabel(measure.replace("irregular_", "").replace("_", " "), fontsize=8)
     axes[0, -1].legend(fontsize=6)
     fig.tight_layout()
@@ -224,21 +225,14 @@ def quad_figure(mesh_1, mesh_2, quad_meshes: dict, stats: dict, names, *, titles
     (``{"source", "target", "irregular_matched", ...}``). Quads light blue, other polygons orange,
     irregular vertices red.
     """
-    import matplotlib.pyplot as plt
+    def draw(ax, name, r, mesh):
+        Vq, Q, polys, irr = quad_meshes[name][r]
+        st = stats[name][("source", "target")[r]]
+        t = ((titles or {}).get(name, name) + "\n") if r == 0 else ""
+        extra = (f"\n{stats[name]['irregular_matched']} irregular matched" if r == 1
+                 and "irregular_matched" in stats[name] else "")
+        plot_quad_mesh(mesh.vertices, mesh.faces, Vq, Q, polys, ax=ax, irregular=irr,
+                       title=t + f"{st['n_quads']} quads + {st['n_polygons']} polygons, "
+                                 f"{st['n_irregular']} irregular" + extra)
 
-    names = [n for n in names if n in quad_meshes]
-    fig, axes = plt.subplots(2, len(names), figsize=(2.4 * len(names), 7.0), squeeze=False)
-    for c, name in enumerate(names):
-        for r, (mesh, side) in enumerate(((mesh_1, "source"), (mesh_2, "target"))):
-            Vq, Q, polys, irr = quad_meshes[name][r]
-            st = stats[name][side]
-            t = ((titles or {}).get(name, name) + "\n") if r == 0 else ""
-            extra = (f"\n{stats[name]['irregular_matched']} irregular matched" if r == 1
-                     and "irregular_matched" in stats[name] else "")
-            plot_quad_mesh(mesh.vertices, mesh.faces, Vq, Q, polys, ax=axes[r, c], irregular=irr,
-                           title=t + f"{st['n_quads']} quads + {st['n_polygons']} polygons, "
-                                     f"{st['n_irregular']} irregular" + extra)
-    if suptitle:
-        fig.suptitle(suptitle, fontsize=9)
-    fig.tight_layout(rect=(0, 0, 1, 0.97) if suptitle else None)
-    return fig
+    return _source_target_figure(mesh_1, mesh_2, [n for n in names if n in quad_meshes], draw, suptitle)

@@ -36,7 +36,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import scipy.sparse as sp
 from scipy.optimize import linear_sum_assignment
 from scipy.sparse.csgraph import dijkstra
 
@@ -44,9 +43,9 @@ from ..basis import eigenbasis
 from ..fields.consistency import consistency_problem, design_consistent_field, design_joint
 from ..fields.crossfield import angle_stats, cross_angle, curvature_guide, pushforward_field, singularities
 from ..fields.frames import mesh_frames
-from ..geodesics import distances
+from ..geodesics import distances, edge_graph
 from ..mapping import fmap_from_p2p
-from ..mesh import Mesh, edges, mean_edge_length
+from ..mesh import Mesh, mean_edge_length
 
 __all__ = ["match_singularities", "surface_ground_truth", "low_curvature_vertices", "pair_measures",
            "figure14_joint_pair", "summarize_pairs", "summarize_quads", "figure14_joint_study", "quad_meshes_pair",
@@ -148,16 +147,12 @@ def _pushforward(fr1, z1, fr2, gt):
     return pushforward_field(fr1, z1, fr2, gt["p2p_21"])
 
 
-def _far_from(V, F, vertices, radius):
+def _far_from(mesh: Mesh, vertices, radius):
     """Vertex mask: edge-graph distance to every vertex of ``vertices`` larger than ``radius``."""
     if len(vertices) == 0:
-        return np.ones(V.shape[0], bool)
-    e, _ = edges(np.asarray(F))
-    w = np.linalg.norm(V[e[:, 1]] - V[e[:, 0]], axis=1)
-    n = V.shape[0]
-    G = sp.csr_matrix((np.concatenate([w, w]), (np.concatenate([e[:, 0], e[:, 1]]),
-                                                np.concatenate([e[:, 1], e[:, 0]]))), shape=(n, n))
-    d = dijkstra(G, directed=False, indices=np.asarray(vertices, dtype=np.int64), min_only=True, limit=radius * 1.01)
+        return np.ones(mesh.n_vertices, bool)
+    d = dijkstra(edge_graph(mesh), directed=False, indices=np.asarray(vertices, dtype=np.int64), min_only=True,
+                 limit=radius * 1.01)
     return d > radius
 
 
@@ -196,9 +191,10 @@ def pair_measures(fr1, fr2, mesh_1, mesh_2, z1, z2, gt, g1, g2, *, params=None) 
     V2, F2 = mesh_2.vertices, mesh_2.faces
     st = angle_stats(z2, ref, fr2.area, 4, valid)
     s_ref, _ = singularities(fr2, ref, 4)
-    s_2, _ = singularities(fr2, z2, 4)
+    v1, i1 = singularities(fr1, z1, 4)
+    v2, i2 = singularities(fr2, z2, 4)
     h = mean_edge_length(V2, F2)
-    far = _far_from(V2, F2, np.union1d(s_ref, s_2), P["regular_radius"] * h)
+    far = _far_from(mesh_2, np.union1d(s_ref, v2), P["regular_radius"] * h)
     regular = valid & (w2 > 0) & far[F2].all(axis=1)
     reg = angle_stats(z2, ref, fr2.area, 4, regular) if regular.any() else {"mean_deg": float("nan")}
     a1 = np.degrees(cross_angle(z1, q1, 4))
@@ -207,9 +203,7 @@ def pair_measures(fr1, fr2, mesh_1, mesh_2, z1, z2, gt, g1, g2, *, params=None) 
            "regular_fraction": float(np.sum(fr2.area * regular) / fr2.area.sum()),
            "align_1_deg": float(np.sum(fr1.area * w1 * a1) / np.sum(fr1.area * w1)),
            "align_2_deg": float(np.sum(fr2.area * w2 * a2) / np.sum(fr2.area * w2)),
-           "n_sing_1": int(singularities(fr1, z1, 4)[0].size), "n_sing_2": int(s_2.size)}
-    v1, i1 = singularities(fr1, z1, 4)
-    v2, i2 = singularities(fr2, z2, 4)
+           "n_sing_1": int(v1.size), "n_sing_2": int(v2.size)}
     low = low_curvature_vertices(mesh_2, P["sing_quantile"])
     v1m = gt["p2p_12"][v1]
     k1, k2 = low[v1m], low[v2]
@@ -354,16 +348,14 @@ def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT
                                      p2p_21=gt["p2p_21"])
             z1, z2, inf = design_joint(pr, g1[0], g2[0], smoothness=P["smoothness"], align=P["align"],
                                        consistency=P["consistency"])
-            row[kd] = {**measure(z1, z2), "consistency_energy": inf["consistency"],
-                       "cg_iterations": inf["cg_iterations"], **_ranks(inf)}
+            row[kd] = {**measure(z1, z2), **_design_info(inf)}
             if keep_fields:
                 fields[(int(k), kd)] = (z1, z2)
             if kd in P["quad_kinds"]:
                 quad_fields[(f"k{k}", kd)] = (z1, z2)
             if map_only is not None:  # the same problem, the source field fixed, no alignment on the target
                 zm, infm = design_consistent_field(pr, z1_ind, smoothness=P["smoothness"], align=0.0)
-                row_m[kd] = {**measure(z1_ind, zm), "consistency_energy": infm["consistency"],
-                             "cg_iterations": infm["cg_iterations"], **_ranks(infm)}
+                row_m[kd] = {**measure(z1_ind, zm), **_design_info(infm)}
                 if keep_fields:
                     fields[(int(k), "map_only", kd)] = (z1_ind, zm)
         row["no_map"] = no_map
@@ -413,9 +405,10 @@ def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT
     return out
 
 
-def _ranks(info: dict) -> dict:
-    """Approach-B ranks kept by a consistency problem and the largest gain of its kept ``"ext"`` directions."""
-    out = {key: int(info[key]) for key in ("rank_1", "rank_2") if key in info}
+def _design_info(info: dict) -> dict:
+    """A design's consistency energy, CG iterations, kept Approach-B ranks and largest ``"ext"`` gain."""
+    out = {"consistency_energy": info["consistency"], "cg_iterations": info["cg_iterations"],
+           **{key: int(info[key]) for key in ("rank_1", "rank_2") if key in info}}
     if "gain_max" in info:
         out["gain_max"] = float(info["gain_max"])
     return out
@@ -434,8 +427,7 @@ def summarize_pairs(per_pair: dict, ks, kinds=JOINT_KINDS, measure: str = "angle
         row = {}
         for kd in kinds:
             v = np.array([p[f"k{k}"][kd][measure] for p in per_pair.values()], dtype=float)
-            row[kd] = {"mean": float(np.mean(v)), "std": float(np.std(v)), "min": float(np.min(v)),
-                       "max": float(np.max(v))}
+            row[kd] = _stats(v, finite=False)
             if kd != "std":
                 s = np.array([p[f"k{k}"]["std"][measure] for p in per_pair.values()], dtype=float)
                 row[kd]["n_better"] = int(np.sum(v < s))
@@ -446,8 +438,7 @@ def summarize_pairs(per_pair: dict, ks, kinds=JOINT_KINDS, measure: str = "angle
     out["pooled"] = {}
     for kd in kinds:
         v = np.array(list(out["cells"][kd].values()))
-        out["pooled"][kd] = {"mean": float(np.mean(v)), "std": float(np.std(v)), "min": float(np.min(v)),
-                             "max": float(np.max(v)), "n_cells": int(v.size)}
+        out["pooled"][kd] = {**_stats(v, finite=False), "n_cells": int(v.size)}
     return out
 
 
@@ -471,12 +462,11 @@ def summarize_quads(per_pair: dict) -> dict:
             qs = [p["quads"][grp][name] for p in per_pair.values()]
             frac = np.array([np.nan if q[F] is None else q[F] for q in qs], dtype=float)
             frac_low = np.array([np.nan if q.get(FL) is None else q[FL] for q in qs], dtype=float)
-            nq = np.array([q[s]["n_quads"] for q in qs for s in ("source", "target")], dtype=float)
-            qf = np.array([q[s]["quad_fraction"] for q in qs for s in ("source", "target")], dtype=float)
-            r = {F: _stats(frac), FL: _stats(frac_low), "n_quads": _stats(nq), "quad_fraction": _stats(qf),
-                 "n_boundary_edges_total": int(sum(q[s]["n_boundary_edges"] for q in qs for s in ("source", "target"))),
-                 "n_nonmanifold_edges_total": int(sum(q[s]["n_nonmanifold_edges"] for q in qs
-                                                      for s in ("source", "target")))}
+            sides = [q[s] for q in qs for s in ("source", "target")]  # both meshes of every pair
+            r = {F: _stats(frac), FL: _stats(frac_low), **{key: _stats([x[key] for x in sides])
+                                                             for key in ("n_quads", "quad_fraction")},
+                 **{f"{key}_total": int(sum(x[key] for x in sides))
+                    for key in ("n_boundary_edges", "n_nonmanifold_edges")}}
             if grp != "baselines" and name != "std" and "std" in row:
                 for key, v, out in ((F, frac, "n_better"), (FL, frac_low, "n_better_low")):
                     s_ = np.array([p["quads"][grp]["std"][key] for p in per_pair.values()], dtype=float)
@@ -492,10 +482,11 @@ def summarize_quads(per_pair: dict) -> dict:
             "pooled_low": pooled_low}
 
 
-def _stats(v: np.ndarray) -> dict:
-    """Mean, sd, min, max over the finite values (None when there are none)."""
+def _stats(v: np.ndarray, finite: bool = True) -> dict:
+    """Mean, sd, min, max (over the finite values with ``finite``; None when there are none)."""
     v = np.asarray(v, dtype=float)
-    v = v[np.isfinite(v)]
+    if finite:
+        v = v[np.isfinite(v)]
     if v.size == 0:
         return {"mean": None, "std": None, "min": None, "max": None}
     return {"mean": float(np.mean(v)), "std": float(np.std(v)), "min": float(np.min(v)), "max": float(np.max(v))}
@@ -526,14 +517,13 @@ def figure14_joint_study(dataset: str, pairs, ks, *, params=None, shown: int = 0
                 f"{kd} {r[k0][kd]['angle_regular_deg']:.2f}°" for kd in JOINT_KINDS)
                 + f", independent {r['baselines']['independent']['angle_regular_deg']:.2f}°")
     kinds = JOINT_KINDS + ("no_map",)
-    summary = {m: summarize_pairs(per, ks, kinds, measure=m) for m in ("angle_regular_deg", "angle_mean_deg",
-                                                                      "sing_recall")}
+    measures = ("angle_regular_deg", "angle_mean_deg", "sing_recall")
+    summary = {m: summarize_pairs(per, ks, kinds, measure=m) for m in measures}
     if all("quads" in p for p in per.values()):
         summary["quads"] = summarize_quads(per)
     if all("map_only" in p for p in per.values()):
         mo = {n: p["map_only"] for n, p in per.items()}
-        summary["map_only"] = {m: summarize_pairs(mo, ks, kinds, measure=m)
-                               for m in ("angle_regular_deg", "angle_mean_deg", "sing_recall")}
+        summary["map_only"] = {m: summarize_pairs(mo, ks, kinds, measure=m) for m in measures}
     return {"pairs": per, "summary": summary, "shown": shown_out, "kinds": list(JOINT_KINDS)}
 
 
