@@ -285,7 +285,7 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if normalization is None:
         normalization = DEFAULT_NORMALIZATION
-    B_s, base, E, K = _solver_parts(basis)
+    _, base, _, _ = _solver_parts(basis)  # (a TypeError for anything but a Basis or ProductBasis)
     if method == "std":
         if is_extended(basis):
             raise ValueError("method='std' projects on an orthonormal Basis; pass ext.base, "
@@ -304,12 +304,7 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
         if route == "svd":
             if not base.mass_is_diagonal:
                 raise ValueError("route='svd' needs a lumped (diagonal) mass; use route='gram'")
-            if B_s is None:
-                B_s = basis.solver_basis()[0]
-            X = np.sqrt(base.mass)[:, None] * B_s  # (n, K_u)
-            if d is not None:
-                X = X * d
-            U, s, Vt = sla.svd(X, full_matrices=False, lapack_driver="gesdd")
+            U, s, Vt = sla.svd(_scaled_columns(basis, d), full_matrices=False, lapack_driver="gesdd")
             r = int(np.sum(s > rtol * s[0]))
             P, sV = Vt[:r].T / s[:r], s[:r, None] * Vt[:r]  # (K_u, r), (r, K_u) in the scaled columns
             if d is not None:
@@ -327,10 +322,7 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
             if d is not None:
                 M, sV = d[:, None] * M * d, sV / d
             return ApproximationOperator(basis, method, params | {"route": "gram"}, _M=M, _sV=sV)
-        X = np.sqrt(base.mass)[:, None] * basis.solver_basis()[0]  # (n, K_u); V: left vectors (n, n)
-        if d is not None:
-            X = X * d
-        XtU = X.T @ Vr  # (K_u, r) = V_r Σ_r
+        XtU = _scaled_columns(basis, d).T @ Vr  # (K_u, r) = V_r Σ_r; V: left vectors (n, n)
         P, sV = XtU / s[:r] ** 2, XtU.T.copy()
         if d is not None:
             P, sV = d[:, None] * P, sV / d
@@ -371,9 +363,7 @@ def gram_eigenpairs(basis, normalization: str):
         K_u = basis.unique_index.shape[0] if is_extended(basis) else basis.k
         d = column_weights(basis, normalization)
         if is_extended(basis) and K_u > base.n and base.mass_is_diagonal:
-            X = np.sqrt(base.mass)[:, None] * basis.solver_basis()[0]
-            if d is not None:
-                X = X * d
+            X = _scaled_columns(basis, d)
             w, V = sla.eigh(X @ X.T, driver="evd")  # all eigenpairs: divide and conquer, ~2.5x MRRR
             side = "dual"
         else:
@@ -385,6 +375,13 @@ def gram_eigenpairs(basis, normalization: str):
     if is_extended(basis):
         return basis.cache.get("gram_eig" if normalization == "area" else ("gram_eig", normalization), compute)
     return compute()
+
+
+def _scaled_columns(basis, d) -> np.ndarray:
+    """``X = sqrt(A) B_s D`` ``(n, K_u)`` (lumped mass; ``d`` None: ``D = I``)."""
+    B_s, base, _, _ = _solver_parts(basis)
+    X = np.sqrt(base.mass)[:, None] * (basis.solver_basis()[0] if B_s is None else B_s)
+    return X if d is None else X * d
 
 
 def _rmatmul(basis, Y):

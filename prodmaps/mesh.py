@@ -250,6 +250,10 @@ def face_components(n: int, faces: np.ndarray) -> tuple[int, np.ndarray]:
                             np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]]))
 
 
+_REPAIR = ("use prodmaps.mesh.repair(vertices, faces), which drops them and the vertices they leave unreferenced "
+           "(or load the file with pm.io.load_mesh_repaired(path))")
+
+
 def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -> None:
     """Raise :class:`MeshError` if ``(vertices, faces)`` is not a valid triangle mesh.
 
@@ -288,13 +292,9 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -
         raise MeshError(
             f"face indices out of range: max index {int(f.max())} but only {n} vertices"
         )
-    if np.any((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])):
-        bad = np.flatnonzero((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2]))
-        raise MeshError(
-            f"degenerate faces: {bad.size} faces repeat a vertex (first {bad[:5].tolist()}); "
-            "use prodmaps.mesh.repair(vertices, faces), which drops them and the vertices they leave unreferenced "
-            "(or load the file with pm.io.load_mesh_repaired(path))"
-        )
+    bad = np.flatnonzero((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2]))
+    if bad.size:
+        raise MeshError(f"degenerate faces: {bad.size} faces repeat a vertex (first {bad[:5].tolist()}); " + _REPAIR)
     with np.errstate(over="ignore", invalid="ignore"):
         diag2 = float(np.sum((v.max(0) - v.min(0)) ** 2))
         areas = face_areas(v, f)
@@ -305,19 +305,11 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -
         )
     degen = np.flatnonzero(areas <= area_tol * max(diag2, np.finfo(float).tiny))
     if degen.size:
-        raise MeshError(
-            f"degenerate (zero-area) faces: {degen.size} faces, first {degen[:5].tolist()}; "
-            "use prodmaps.mesh.repair(vertices, faces), which drops them and the vertices they leave unreferenced "
-            "(or load the file with pm.io.load_mesh_repaired(path))"
-        )
+        raise MeshError(f"degenerate (zero-area) faces: {degen.size} faces, first {degen[:5].tolist()}; " + _REPAIR)
     fs = np.sort(f, axis=1)
-    _, first, counts = np.unique(fs, axis=0, return_index=True, return_counts=True)
+    _, counts = np.unique(fs, axis=0, return_counts=True)
     if np.any(counts > 1):
-        raise MeshError(
-            f"duplicate faces: {int(np.sum(counts - 1))} faces repeat another face's vertices; "
-            "use prodmaps.mesh.repair(vertices, faces), which drops them and the vertices they leave unreferenced "
-            "(or load the file with pm.io.load_mesh_repaired(path))"
-        )
+        raise MeshError(f"duplicate faces: {int(np.sum(counts - 1))} faces repeat another face's vertices; " + _REPAIR)
     used = np.zeros(n, dtype=bool)
     used[f.ravel()] = True
     if not used.all():

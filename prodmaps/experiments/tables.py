@@ -96,10 +96,11 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
         return f"k{s[0]}_{s[1]}"
 
     labels = [method_label(m, table) for m in methods]
-    errors = {skey(s): {st: {lab: {r: ours[(s[0], s[1], st, lab, r)] for r in rows} for lab in labels}
-                        for st in ("approx", "transfer")} for s in sizes}
-    errors_spread = {skey(s): {st: {lab: {r: spread[(s[0], s[1], st, lab, r)] for r in rows} for lab in labels}
-                               for st in ("approx", "transfer")} for s in sizes}
+
+    def nested(values):  # {size: {stage: {method: {family: value}}}}
+        return {skey(s): {st: {lab: {r: values[(s[0], s[1], st, lab, r)] for r in rows} for lab in labels}
+                          for st in ("approx", "transfer")} for s in sizes}
+
     from .. import datasets
 
     kinds = np.array([datasets.shape_class(store.dataset, a) == datasets.shape_class(store.dataset, b)
@@ -108,9 +109,7 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
     for kind, mask in (("intra", kinds), ("inter", ~kinds)):
         n_kind[kind] = int(mask.sum())
         if mask.any():
-            m = family_means(res, table, pairs_mask=mask)
-            by_kind[kind] = {skey(s): {st: {lab: {r: m[(s[0], s[1], st, lab, r)][0] for r in rows} for lab in labels}
-                                       for st in ("approx", "transfer")} for s in sizes}
+            by_kind[kind] = nested({k: v[0] for k, v in family_means(res, table, pairs_mask=mask).items()})
     shown = _shown_columns(pub, ours)
     entries = [{"table": int(table[1:]), "fmap": fmap, "k_M": c[0], "k_N": c[1], "function": r, "stage": c[2],
                 "method": c[3], "value": ours[c + (r,)]}
@@ -131,8 +130,8 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
         "fmap": fmap,
         "settings": [list(s) for s in sizes],
         "pairs": [list(p) for p in res.pairs],
-        "errors": errors,
-        "errors_std_over_pairs": errors_spread,
+        "errors": nested(ours),
+        "errors_std_over_pairs": nested(spread),
         **{f"errors_{kind}": e for kind, e in by_kind.items()},
         "n_pairs_by_kind": n_kind,
         "table": entries,
@@ -155,6 +154,10 @@ def _col_order(keys) -> list:
     return sorted(set(keys), key=lambda c: (c[0], c[1], order[c[2]], morder.get(c[3], 4), c[3]))
 
 
+def _col_name(c, multi: bool) -> str:
+    return (f"k{c[0]}_{c[1]}_" if multi else "") + f"{c[2]}_{c[3]}"
+
+
 def _shown_columns(pub: dict, ours: dict) -> list:
     """The published table's columns if there is one, else every measured column."""
     pub_cols = _col_order(k[:4] for k in pub)
@@ -166,11 +169,7 @@ def print_table(run: dict, name: str) -> None:
     """Ours with the published value in brackets, rows = functions."""
     ours, pub, shown = run["ours"], run["published"], run["shown_columns"]
     multi = len({c[:2] for c in shown}) > 1
-
-    def col_name(c):
-        return (f"k{c[0]}_{c[1]}_" if multi else "") + f"{c[2]}_{c[3]}"
-
-    print(f"{'function':10s} " + " ".join(f"{col_name(c):>22s}" for c in shown))
+    print(f"{'function':10s} " + " ".join(f"{_col_name(c, multi):>22s}" for c in shown))
     for r in run["rows"]:
         cells = [f"{ours.get(c + (r,)):8.3f}" + (f" [{pub[c + (r,)]:4.2f}]" if c + (r,) in pub else "       ") + " " * 7
                  for c in shown]
@@ -185,13 +184,9 @@ def write_table_files(out_dir, run: dict, name: str) -> None:
     multi = len({c[:2] for c in all_cols}) > 1
     tnum = run["results"]["table_name"][1:] if run["results"]["table_name"] != "custom" else ""
     fmap = run["results"]["fmap"]
-
-    def col_name(c):
-        return (f"k{c[0]}_{c[1]}_" if multi else "") + f"{c[2]}_{c[3]}"
-
     with atomic_path(out / f"{name}_ours.csv") as tmp, open(tmp, "w", newline="") as fh:
         w = csv.writer(fh, lineterminator="\n")
-        w.writerow(["function"] + [col_name(c) for c in all_cols])
+        w.writerow(["function"] + [_col_name(c, multi) for c in all_cols])
         for r in rows:
             w.writerow([r] + [f"{ours[c + (r,)]:.6f}" for c in all_cols])
     long_rows = []
