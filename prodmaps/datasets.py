@@ -198,8 +198,7 @@ def _class_of(rule: str, shape_id: str) -> str:
 @functools.lru_cache(maxsize=32)
 def _index_at(folder_str: str, name: str) -> _Index:
     spec = _spec(name)
-    folder = Path(folder_str)
-    root = folder  # the dataset folder: the key of the per-folder caches below
+    folder = Path(folder_str)  # the dataset folder: the key of the per-folder caches below
     shapes = folder / "shapes"
     files = sorted(shapes.glob("*.ply")) if shapes.is_dir() else []
     if not files:
@@ -226,7 +225,7 @@ def _index_at(folder_str: str, name: str) -> _Index:
         fmap = {p.stem: p for p in files}
         cls = {i: _class_of(spec.class_rule, i) for i in ids}
         tri = {i: ("0" if spec.shared_triangulation else cls[i]) for i in ids}
-    index = _Index(root, ids, fmap, cls, tri)
+    index = _Index(folder, ids, fmap, cls, tri)
     rem = folder / "remeshed"
     if rem.is_dir():
         by_len = sorted(ids, key=len, reverse=True)
@@ -239,8 +238,7 @@ def _index_at(folder_str: str, name: str) -> _Index:
 
 
 def _index(name: str) -> _Index:
-    _spec(name)
-    return _index_at(str(dataset_dir(name)), name)
+    return _index_at(str(dataset_dir(name)), name)  # (dataset_dir refuses an unknown name)
 
 
 def clear_cache() -> None:
@@ -379,12 +377,10 @@ def ground_truth(name: str, id_1: str, id_2: str) -> np.ndarray:
             f"no ground truth between {id_1!r} and {id_2!r} in {name!r}: different triangulations "
             f"(classes {idx.cls[b1]!r} and {idx.cls[b2]!r})"
         )
-    v1, v2 = id_1 in idx.variant_files, id_2 in idx.variant_files
-    if not v2:
-        fam = np.arange(_load_at(root, name, id_2).n_vertices, dtype=np.int64)  # family vertex of each vertex of 2
-    else:
-        fam = _gt_file(root, name, id_2)
-    if v1:
+    # the family vertex of each vertex of 2, then its vertex on 1
+    fam = (_gt_file(root, name, id_2) if id_2 in idx.variant_files
+           else np.arange(_load_at(root, name, id_2).n_vertices, dtype=np.int64))
+    if id_1 in idx.variant_files:
         return _family_to_variant(root, name, id_1)[fam].copy()
     return np.array(fam, dtype=np.int64)
 

@@ -77,7 +77,7 @@ import numpy as np
 from .. import descriptors as _d
 from ..basis import Basis, eigenbasis
 from ..cache import Cache
-from ..mesh import Mesh
+from ..mesh import Mesh, check_vertex_indices
 
 __all__ = ["FAMILIES", "PAPER_LABELS", "READINGS", "PUBLISHED_READINGS", "READING_SETS", "resolve_reading",
            "split_entry", "entry_label", "sort_entries", "hks_columns", "FamilySpec", "make_family", "pull_back",
@@ -111,8 +111,8 @@ FAMILIES: dict[str, FamilySpec] = {
 }
 PAPER_LABELS = {name: spec.paper_label for name, spec in FAMILIES.items()}
 
-RANDOM_COEFFICIENTS_ = ("normal", "uniform")
-RANDOM_SCALINGS_ = ("columns", "unit_area")
+RANDOM_COEFFICIENTS = ("normal", "uniform")
+RANDOM_SCALINGS = ("columns", "unit_area")
 
 # ----------------------------------------------------------------------------- readings
 READINGS: dict[str, dict[str, dict]] = {
@@ -124,7 +124,7 @@ READINGS: dict[str, dict[str, dict]] = {
     "WKS": {"textbook": {}, "grid 50": {"num_grid": 50}},
     "Random": {"textbook": {}} | {  # textbook: normal, unique, columns
         f"{c}, {p}, {sc}": {"coefficients": c, "pairs": p, "scaling": sc}
-        for c in RANDOM_COEFFICIENTS_ for p in ("unique", "ordered") for sc in RANDOM_SCALINGS_
+        for c in RANDOM_COEFFICIENTS for p in ("unique", "ordered") for sc in RANDOM_SCALINGS
         if (c, p, sc) != ("normal", "unique", "columns")
     },
     "XYZ": {"textbook": {}},
@@ -210,11 +210,7 @@ def pull_back(F_1: np.ndarray, p2p_21) -> np.ndarray:
     p = np.asarray(p2p_21)
     if p.ndim != 1 or not np.issubdtype(p.dtype, np.integer):
         raise ValueError("p2p_21 must be a 1-D integer array (for each target vertex, a source vertex)")
-    if p.size and (p.min() < 0 or p.max() >= F_1.shape[0]):
-        raise ValueError(
-            f"p2p_21 has indices in [{p.min()}, {p.max()}] but the source has {F_1.shape[0]} vertices"
-        )
-    return F_1[p]
+    return F_1[check_vertex_indices(p, F_1.shape[0], "p2p_21")]
 
 
 # ----------------------------------------------------------------------------- generators
@@ -227,11 +223,7 @@ def _gen_hk(ctx, rng, m, *, t_rel: float = 1e-3, n_eig_K: int = 200, big: bool):
     if not np.isfinite(t_rel) or t_rel <= 0:
         raise ValueError(f"t_rel must be > 0, got {t_rel!r}")
     src = _random_vertices(rng, mesh.n_vertices, m)
-    if big:
-        basis = _big_basis(ctx, n_eig_K)
-    else:
-        basis = ctx["basis_k"]
-    return _d.heat_kernel(basis, src, t_rel * area)
+    return _d.heat_kernel(_big_basis(ctx, n_eig_K) if big else ctx["basis_k"], src, t_rel * area)
 
 
 def _big_basis(ctx, n_eig: int) -> Basis:
@@ -299,10 +291,6 @@ def _gen_wks(ctx, rng, m, *, num_grid: int = 100, variance: float = 7.0, margin:
     grid, sigma = _d.wks_energies(b, num_grid, variance=variance, margin=margin)
     e = np.sort(rng.uniform(grid[0], grid[-1], size=m))
     return _d.wks(b, e, sigma, scaled=True)
-
-
-RANDOM_COEFFICIENTS = RANDOM_COEFFICIENTS_
-RANDOM_SCALINGS = RANDOM_SCALINGS_
 
 
 def _gen_random(ctx, rng, m, *, coefficients: str = "normal", pairs: str = "unique", scaling: str = "columns"):
@@ -385,14 +373,13 @@ def _pick_columns(rng, D: np.ndarray, m: int, name: str, min_support: float = 0.
     return D[:, cols]
 
 
-def _gen_shot(ctx, rng, m, **shot_opts):
-    D = ctx["cache"].get(descriptor_key("shot", **shot_opts), lambda: _d.shot(ctx["mesh"], **shot_opts))
-    return _pick_columns(rng, D, m, "SHOT")
+def _gen_descriptor(name: str):
+    """The generator of ``m`` random dimensions of the descriptor ``name`` (``"shot"``, ``"awft"``)."""
+    def gen(ctx, rng, m, **opts):
+        D = ctx["cache"].get(descriptor_key(name, **opts), lambda: getattr(_d, name)(ctx["mesh"], **opts))
+        return _pick_columns(rng, D, m, name.upper())
 
-
-def _gen_awft(ctx, rng, m, **awft_opts):
-    D = ctx["cache"].get(descriptor_key("awft", **awft_opts), lambda: _d.awft(ctx["mesh"], **awft_opts))
-    return _pick_columns(rng, D, m, "AWFT")
+    return gen
 
 
 _GENERATORS = {
@@ -403,8 +390,8 @@ _GENERATORS = {
     "Random": _gen_random,
     "XYZ": _gen_xyz,
     "Indicator": _gen_indicator,
-    "SHOT": _gen_shot,
-    "AWFT": _gen_awft,
+    "SHOT": _gen_descriptor("shot"),
+    "AWFT": _gen_descriptor("awft"),
 }
 
 

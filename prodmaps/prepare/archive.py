@@ -158,6 +158,19 @@ def write_manifest_and_sums(folder: Path, manifest: dict) -> None:
     (folder / "SHA256SUMS").write_text("\n".join(lines) + "\n")
 
 
+def write_shape(folder: Path, sid: str, vertices, faces, label: str, cls: str, triangulation: str) -> dict:
+    """Validate one shape, write it as ``<folder>/shapes/<sid>.ply`` and return its manifest entry."""
+    import prodmaps as pm
+
+    try:
+        mesh = pm.Mesh(vertices, faces, name=sid)
+    except pm.MeshError as exc:
+        raise PrepareError(f"{label}: invalid mesh: {exc}") from None
+    pm.save_mesh(folder / "shapes" / f"{sid}.ply", mesh)
+    return {"id": sid, "file": f"shapes/{sid}.ply", "class": cls, "triangulation": triangulation,
+            "n_vertices": mesh.n_vertices, "n_faces": mesh.n_faces}
+
+
 def parse_mesh_bytes(data: bytes, suffix: str, scratch: Path):
     """Parse mesh bytes with the package's strict reader (no validation); returns (V, F)."""
     from ..io import read_mesh_arrays

@@ -43,6 +43,7 @@ from .archive import (
     sha256_file,
     staged_folder,
     write_manifest_and_sums,
+    write_shape,
 )
 
 N_SHAPES = 100
@@ -120,7 +121,7 @@ def prepare_faust(archive, data_root=None, *, force: bool = False, n_shapes: int
         else:
             say(f"found all {len(found)} registrations in {where}")
         faces0, first = None, None
-        manifest_shapes, files = [], []
+        manifest_shapes = []
         with staged_folder(target, force=force) as tmp:
             (tmp / "shapes").mkdir()
             for k, i in enumerate(ids):
@@ -145,15 +146,7 @@ def prepare_faust(archive, data_root=None, *, force: bool = False, n_shapes: int
                 elif not np.array_equal(f, faces0):
                     raise PrepareError(f"{label}: triangulation differs from {first}; "
                                        "FAUST registrations share one triangulation")
-                try:
-                    mesh = pm.Mesh(v, f, name=sid)
-                except pm.MeshError as exc:
-                    raise PrepareError(f"{label}: invalid mesh: {exc}") from None
-                pm.save_mesh(tmp / "shapes" / f"{sid}.ply", mesh)
-                files.append(label)
-                manifest_shapes.append({"id": sid, "file": f"shapes/{sid}.ply", "class": str(i // 10),
-                                        "triangulation": "0", "n_vertices": int(v.shape[0]),
-                                        "n_faces": int(f.shape[0])})
+                manifest_shapes.append(write_shape(tmp, sid, v, f, label, str(i // 10), "0"))
                 if verbose and ((k + 1) % 10 == 0 or k + 1 == len(ids)):
                     say(f"  verified and converted {k + 1}/{len(ids)}")
             manifest = {

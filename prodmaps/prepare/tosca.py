@@ -41,6 +41,7 @@ from .archive import (
     sha256_file,
     staged_folder,
     write_manifest_and_sums,
+    write_shape,
 )
 
 CLASSES = ("cat", "centaur", "david", "dog", "gorilla", "horse", "michael", "victoria", "wolf")
@@ -149,14 +150,7 @@ def prepare_tosca(archive, data_root=None, *, force: bool = False, repair: bool 
                         raise PrepareError(f"{sid}: {v.shape[0]} vertices / {f.shape[0]} faces, triangulation "
                                            f"differs from {c}{by_class[c][0]} ({nv0} vertices); members of a "
                                            "TOSCA class share one triangulation")
-                    try:
-                        mesh = pm.Mesh(v[kept], faces_out, name=sid)
-                    except pm.MeshError as exc:
-                        raise PrepareError(f"{sid}: invalid mesh: {exc}") from None
-                    pm.save_mesh(tmp / "shapes" / f"{sid}.ply", mesh)
-                    manifest_shapes.append({"id": sid, "file": f"shapes/{sid}.ply", "class": c,
-                                            "triangulation": c, "n_vertices": mesh.n_vertices,
-                                            "n_faces": mesh.n_faces})
+                    manifest_shapes.append(write_shape(tmp, sid, v[kept], faces_out, sid, c, c))
                 if kept.size != nv0:
                     np.savetxt(tmp / "shapes" / f"{c}.kept_vertices.txt", kept, fmt="%d")
                 class_info[c] = {"n_shapes": len(by_class[c]), "n_vertices": int(kept.size),
