@@ -326,10 +326,7 @@ def pushforward_field(fr1: Frames, z1: np.ndarray, fr2: Frames, p2p_21: np.ndarr
     p = check_p2p(p2p_21, fr1.n_vertices, fr2.n_vertices)
     tri = p[fr2.faces]  # (m2, 3) vertices of shape 1
     P = fr1.vertices[tri]  # (m2, 3, 3)
-    dbl = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
-    valid = dbl > 2 * min_area_ratio * fr1.area.mean()
-    Pn, Pu, Pv, _ = face_frames(np.where(valid[:, None, None], P, fr2.vertices[fr2.faces]).reshape(-1, 3),
-                                np.arange(3 * fr2.n_faces).reshape(-1, 3))
+    valid, Pu, Pv = _image_frames(P, fr1, fr2, min_area_ratio)
     # source representative angle in the frame of P
     hit = _face_lookup(fr1.faces, fr1.n_vertices, tri)
     d_face = field_vectors(z1, fr1, N)[:, 0, :]  # (m1, 3)
@@ -344,6 +341,23 @@ def pushforward_field(fr1: Frames, z1: np.ndarray, fr2: Frames, p2p_21: np.ndarr
         a = np.arctan2(np.einsum("ij,ij->i", dc, Pv), np.einsum("ij,ij->i", dc, Pu))
         zc += np.abs(zv[tri[:, c]]) * np.exp(1j * N * a)
     alpha = np.where(hit >= 0, ang_face, np.angle(zc) / N)  # (m2,)
+    return _mapped_directions(alpha, P, Pu, Pv, valid, fr2, N), valid
+
+
+def _image_frames(P: np.ndarray, fr1: Frames, fr2: Frames, min_area_ratio: float):
+    """The image triangles ``P`` ``(m2, 3, 3)`` on shape 1 of the faces of shape 2: ``(valid (m2,),
+    Pu, Pv)``, the non-degenerate ones and the frames of their planes (a degenerate one: its face's)."""
+    dbl = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+    valid = dbl > 2 * min_area_ratio * fr1.area.mean()
+    _, Pu, Pv, _ = face_frames(np.where(valid[:, None, None], P, fr2.vertices[fr2.faces]).reshape(-1, 3),
+                               np.arange(3 * fr2.n_faces).reshape(-1, 3))
+    return valid, Pu, Pv
+
+
+def _mapped_directions(alpha, P, Pu, Pv, valid, fr2: Frames, N: int) -> np.ndarray:
+    """The unit power field of shape 2: each of the ``N`` directions at angle ``alpha`` in the
+    frames of ``P`` mapped by the differential ``dT`` of ``P -> face``, the normalised mean of
+    ``(dT w / |dT w|)^N`` (0 on the invalid faces)."""
     # dT in frame coordinates: E2 = dT E1 with the two edge vectors as columns
     Q = fr2.vertices[fr2.faces]
     e1 = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2)  # (m2, 3, 2)
@@ -355,12 +369,9 @@ def pushforward_field(fr1: Frames, z1: np.ndarray, fr2: Frames, p2p_21: np.ndarr
     out = np.zeros(fr2.n_faces, dtype=np.complex128)
     for j in range(N):
         a = alpha + 2 * np.pi * j / N
-        w = np.stack([np.cos(a), np.sin(a)], axis=1)  # (m2, 2)
-        x = np.einsum("fij,fj->fi", dT, w)
-        xc = x[:, 0] + 1j * x[:, 1]
-        out += normalize_field(xc) ** N
-    out = np.where(valid, normalize_field(out), 0.0)
-    return out, valid
+        x = np.einsum("fij,fj->fi", dT, np.stack([np.cos(a), np.sin(a)], axis=1))  # (m2, 2)
+        out += normalize_field(x[:, 0] + 1j * x[:, 1]) ** N
+    return np.where(valid, normalize_field(out), 0.0)
 
 
 def pushforward_field_barycentric(fr1: Frames, z1: np.ndarray, fr2: Frames, face_21: np.ndarray,
@@ -397,10 +408,7 @@ def pushforward_field_barycentric(fr1: Frames, z1: np.ndarray, fr2: Frames, face
         raise ValueError("bary_21 rows must be barycentric coordinates (non-negative, summing to 1)")
     X = np.einsum("vc,vcd->vd", bw, fr1.vertices[fr1.faces[fa]])  # (n2, 3) image points on shape 1
     P = X[fr2.faces]  # (m2, 3, 3)
-    dbl = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
-    valid = dbl > 2 * min_area_ratio * fr1.area.mean()
-    Pn, Pu, Pv, _ = face_frames(np.where(valid[:, None, None], P, fr2.vertices[fr2.faces]).reshape(-1, 3),
-                                np.arange(3 * fr2.n_faces).reshape(-1, 3))
+    valid, Pu, Pv = _image_frames(P, fr1, fr2, min_area_ratio)
     d_face = field_vectors(z1, fr1, N)[:, 0, :]  # (m1, 3)
     src = fa[fr2.faces]  # (m2, 3) source faces at the corners
     zc = np.zeros(fr2.n_faces, dtype=np.complex128)
@@ -408,20 +416,7 @@ def pushforward_field_barycentric(fr1: Frames, z1: np.ndarray, fr2: Frames, face
         dc = d_face[src[:, c]]
         a = np.arctan2(np.einsum("ij,ij->i", dc, Pv), np.einsum("ij,ij->i", dc, Pu))
         zc += np.exp(1j * N * a)
-    alpha = np.angle(zc) / N
-    Q = fr2.vertices[fr2.faces]
-    e1 = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2)  # (m2, 3, 2)
-    e2 = np.stack([Q[:, 1] - Q[:, 0], Q[:, 2] - Q[:, 0]], axis=2)
-    E1 = np.stack([np.einsum("ij,ijk->ik", Pu, e1), np.einsum("ij,ijk->ik", Pv, e1)], axis=1)
-    E2 = np.stack([np.einsum("ij,ijk->ik", fr2.u, e2), np.einsum("ij,ijk->ik", fr2.v, e2)], axis=1)
-    E1 = np.where(valid[:, None, None], E1, np.eye(2)[None])
-    dT = E2 @ np.linalg.inv(E1)
-    out = np.zeros(fr2.n_faces, dtype=np.complex128)
-    for j in range(N):
-        a = alpha + 2 * np.pi * j / N
-        x = np.einsum("fij,fj->fi", dT, np.stack([np.cos(a), np.sin(a)], axis=1))
-        out += normalize_field(x[:, 0] + 1j * x[:, 1]) ** N
-    return np.where(valid, normalize_field(out), 0.0), valid
+    return _mapped_directions(np.angle(zc) / N, P, Pu, Pv, valid, fr2, N), valid
 
 
 def closest_point_correspondence(V_query: np.ndarray, V: np.ndarray, F: np.ndarray):
