@@ -33,7 +33,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..curvature import face_frames
-from ..mesh import Mesh
+from ..mesh import Mesh, check_mesh
 
 __all__ = [
     "Frames", "tangent_frames", "mesh_frames", "as_frames", "to_complex", "to_vectors", "halfedges", "dual_edges",
@@ -92,8 +92,7 @@ def tangent_frames(V: np.ndarray, F: np.ndarray) -> Frames:
 
 def mesh_frames(mesh: Mesh) -> Frames:
     """:func:`tangent_frames` of a :class:`prodmaps.Mesh`."""
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"expected a prodmaps.Mesh, got {type(mesh).__name__}")
+    mesh = check_mesh(mesh)
     return tangent_frames(mesh.vertices, mesh.faces)
 
 

@@ -420,38 +420,28 @@ def fit_no17(
         raise ValueError(f"solver must be 'lbfgs' or 'direct', got {solver!r}")
     if solver == "direct":
         C = _solve_direct(terms)
-        info = {"energy": energy_and_gradient(C, terms)[0], "nit": 0, "message": "direct solve",
-                "success": True, "time": time.perf_counter() - t0, "taus": terms.taus}
-        C = area_ratio * C
-        return (C, info) if return_info else C
-    if init == "zeros":
-        free0 = np.zeros((k2, k1 - 1))
-    elif init == "identity":
-        free0 = np.eye(k2, k1)[:, 1:]
-    else:
+        info = {"energy": energy_and_gradient(C, terms)[0], "nit": 0, "message": "direct solve", "success": True}
+    elif init not in ("zeros", "identity"):
         raise ValueError(f"init must be 'zeros' or 'identity', got {init!r}")
-    C = np.empty((k2, k1))
-    C[:, 0] = terms.col0
-
-    def fun(x):
-        C[:, 1:] = x.reshape(k2, k1 - 1)
-        E, G = energy_and_gradient(C, terms)
-        return E, G[:, 1:].ravel()
-
-    if k1 > 1:
-        res = minimize(
-            fun, free0.ravel(), jac=True, method="L-BFGS-B",
-            options={"ftol": factr * np.finfo(float).eps, "gtol": pgtol, "maxiter": maxiter, "maxfun": 10 * maxiter},
-        )
-        C[:, 1:] = res.x.reshape(k2, k1 - 1)
-        info = {
-            "energy": float(res.fun),
-            "nit": int(res.nit),
-            "message": str(res.message),
-            "success": bool(res.success),
-        }
     else:
-        info = {"energy": energy_and_gradient(C, terms)[0], "nit": 0, "message": "nothing to fit", "success": True}
+        C = np.empty((k2, k1))
+        C[:, 0] = terms.col0
+
+        def fun(x):
+            C[:, 1:] = x.reshape(k2, k1 - 1)
+            E, G = energy_and_gradient(C, terms)
+            return E, G[:, 1:].ravel()
+
+        if k1 > 1:
+            free0 = np.zeros((k2, k1 - 1)) if init == "zeros" else np.eye(k2, k1)[:, 1:]
+            res = minimize(fun, free0.ravel(), jac=True, method="L-BFGS-B",
+                           options={"ftol": factr * np.finfo(float).eps, "gtol": pgtol, "maxiter": maxiter,
+                                    "maxfun": 10 * maxiter})
+            C[:, 1:] = res.x.reshape(k2, k1 - 1)
+            info = {"energy": float(res.fun), "nit": int(res.nit), "message": str(res.message),
+                    "success": bool(res.success)}
+        else:
+            info = {"energy": energy_and_gradient(C, terms)[0], "nit": 0, "message": "nothing to fit", "success": True}
     info["time"] = time.perf_counter() - t0
     info["taus"] = terms.taus
     C = area_ratio * C
