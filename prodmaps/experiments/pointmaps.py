@@ -61,14 +61,9 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
     bad = set(maps) - {"gt", "no17"}
     if bad:
         raise ValueError(f"maps must be a subset of ['gt', 'no17'], got {list(maps)}")
-    rng = np.random.default_rng(seed)
     errs = {m: {c: [] for c in CONVERSIONS} for m in maps}  # per pair: (n_eval,) arrays
     per_pair, timing = [], {**dict.fromkeys(CONVERSIONS, 0.0), "no17": 0.0}
-    items = []  # (source id, (target id, evaluated target vertices)) per pair, drawn here in the pairs' order
-    for s1, s2 in pairs:
-        n2 = store.mesh(s2).n_vertices
-        ev = np.arange(n2) if n_eval is None else np.sort(rng.choice(n2, int(n_eval), replace=False))
-        items.append((s1, (s2, ev)))
+    items = _evaluated(store, pairs, n_eval, seed)
     for _, (row, E, t_pair, t_parts) in map_by_source(_recovery_pair, store, items, k_target, k_source, tuple(maps),
                                                       no17_k_descr, workers=workers):
         for (m, method), e in E.items():
@@ -108,6 +103,18 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
         "curves": {m: {"thresholds": thr, **curves[m]} for m in curves},
     }
     return {"results": results, "timing": timing}
+
+
+def _evaluated(store: ShapeStore, pairs, n_eval, seed: int) -> list:
+    """``[(source id, (target id, evaluated target vertices))]`` per pair, the vertices drawn here
+    in the pairs' order (all of them when ``n_eval`` is None)."""
+    rng = np.random.default_rng(seed)
+    items = []
+    for s1, s2 in pairs:
+        n2 = store.mesh(s2).n_vertices
+        ev = np.arange(n2) if n_eval is None else np.sort(rng.choice(n2, int(n_eval), replace=False))
+        items.append((s1, (s2, ev)))
+    return items
 
 
 def _recovery_pair(store: ShapeStore, ip: int, s1: str, item, k_target: int, k_source: int, maps,
@@ -154,12 +161,7 @@ def point_map_sweep(store: ShapeStore, pairs, *, sizes=((40, 30),), t_scales=(1.
     ``{"rows": [{"size", "setting", "mean_error", "better_than_std": {"better", "tie", "worse"}}],
     "pairs": [...]}`` (mean geodesic error / sqrt(area) over the pairs' evaluated vertices).
     """
-    rng = np.random.default_rng(seed)
-    items = []
-    for s1, s2 in pairs:
-        n2 = store.mesh(s2).n_vertices
-        ev = np.arange(n2) if n_eval is None else np.sort(rng.choice(n2, int(n_eval), replace=False))
-        items.append((s1, (s2, ev)))
+    items = _evaluated(store, pairs, n_eval, seed)
     settings = [("std", "std", {})]
     settings += [(f"extended t x{ts:g}", "extended", {"t_scale": float(ts)}) for ts in t_scales]
     settings += [(f"extended rtol {r:g}", "extended", {"rtol": float(r)}) for r in rtols if float(r) != 1e-3]

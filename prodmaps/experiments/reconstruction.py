@@ -20,6 +20,10 @@ __all__ = ["coordinate_errors", "coordinate_reconstruction", "higher_order_recon
            "indicator_region", "lmh_reconstruction"]
 
 
+COORDINATE_ERROR = "mean over x,y,z of sqrt(int (xhat_c-x_c)^2)/sqrt(int x_c^2), area-weighted"
+"""How :func:`coordinate_errors` measures (the results' ``error_definition``)."""
+
+
 def coordinate_errors(X_rec: np.ndarray, X: np.ndarray, mass: np.ndarray, region=None) -> dict:
     """Relative error of reconstructed coordinates ``(n, 3)``: per axis and their mean.
 
@@ -69,16 +73,8 @@ def coordinate_reconstruction(mesh, ks, ks_curve=(), *, pairs: str = "ordered", 
             print(f"k = {k:2d}: std {errors['std'][key]['mean']:.4f}   prod ({pairs}) {errors['prod'][key]['mean']:.4f}"
                   f"   prod ({other}) {errors[f'prod_{other}'][key]['mean']:.4f}   [{ext.K} columns, rank kept "
                   f"{op.rank}; {time.perf_counter() - t1:.1f} s]")
-    return {
-        "results": {
-            "error_definition": "mean over x,y,z of sqrt(int (xhat_c-x_c)^2)/sqrt(int x_c^2), area-weighted",
-            "pairs": pairs,
-            "errors": errors,
-            "sizes": sizes,
-        },
-        "recon": recon,
-        "k_all": k_all,
-    }
+    return {"results": {"error_definition": COORDINATE_ERROR, "pairs": pairs, "errors": errors, "sizes": sizes},
+            "recon": recon, "k_all": k_all}
 
 
 def higher_order_reconstruction(mesh, n_eig: int, orders, rtols, *, verbose: bool = True) -> dict:
@@ -111,15 +107,8 @@ def higher_order_reconstruction(mesh, n_eig: int, orders, rtols, *, verbose: boo
                 print(f"rtol {rtol:.0e}, order {r}: {s['columns']:5d} columns (rank kept {s['rank_kept']:4d}): "
                       f"error {e['mean']:.4f}  (x {e['x']:.4f}, y {e['y']:.4f}, z {e['z']:.4f})   "
                       f"[{time.perf_counter() - t1:.1f} s]")
-    return {
-        "results": {
-            "error_definition": "mean over x,y,z of sqrt(int (xhat_c-x_c)^2)/sqrt(int x_c^2), area-weighted",
-            "pairs": "unique",
-            "errors": errors,
-            "sizes": sizes,
-        },
-        "recon": recon,
-    }
+    return {"results": {"error_definition": COORDINATE_ERROR, "pairs": "unique", "errors": errors, "sizes": sizes},
+            "recon": recon}
 
 
 def indicator_region(mesh, ks, region_center, region_radius: float, *, threshold: float = 0.5,
@@ -190,15 +179,12 @@ def lmh_reconstruction(mesh, *, k_mh: int, k_global: int, k_local: int, region_t
     for name, basis in (("MH", mh), ("LMH", lmh_basis)):
         X_std = basis.vecs @ basis.project(X)  # A-orthonormal basis: projection
         ext, op, X_prod = _extended_reconstruction(basis, X, pairs, rtol)
-        errors[name] = {
-            "std": coordinate_errors(X_std, X, mass, region),
-            "prod": coordinate_errors(X_prod, X, mass, region),
-        }
+        errors[name] = {"std": coordinate_errors(X_std, X, mass, region),
+                        "prod": coordinate_errors(X_prod, X, mass, region)}
         sizes[name] = {"std": basis.k, "extended": ext.K, "rank_kept": op.rank}
         recon[name] = (X_std, X_prod)
     results = {
-        "error_definition": "mean over x,y,z of sqrt(int (xhat_c-x_c)^2)/sqrt(int x_c^2), area-weighted; "
-                            "region_mean: same on the region",
+        "error_definition": COORDINATE_ERROR + "; region_mean: same on the region",
         "region": {"n_vertices": int(region.sum()), "area_fraction": mass[region].sum() / mass.sum(),
                    "lmh_mass_inside_min": inside.min()},
         "errors": errors, "sizes": sizes,
