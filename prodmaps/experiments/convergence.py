@@ -74,26 +74,25 @@ def hks_wks_convergence(dataset: str, pairs, *, source_dim: int, target_dims, hk
         p2p_21 = datasets.ground_truth(dataset, id1, id2)  # (n2,) target vertex -> source vertex
         F, t, e = spectral_descriptors(b1, hks_scale, wks_scale, weights)  # (n1, 3)
         scale_values.append({"pair": f"{id1}->{id2}", "hks_time": t, "wks_energy": e})
-        G = F[p2p_21]  # (n2, 2) ground-truth transfer
         ext1 = product_basis(b1, 2, pairs_convention)
         a_prod = ext1.evaluate(ext1.operator("svd", rtol=rtol).coefficients(F))
         for j, name in enumerate(names):
             approx_err[name]["std"].append(relative_error(b1.vecs @ b1.project(F[:, j]), F[:, j], b1.mass))
             approx_err[name]["prod"].append(relative_error(a_prod[:, j], F[:, j], b1.mass))
         how = {"prod": ("svd", {"rtol": rtol, "pairs": pairs_convention}), "std": ("std", {})}  # (method, params)
-        for jd, d in enumerate(dims):
+
+        def transfer_errors(F, d):  # {method: (columns,)} through the ground-truth map to d target functions
             b2 = b2_full.truncate(d)
-            C = fmap_from_p2p(p2p_21, b1, b2)  # (d, k_M + 1) ground-truth map
-            for method in methods:
-                e_ = relative_error(transfer(F, C, b1, b2, how[method][0], **how[method][1]), G, b2.mass)  # (3,)
+            C = fmap_from_p2p(p2p_21, b1, b2)  # (d, k_M + 1)
+            return {m: relative_error(transfer(F, C, b1, b2, how[m][0], **how[m][1]), F[p2p_21], b2.mass)
+                    for m in methods}
+
+        for jd, d in enumerate(dims):
+            for method, e_ in transfer_errors(F, d).items():
                 for j, name in enumerate(names):
                     err[name][method][ip, jd] = e_[j]
         for s in SCALES:  # scale sensitivity at the largest target dimension
-            Fs, _, _ = spectral_descriptors(b1, s, s, weights)
-            b2 = b2_full.truncate(dims[-1])
-            C = fmap_from_p2p(p2p_21, b1, b2)
-            for method in methods:
-                e_ = relative_error(transfer(Fs, C, b1, b2, how[method][0], **how[method][1]), Fs[p2p_21], b2.mass)
+            for method, e_ in transfer_errors(spectral_descriptors(b1, s, s, weights)[0], dims[-1]).items():
                 for j, name in enumerate(names):
                     sens[name][method][s].append(e_[j])
         if verbose:

@@ -44,7 +44,7 @@ from pathlib import Path
 
 from ..files import read_json, sha256_file
 from .hashing import run_hash
-from .notebooks import declared_parameters, export_html
+from .notebooks import declared_parameters, export_html, literal, parameter_default
 from .registry import PROFILES, BareWord, load_registry, project_root
 
 __all__ = ["RunResult", "run_notebook", "plan_runs", "reproduce", "summary", "ParameterError", "profile_folder"]
@@ -332,7 +332,7 @@ def _check_declared(run, params: dict, where: str) -> None:
             f"run {run.name!r}: {where} {unknown} not declared in the parameters cell of "
             f"{run.notebook.name}; it declares {sorted(declared)}")
     for k, v in params.items():
-        default = _literal(declared[k]["default"])
+        default = literal(declared[k]["default"])
         if isinstance(v, BareWord) and not isinstance(default, str):
             raise ParameterError(
                 f"run {run.name!r}: parameter {k}={v!s} is not a literal (number, list, quoted string, ...) and "
@@ -342,15 +342,6 @@ def _check_declared(run, params: dict, where: str) -> None:
             raise ParameterError(
                 f"run {run.name!r}: parameter {k}={v!r} ({type(v).__name__}) does not match the type of its "
                 f"default {declared[k]['default']} ({type(default).__name__}) in {run.notebook.name}")
-
-
-def _literal(text):
-    import ast
-
-    try:
-        return ast.literal_eval(text) if text is not None else None
-    except (ValueError, SyntaxError):
-        return None
 
 
 def _same_kind(value, default) -> bool:
@@ -383,8 +374,6 @@ def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, ov
     Raises :class:`ParameterError` if a registry parameter or an override is not declared by
     the run's notebook, ``ValueError`` for an unknown run or profile.
     """
-    from .notebooks import parameter_default
-
     if profile not in PROFILES:
         raise ValueError(f"unknown profile {profile!r}; choose one of {PROFILES}")
     names = list(runs) if not only else list(only)

@@ -32,11 +32,13 @@ def declared_parameters(notebook) -> dict:
 
 def parameter_default(notebook, name: str):
     """The default of parameter ``name`` as a Python value (``None`` if absent or not a literal)."""
-    p = declared_parameters(notebook).get(name)
-    if p is None or p["default"] is None:
-        return None
+    return literal((declared_parameters(notebook).get(name) or {}).get("default"))
+
+
+def literal(text):
+    """A default's source text as a Python value (``None`` if ``text`` is None or not a literal)."""
     try:
-        return ast.literal_eval(p["default"])
+        return ast.literal_eval(text) if text is not None else None
     except (ValueError, SyntaxError):
         return None
 
