@@ -87,7 +87,7 @@ import scipy.sparse as sp
 
 from .basis import Basis, eigenbasis, fix_signs
 from .eigensolver import shift, smallest_eigenpairs
-from .mesh import Mesh
+from .mesh import Mesh, check_mesh
 from .operators import laplacian
 
 __all__ = ["LocalizedHarmonics", "localized_harmonics", "lmh_basis", "lmh_operator_parts"]
@@ -172,8 +172,7 @@ def localized_harmonics(mesh: Mesh, region, k: int, *, k_global: int = 10,
     """
     from scipy.sparse.linalg import LinearOperator, splu
 
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"localized_harmonics expects a prodmaps.Mesh, got {type(mesh).__name__}")
+    mesh = check_mesh(mesh)
     n = mesh.n_vertices
     if not isinstance(k, (int, np.integer)) or isinstance(k, bool) or not 1 <= k < n - 1:
         raise ValueError(f"k must be an integer in [1, {n - 2}], got {k!r}")

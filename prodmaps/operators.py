@@ -27,7 +27,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .curvature import face_frames, principal_curvatures
-from .mesh import Mesh, face_areas
+from .mesh import Mesh, check_mesh, face_areas
 
 __all__ = ["laplacian", "cotan_weights", "lumped_mass", "fem_mass", "anisotropic_laplacian"]
 
@@ -113,8 +113,7 @@ def laplacian(mesh: Mesh, kind: str = "cotan", mass: str = "lumped"):
     >>> bool(np.allclose(W @ np.ones(162), 0)), bool(np.isclose(A.sum(), mesh.area))
     (True, True)
     """
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"laplacian expects a prodmaps.Mesh, got {type(mesh).__name__}")
+    mesh = check_mesh(mesh)
     if mass not in ("lumped", "full"):
         raise ValueError(f"mass must be 'lumped' or 'full', got {mass!r}")
     if kind == "cotan":
@@ -146,8 +145,7 @@ def anisotropic_laplacian(
     constant anisotropy: diffusion slowed by ``1+α`` across ``w``). ``W_ij = Σ_f area_f ∇b_iᵀ D ∇b_j``
     (``b_i`` the hat functions); ``α = 0`` gives the cotangent Laplacian exactly. ``θ`` in radians.
     """
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"anisotropic_laplacian expects a prodmaps.Mesh, got {type(mesh).__name__}")
+    mesh = check_mesh(mesh)
     if not np.isfinite(alpha) or alpha < 0:
         raise ValueError(f"alpha must be >= 0, got {alpha!r}")
     if not np.isfinite(angle):
