@@ -77,7 +77,7 @@ import numpy as np
 from .. import descriptors as _d
 from ..basis import Basis, eigenbasis
 from ..cache import Cache
-from ..mesh import Mesh, check_vertex_indices
+from ..mesh import Mesh, check_mesh, check_vertex_indices
 
 __all__ = ["FAMILIES", "PAPER_LABELS", "READINGS", "PUBLISHED_READINGS", "READING_SETS", "resolve_reading",
            "split_entry", "entry_label", "sort_entries", "hks_columns", "FamilySpec", "make_family", "pull_back",
@@ -434,8 +434,7 @@ def make_family(
     """
     if name not in FAMILIES:
         raise ValueError(f"unknown family {name!r}; choose one of {list(FAMILIES)}")
-    if not isinstance(mesh_1, Mesh):
-        raise TypeError(f"mesh_1 must be a prodmaps.Mesh, got {type(mesh_1).__name__}")
+    check_mesh(mesh_1)
     if not isinstance(basis_1, Basis):
         raise TypeError(f"basis_1 must be a prodmaps.Basis, got {type(basis_1).__name__}")
     if basis_1.n != mesh_1.n_vertices:
