@@ -72,7 +72,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..basis import Basis
-from ..checks import check_symmetry_order
+from ..checks import check_fmap, check_symmetry_order
 from ..mapping import extend_fmap
 from ..products import product_basis
 from ..transfers import transfer_operator
@@ -167,14 +167,6 @@ class ConsistencyProblem:
         return 0.5 * np.sum(np.abs(H) ** 2, axis=1) * np.sum(W ** 2, axis=1)
 
 
-def _check_C(C, k1, k2):
-    """``C`` as a float ``(k2, k1)`` array no larger than the bases ``(k2, k1)`` allow."""
-    C = np.asarray(C, dtype=np.float64)
-    if C.ndim != 2 or C.shape[0] > k2 or C.shape[1] > k1:
-        raise ValueError(f"C_12 must be (k2, k1) with k1 <= {k1}, k2 <= {k2}; got {np.shape(C)}")
-    return C
-
-
 def _checked_inputs(basis_1: Basis, basis_2: Basis, fr_1: Frames, fr_2: Frames, C_12, kind: str, tests,
                     p2p_21, span_k):
     """Validate :func:`consistency_problem`'s inputs: ``(C (k2, k1) or None, b1, b2, tests, p2p_21)``.
@@ -195,7 +187,7 @@ def _checked_inputs(basis_1: Basis, basis_2: Basis, fr_1: Frames, fr_2: Frames, 
             raise ValueError(f"kind={kind!r} needs C_12 (k2, k1)")
         k1 = k2 = span_k or basis_1.k
     else:
-        C = _check_C(C_12, basis_1.k, basis_2.k)
+        C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)
         k2, k1 = C.shape
     b1, b2 = basis_1.truncate(k1), basis_2.truncate(k2)
     if b1.n != fr_1.n_vertices or b2.n != fr_2.n_vertices:
@@ -407,7 +399,7 @@ def design_consistent_field(problem: ConsistencyProblem, z1: np.ndarray, *, smoo
     area = P.fr_2.area
     mu = smoothness / (P.lam_2 * area.sum())
     wq = np.zeros_like(area) if guide is None or align == 0 else align * area * np.abs(guide) / area.sum()
-    q = np.zeros(area.size, np.complex128) if guide is None else normalize_guide(guide)
+    q = np.zeros(area.size, np.complex128) if guide is None else normalize_field(guide)
 
     def apply(z):
         return mu * (L @ z) + P._adjoint(2, P.model(z)) / nc + wq * z
@@ -418,10 +410,6 @@ def design_consistent_field(problem: ConsistencyProblem, z1: np.ndarray, *, smoo
     info.update(consistency=P.energy(z1, z2), smooth=float(np.real(np.vdot(z2, L @ z2)) / (P.lam_2 * area.sum())),
                 kind=P.kind, **P.info)
     return (normalize_field(z2) if normalize else z2), info
-
-
-def normalize_guide(q):
-    return normalize_field(q)
 
 
 def design_joint(problem: ConsistencyProblem, guide_1: np.ndarray, guide_2: np.ndarray, *,
