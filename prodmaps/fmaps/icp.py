@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..basis import Basis
-from ..checks import check_basis, check_fmap
+from ..checks import check_fmap
 from ..p2p import from_fmap
 
 __all__ = ["icp_refine"]
@@ -33,9 +33,7 @@ def icp_refine(C_12, basis_1: Basis, basis_2: Basis, n_iter: int = 5, *, orthogo
     Returns ``C_12`` (``(k2, k1)``), and with ``return_p2p`` also the point map of the last
     conversion (the one the final ``C`` was estimated from).
     """
-    check_basis(basis_1, "basis_1")
-    check_basis(basis_2, "basis_2")
-    C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)
+    C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)  # (checks the bases too)
     k2, k1 = C.shape
     if int(n_iter) != n_iter or n_iter < 0:
         raise ValueError(f"n_iter must be a non-negative integer, got {n_iter!r}")

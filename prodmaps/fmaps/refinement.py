@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..basis import Basis
-from ..checks import check_basis, check_fmap
+from ..checks import check_fmap
 from ..p2p import from_fmap
 
 __all__ = ["zoomout"]
@@ -66,9 +66,7 @@ def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return
     Each step's point map is the exact nearest-neighbour answer of
     :func:`prodmaps.p2p.nearest_neighbors` (ties to the smallest source index).
     """
-    check_basis(basis_1, "basis_1")
-    check_basis(basis_2, "basis_2")
-    C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)
+    C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)  # (checks the bases too)
     k2, k1 = C.shape
     if isinstance(k_final, (int, np.integer)):
         K2, K1 = int(k_final), int(k_final)
