@@ -130,18 +130,13 @@ class _Seams:
         self.rot_c = np.zeros(nch, np.int64)
         self.rot_c[self.chain[self.fwd]] = self.rot[self.fwd]
         self.rot_c[self.chain[~self.fwd]] = (-self.rot[~self.fwd]) % 4
-        # the reference-side and other-side copies of every seam end, in the chain's orientation
-        self.ref_x = np.where(self.fwd, self.xf, self.xg)
-        self.oth_x = np.where(self.fwd, self.xg, self.xf)
-        self.ref_y = np.where(self.fwd, self.yf, self.yg)
-        self.oth_y = np.where(self.fwd, self.yg, self.yf)
-
     def relations(self):
-        """Every seam end once per chain: ``(mesh vertex, ref copy, other copy, chain)`` (deduplicated)."""
-        v = np.concatenate([self.x, self.y])
-        a = np.concatenate([self.ref_x, self.ref_y])
-        b = np.concatenate([self.oth_x, self.oth_y])
-        c = np.concatenate([self.chain, self.chain])
+        """Every seam end once per chain: ``(mesh vertex, ref copy, other copy, chain)`` (deduplicated),
+        the copies on the chain's reference side and on its other side."""
+        fwd = np.concatenate([self.fwd, self.fwd])
+        f_side, g_side = np.concatenate([self.xf, self.yf]), np.concatenate([self.xg, self.yg])
+        a, b = np.where(fwd, f_side, g_side), np.where(fwd, g_side, f_side)
+        v, c = np.concatenate([self.x, self.y]), np.concatenate([self.chain, self.chain])
         _, idx = np.unique(np.stack([a, b, c], axis=1), axis=0, return_index=True)
         return v[idx], a[idx], b[idx], c[idx]
 
@@ -429,12 +424,10 @@ def _hard_constraints(seams, fixed_d: dict, node_rels, t_c, nc: int):
             vals.append(Ro[:, i, j])
     Smat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                          shape=(2 * nc, 2 * nf))
-    s0 = np.zeros(2 * nc)
-    s0[np.flatnonzero(fixed)] = Pfix[fixed, 0]
-    s0[nc + np.flatnonzero(fixed)] = Pfix[fixed, 1]
-    s0[elim_c] = elim_t[:, 0]
-    s0[nc + elim_c] = elim_t[:, 1]
-    return Smat, s0, bool(fixed.any())
+    s0 = np.zeros((2, nc))  # (u, v) of the fixed copies, the translations of the eliminated ones
+    s0[:, fixed] = Pfix[fixed].T
+    s0[:, elim_c] = elim_t.T
+    return Smat, s0.ravel(), bool(fixed.any())
 
 
 def integer_solve(A, b, seams, uv: np.ndarray, I: np.ndarray, A0, b0, pin, *, weight: float, batches: int):
