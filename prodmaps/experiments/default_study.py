@@ -84,11 +84,6 @@ def default_transfer_study(store: ShapeStore, pairs_by_kind: dict, *, map_kinds,
             "seconds": time.perf_counter() - t0}
 
 
-def _excess(a: float, b: float) -> float:
-    """``a - b``, or 0 when the two errors tie (:func:`prodmaps.experiments.compare.is_tie`)."""
-    return 0.0 if compare.is_tie(a, b) else float(a - b)
-
-
 def single_function_excess(result, pairs) -> dict:
     """Per method: the worst single-function excess over the standard transfer in one condition.
 
@@ -122,7 +117,8 @@ def summary(errors: dict, single: dict | None = None) -> dict:
     for m in ("our_B", "our_B_gainrule", "our_default"):
         # an excess between errors that tie (compare.is_tie: equal up to rounding, e.g. a function in
         # the source's span) is 0, so the worst cell is never picked by rounding noise
-        d = [(c, f, _excess(v[m], v["std"]), v[m] / v["std"]) for c, fams in errors.items() for f, v in fams.items()]
+        d = [(c, f, 0.0 if compare.is_tie(v[m], v["std"]) else float(v[m] - v["std"]), v[m] / v["std"])
+             for c, fams in errors.items() for f, v in fams.items()]
         worst = max(d, key=lambda x: x[2])
         out[m] = {"worst_excess": worst[2], "worst_cell": f"{worst[0]}/{worst[1]}",
                   "cells_above_std_plus_0.01": int(sum(x[2] > 0.01 for x in d)), "cells": len(d),

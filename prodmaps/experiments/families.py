@@ -323,10 +323,6 @@ def _gen_random(ctx, rng, m, *, coefficients: str = "normal", pairs: str = "uniq
     return B @ a
 
 
-def _gen_xyz(ctx, rng, m):
-    return np.array(ctx["mesh"].vertices, dtype=np.float64, copy=True)
-
-
 def _gen_indicator(ctx, rng, m, *, min_frac: float = 0.1, max_frac: float = 0.5, method: str = "graph"):
     from ..geodesics import distances
 
@@ -388,7 +384,7 @@ _GENERATORS = {
     "HKS": _gen_hks,
     "WKS": _gen_wks,
     "Random": _gen_random,
-    "XYZ": _gen_xyz,
+    "XYZ": lambda ctx, rng, m: np.array(ctx["mesh"].vertices, dtype=np.float64, copy=True),
     "Indicator": _gen_indicator,
     "SHOT": _gen_descriptor("shot"),
     "AWFT": _gen_descriptor("awft"),

@@ -30,6 +30,7 @@ from . import families as pfam
 from .normalization_study import WITHIN, score_cells
 from .protocol import ProtocolSettings, run_protocol
 from .published import published_values
+from .results import to_jsonable
 
 __all__ = ["GROUPS", "family_readings_study", "choose", "score_table", "summary_rows", "summary_text", "report_blocks",
            "figure"]
@@ -106,15 +107,11 @@ def family_readings_study(store, pairs, *, readings: dict | None = None, groups:
     chosen = {fam: choose(sc) for fam, sc in scores.items()}
     library = {fam: pfam.PUBLISHED_READINGS.get(fam, "textbook") for fam in errors}
     return {"pairs": [list(p) for p in pairs], "groups": {g: [list(z) for z in v] for g, v in groups.items()},
-            "readings": {fam: {r: _jsonable_options(pfam.READINGS[fam][r]) for r in names}
+            "readings": {fam: {r: to_jsonable(pfam.READINGS[fam][r]) for r in names}
                          for fam, names in readings.items()},
             "errors": errors, "scores": scores, "chosen": chosen, "published_readings": library,
             "agrees": {fam: chosen[fam] == library[fam] for fam in errors},
             "seconds": time.perf_counter() - t0}
-
-
-def _jsonable_options(options: dict) -> dict:
-    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in options.items()}
 
 
 def score_table(errors_by_size: dict, published: dict, label: str) -> dict:

@@ -47,11 +47,6 @@ def ofp_rtol(k_M: int) -> float:
     return (int(k_M) + 1 - 2) * 2e-3
 
 
-def _rtol(reading: dict, k_M: int) -> float:
-    r = reading["rtol"]
-    return ofp_rtol(k_M) if r == "ofp" else float(r)
-
-
 def score_cells(ours: dict, published: dict, methods=("std", "our_A", "our_l2", "our_B")) -> dict:
     """``{method: {"cells", "within", "mean_abs", "max_abs"}}`` over the published cells we measured.
 
@@ -97,7 +92,7 @@ def run(store, pairs, *, readings: dict | None = None, tables: dict | None = Non
         for t, sizes in tables.items():
             pub = published_values(t, "ground_truth")
             for kM, kN in sizes:
-                rtol = _rtol(reading, kM)
+                rtol = ofp_rtol(kM) if reading["rtol"] == "ofp" else float(reading["rtol"])
                 s = ProtocolSettings(sizes=[(kM, kN)], map_kind="gt", families=list(families),
                                      methods=["std", "l2", "B"], rtol=rtol, eps_ridge=eps_ridge,
                                      normalization=reading["normalization"],

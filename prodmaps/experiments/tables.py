@@ -110,7 +110,8 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
         n_kind[kind] = int(mask.sum())
         if mask.any():
             by_kind[kind] = nested({k: v[0] for k, v in family_means(res, table, pairs_mask=mask).items()})
-    shown = _shown_columns(pub, ours)
+    all_cols, pub_cols = _col_order(k[:4] for k in ours), _col_order(k[:4] for k in pub)
+    shown = [c for c in pub_cols if c in all_cols] if pub_cols else all_cols  # the published table's, if any
     entries = [{"table": int(table[1:]), "fmap": fmap, "k_M": c[0], "k_N": c[1], "function": r, "stage": c[2],
                 "method": c[3], "value": ours[c + (r,)]}
                for c in shown for r in rows if table and c + (r,) in pub]
@@ -145,7 +146,7 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
         "seconds": {"total": time.perf_counter() - t_start, "per_pair": res.seconds},
     }
     return {"results": results, "ours": ours, "spread": spread, "published": pub, "rows": rows,
-            "shown_columns": shown, "all_columns": _col_order(k[:4] for k in ours), "protocol": res}
+            "shown_columns": shown, "all_columns": all_cols, "protocol": res}
 
 
 def _col_order(keys) -> list:
@@ -156,13 +157,6 @@ def _col_order(keys) -> list:
 
 def _col_name(c, multi: bool) -> str:
     return (f"k{c[0]}_{c[1]}_" if multi else "") + f"{c[2]}_{c[3]}"
-
-
-def _shown_columns(pub: dict, ours: dict) -> list:
-    """The published table's columns if there is one, else every measured column."""
-    pub_cols = _col_order(k[:4] for k in pub)
-    all_cols = _col_order(k[:4] for k in ours)
-    return [c for c in pub_cols if c in all_cols] if pub_cols else all_cols
 
 
 def print_table(run: dict, name: str) -> None:

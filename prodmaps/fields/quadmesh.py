@@ -451,13 +451,6 @@ def integer_solve(A, b, seams, uv: np.ndarray, I: np.ndarray, A0, b0, pin, *, we
     return np.stack([xx[:nc], xx[nc:]], axis=1), off
 
 
-def _seam_translations(seams, uv: np.ndarray):
-    """The translation of every seam edge read at its two ends, ``(t_x, t_y)`` ``(ne, 2)`` each."""
-    S = seams
-    Rm = _ROT[S.rot]
-    return (uv[S.xg] - np.einsum("eij,ej->ei", Rm, uv[S.xf]), uv[S.yg] - np.einsum("eij,ej->ei", Rm, uv[S.yf]))
-
-
 def _face_transitions(m: int, fs, es, g, eg, rot, t_edge):
     """Per face and local edge ``(rot (m, 3), trans (m, 3, 2))``: the transition into the neighbour's chart.
 
@@ -509,7 +502,9 @@ def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bo
     if ne and integer:
         uv, off = integer_solve(A, b, S, uv, I, A0, b0, pin, weight=weight, batches=batches)
     if ne:
-        t_edge, t_end = _seam_translations(S, uv)
+        Rm = _ROT[S.rot]  # the translation of every seam edge read at its two ends
+        t_edge = uv[S.xg] - np.einsum("eij,ej->ei", Rm, uv[S.xf])
+        t_end = uv[S.yg] - np.einsum("eij,ej->ei", Rm, uv[S.yf])
         trans_err = float(np.abs(t_edge - t_end).max(initial=0.0))
         int_err = float(np.abs(t_edge - np.round(t_edge)).max(initial=0.0))
         if integer:

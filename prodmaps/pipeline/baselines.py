@@ -25,7 +25,7 @@ def update_baselines(results: list[RunResult], dest) -> list[str]:
             continue
         src = Path(r.run_dir)
         files = [src / "results.json"] + sorted(src.glob("*.png"))
-        _mkdir(dest)
+        dest.mkdir(parents=True, exist_ok=True)
         tmp = mkdtemp_beside(dest / r.name, r.name)
         for f in files:
             shutil.copy2(f, tmp / f.name)
@@ -33,7 +33,3 @@ def update_baselines(results: list[RunResult], dest) -> list[str]:
         done.append(r.name)
     return done
 
-
-def _mkdir(p: Path) -> Path:
-    p.mkdir(parents=True, exist_ok=True)
-    return p

@@ -147,13 +147,6 @@ _NOT_OUTPUTS = ("manifest.json", "executed.ipynb", "executed.html", "executed.ht
 _ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
 
 
-def _output_files(folder: Path) -> dict:
-    return {
-        p.name: sha256_file(p) for p in sorted(folder.iterdir())
-        if p.is_file() and p.name not in _NOT_OUTPUTS
-    }
-
-
 def _shown_path(final: Path, root: Path, outside: str | None = "<out>") -> str:
     """How the records (manifest, results.json, the executed notebook) name a run folder or notebook.
 
@@ -257,7 +250,9 @@ def _execute_task(task: dict) -> dict:
         "run": name, "profile": task["profile"], "status": status, "hash": task["hash"],
         "inputs": task["inputs"], "notebook": shown_notebook, "seconds": round(seconds, 3),
         "finished": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-        "python": sys.version.split()[0], "outputs": _output_files(tmp),
+        "python": sys.version.split()[0],
+        "outputs": {p.name: sha256_file(p) for p in sorted(tmp.iterdir())
+                    if p.is_file() and p.name not in _NOT_OUTPUTS},
         "overrides": task.get("overrides") or {}, **run_environment(root),
     }
     (tmp / "manifest.json").write_text(json.dumps(manifest, indent=2, sort_keys=True, default=str) + "\n")

@@ -22,18 +22,13 @@ from .registry import load_registry, project_root
 __all__ = ["write_gallery", "write_report_page"]
 
 
-def _nbformat():
-    import nbformat
-
-    return nbformat
-
-
 def write_gallery(dest, runs_dir=None, *, registry=None, baselines=None) -> list[str]:
     """Write ``dest/index.md`` and one ``dest/<run>.ipynb`` per registered run; returns the run names.
 
     ``runs_dir`` is a profile folder (``OUT/smoke``) whose executed notebooks are used where present.
     """
-    nbformat = _nbformat()
+    import nbformat
+
     dest = Path(dest)
     if dest.exists():
         shutil.rmtree(dest)
