@@ -255,14 +255,6 @@ def singularities(fr: Frames, z: np.ndarray, N: int = 4):
 
 
 # ----------------------------------------------------------------------------- vertices, maps
-def _vertex_frames(V, F, fr: Frames):
-    nv = vertex_normals(V, F)
-    ref = np.where(np.abs(nv[:, [0]]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    t = np.cross(nv, ref)
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
-    return nv, t, np.cross(nv, t)
-
-
 def vertex_power_field(fr: Frames, z: np.ndarray, N: int = 4):
     """Average a face power field to the vertices.
 
@@ -275,7 +267,10 @@ def vertex_power_field(fr: Frames, z: np.ndarray, N: int = 4):
     N = check_symmetry_order(N)
     z = _check_field(z, fr)
     V, F = fr.vertices, fr.faces
-    nv, t, b = _vertex_frames(V, F, fr)
+    nv = vertex_normals(V, F)  # vertex frames (t, b, nv)
+    t = np.cross(nv, np.where(np.abs(nv[:, [0]]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]]))
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    b = np.cross(nv, t)
     d = field_vectors(z, fr, N)[:, 0, :]  # (m, 3)
     fi = np.repeat(np.arange(fr.n_faces), 3)
     vi = F.ravel()
