@@ -11,9 +11,11 @@ import contextlib
 import hashlib
 import json
 import os
+import shutil
+import time
 from pathlib import Path
 
-__all__ = ["sha256_file", "sha256_bytes", "atomic_path", "parse_toml", "read_json"]
+__all__ = ["sha256_file", "sha256_bytes", "atomic_path", "swap_into_place", "parse_toml", "read_json"]
 
 _CHUNK = 1 << 20
 
@@ -50,6 +52,17 @@ def atomic_path(path, suffix: str | None = None):
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+def swap_into_place(tmp: Path, target: Path) -> None:
+    """Replace the folder ``target`` by ``tmp`` (same parent) with renames; never leaves a half folder."""
+    old = None
+    if target.exists():
+        old = target.with_name(f".{target.name}.old-{os.getpid()}-{time.monotonic_ns()}")
+        os.replace(target, old)
+    os.replace(tmp, target)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
 
 
 def parse_toml(text: str) -> dict:

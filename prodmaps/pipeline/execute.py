@@ -42,7 +42,7 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..files import read_json, sha256_file
+from ..files import read_json, sha256_file, swap_into_place
 from .hashing import run_hash
 from .notebooks import declared_parameters, export_html, literal, parameter_default
 from .registry import PROFILES, BareWord, load_registry, project_root
@@ -199,17 +199,6 @@ def _stderr_to(path: Path):
                 os.dup2(saved, 2)
     finally:
         os.close(saved)
-
-
-def swap_into_place(tmp: Path, target: Path) -> None:
-    """Replace ``target`` by ``tmp`` (same parent) with renames; never leaves a half folder."""
-    old = None
-    if target.exists():
-        old = target.with_name(f".{target.name}.old-{os.getpid()}-{time.monotonic_ns()}")
-        os.replace(target, old)
-    os.replace(tmp, target)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
 
 
 def _execute_task(task: dict) -> dict:

@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import os
 import posixpath
 import shutil
 import stat
@@ -27,7 +26,7 @@ import tempfile
 import zipfile
 from pathlib import Path, PurePosixPath
 
-from ..files import sha256_file
+from ..files import sha256_file, swap_into_place
 
 MAX_MEMBER_BYTES = 1 << 30  # 1 GiB per member
 
@@ -139,13 +138,7 @@ def staged_folder(target: Path, *, force: bool = False):
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    old = None
-    if target.exists():
-        old = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
-        os.replace(target, old / target.name)
-    os.replace(tmp, target)
-    if old is not None:
-        shutil.rmtree(old, ignore_errors=True)
+    swap_into_place(tmp, target)
 
 
 def write_manifest_and_sums(folder: Path, manifest: dict) -> None:
