@@ -512,8 +512,5 @@ def approximate(F, basis, method: str = "svd", **params) -> np.ndarray:
     >>> bool(np.allclose(std, b.vecs.T @ (b.mass * f)))
     True
     """
-    if is_extended(basis):
-        op = basis.operator(method, **params)
-    else:
-        op = approximation_operator(basis, method, **params)
+    op = basis.operator(method, **params) if is_extended(basis) else approximation_operator(basis, method, **params)
     return op.coefficients(F)

@@ -377,9 +377,9 @@ class Mesh:
     def __post_init__(self):
         v = np.ascontiguousarray(np.asarray(self.vertices, dtype=np.float64))
         f_in = np.asarray(self.faces)
-        if f_in.size and not np.issubdtype(f_in.dtype, np.integer):
-            if np.all(np.isfinite(f_in)) and np.all(f_in == np.round(f_in)):
-                f_in = f_in.astype(np.int64)
+        if (f_in.size and not np.issubdtype(f_in.dtype, np.integer) and np.all(np.isfinite(f_in))
+                and np.all(f_in == np.round(f_in))):  # whole numbers stored as floats
+            f_in = f_in.astype(np.int64)
         f = np.ascontiguousarray(f_in.astype(np.int64) if np.issubdtype(f_in.dtype, np.integer) else f_in)
         if f.ndim == 1 and f.size == 0:
             f = f.reshape(0, 3)
