@@ -78,9 +78,9 @@ def graph_errors(mesh, sources, targets, batch: int = 64) -> np.ndarray:
     bound (a path much longer than the straight line) is reached by an unbounded search."""
     from scipy.sparse.csgraph import dijkstra
 
-    from prodmaps.geodesics import _edge_graph
+    from prodmaps.geodesics import edge_graph
 
-    G = _edge_graph(mesh)
+    G = edge_graph(mesh)
     h = float(np.max(G.data))
     eu = np.linalg.norm(mesh.vertices[sources] - mesh.vertices[targets], axis=1)
     out = np.empty(sources.shape[0])
