@@ -217,8 +217,7 @@ _RULE_ERRORS = (KeyError, NameError, TypeError, ZeroDivisionError, ValueError)
 
 
 def _values(claim: Claim, results: dict, subset: str, method: str | None = None) -> dict:
-    """The claim's values for one subset and product ``method`` (None: only the values that do not
-    name ``{method}``)."""
+    """The claim's values for one subset and product ``method`` (None: those not naming ``{method}``)."""
     return {name: _lookup(path.replace("{method}", method or "").replace("{subset}", SUBSET_SUFFIX[subset]), results)
             for name, path in claim.values.items() if method is not None or "{method}" not in path}
 

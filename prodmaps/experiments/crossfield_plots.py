@@ -126,8 +126,10 @@ def _source_target_figure(mesh_1, mesh_2, names, draw, suptitle):
 
 
 def _strip_chart(ax, names, kinds: dict, baselines: dict, title: str) -> None:
-    """One panel of per-pair values: ``kinds`` (dots, side by side) and ``baselines`` (marks) map a
-    label to its values per pair (None: not drawn)."""
+    """One panel of per-pair values, dots for the ``kinds`` and marks for the ``baselines``.
+
+    Both map a label to its values per pair (None: not drawn).
+    """
     x = np.arange(len(names))
     for j, (kd, v) in enumerate(kinds.items()):
         ax.plot(x + 0.1 * (j - len(kinds) / 2), [np.nan if t is None else t for t in v], "o", ms=4, label=kd)

@@ -106,8 +106,10 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
 
 
 def _evaluated(store: ShapeStore, pairs, n_eval, seed: int) -> list:
-    """``[(source id, (target id, evaluated target vertices))]`` per pair, the vertices drawn here
-    in the pairs' order (all of them when ``n_eval`` is None)."""
+    """``[(source id, (target id, evaluated target vertices))]`` per pair.
+
+    The vertices are drawn here in the pairs' order (all of them when ``n_eval`` is None).
+    """
     rng = np.random.default_rng(seed)
     items = []
     for s1, s2 in pairs:

@@ -70,8 +70,10 @@ def write_results(out_dir, results: dict, parameters: dict) -> Path:
 
 
 def flatten(obj, prefix: str = "", number_lists: bool = False) -> dict:
-    """Nested dicts/lists -> ``{dotted.key: leaf}``; empty containers are kept as leaves, and so
-    are lists of numbers with ``number_lists``."""
+    """Nested dicts/lists -> ``{dotted.key: leaf}``.
+
+    Empty containers are kept as leaves, and so are lists of numbers with ``number_lists``.
+    """
     if isinstance(obj, dict) and obj:
         items = obj.items()
     elif isinstance(obj, list) and obj and not (number_lists and all(isinstance(v, (int, float)) for v in obj)):

@@ -340,8 +340,11 @@ def pushforward_field(fr1: Frames, z1: np.ndarray, fr2: Frames, p2p_21: np.ndarr
 
 
 def _image_frames(P: np.ndarray, fr1: Frames, fr2: Frames, min_area_ratio: float):
-    """The image triangles ``P`` ``(m2, 3, 3)`` on shape 1 of the faces of shape 2: ``(valid (m2,),
-    Pu, Pv)``, the non-degenerate ones and the frames of their planes (a degenerate one: its face's)."""
+    """The non-degenerate image triangles ``P`` ``(m2, 3, 3)`` and the frames of their planes.
+
+    ``P`` are the images on shape 1 of the faces of shape 2; returns ``(valid (m2,), Pu, Pv)``
+    (a degenerate triangle gets its face's frame).
+    """
     dbl = np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
     valid = dbl > 2 * min_area_ratio * fr1.area.mean()
     _, Pu, Pv, _ = face_frames(np.where(valid[:, None, None], P, fr2.vertices[fr2.faces]).reshape(-1, 3),
@@ -350,9 +353,11 @@ def _image_frames(P: np.ndarray, fr1: Frames, fr2: Frames, min_area_ratio: float
 
 
 def _mapped_directions(alpha, P, Pu, Pv, valid, fr2: Frames, N: int) -> np.ndarray:
-    """The unit power field of shape 2: each of the ``N`` directions at angle ``alpha`` in the
-    frames of ``P`` mapped by the differential ``dT`` of ``P -> face``, the normalised mean of
-    ``(dT w / |dT w|)^N`` (0 on the invalid faces)."""
+    """The unit power field of shape 2 mapped from the directions at angle ``alpha`` in the frames of ``P``.
+
+    Each of the ``N`` directions ``w`` is mapped by the differential ``dT`` of ``P -> face``; the
+    result is the normalised mean of ``(dT w / |dT w|)^N`` (0 on the invalid faces).
+    """
     # dT in frame coordinates: E2 = dT E1 with the two edge vectors as columns
     Q = fr2.vertices[fr2.faces]
     e1 = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2)  # (m2, 3, 2)

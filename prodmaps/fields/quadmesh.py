@@ -131,8 +131,10 @@ class _Seams:
         self.rot_c[self.chain[self.fwd]] = self.rot[self.fwd]
         self.rot_c[self.chain[~self.fwd]] = (-self.rot[~self.fwd]) % 4
     def relations(self):
-        """Every seam end once per chain: ``(mesh vertex, ref copy, other copy, chain)`` (deduplicated),
-        the copies on the chain's reference side and on its other side."""
+        """Every seam end once per chain: ``(mesh vertex, ref copy, other copy, chain)``.
+
+        The copies are those on the chain's reference side and on its other side (deduplicated).
+        """
         fwd = np.concatenate([self.fwd, self.fwd])
         f_side, g_side = np.concatenate([self.xf, self.yf]), np.concatenate([self.xg, self.yg])
         a, b = np.where(fwd, f_side, g_side), np.where(fwd, g_side, f_side)
