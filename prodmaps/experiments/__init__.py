@@ -2,8 +2,10 @@
 
 Arrows point down only: the notebooks import these modules, these modules import the math library
 (:mod:`prodmaps`), never :mod:`prodmaps.pipeline` (``tests/library/test_imports.py`` checks it).
-The paper's ``k_M`` / ``k_N`` in the notebooks' parameters count the non-constant functions: a
-basis of ``k_M + 1`` columns in the library, whose ``k`` counts the constant.
+The paper's ``k_M`` / ``k_N`` (and ``k``, ``ks``) in the notebooks' parameters and in these
+modules' arguments count the non-constant functions: a basis of ``k_M + 1`` columns in the
+library, whose ``k`` counts the constant. A count of columns with the constant is named
+``*_dim`` here (``source_dim``, ``target_dims``, ``target_dim``, ``mh_dim``) or ``n_eig``.
 
 Index: which notebook (``notebooks/<name>.ipynb``) imports which module
 -----------------------------------------------------------------------

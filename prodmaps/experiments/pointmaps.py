@@ -1,7 +1,8 @@
 """Figures 12 and 13: point-to-point maps recovered from a functional map, standard vs extended.
 
-A functional map ``C_12`` of shape ``(k_target, k_source)`` (the paper's 40×30: 40 columns of the
-target basis, 30 of the source basis, constants included) is converted to ``p2p_21`` (for every
+A functional map ``C_12`` of shape ``(target_dim, source_dim)`` (the paper's 40×30: 40 columns of
+the target basis, 30 of the source basis, constants included; in the paper's count ``k_N = 39``,
+``k_M = 29``) is converted to ``p2p_21`` (for every
 target vertex a source vertex) by :func:`prodmaps.p2p.from_fmap`, three conversions:
 
 ``"std"``                   nearest neighbours of ``Φ2`` among ``Φ1 C_12ᵀ`` [OBCS*12];
@@ -22,6 +23,7 @@ random target vertices per pair.
 from __future__ import annotations
 
 import time
+import warnings
 
 import numpy as np
 
@@ -49,22 +51,35 @@ def subject_pairs(dataset: str, subject, n_pairs=None, seed: int = 0) -> list:
     return [all_pairs[i] for i in sel]
 
 
-def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int, maps=("gt", "no17"),
-                       n_eval=None, no17_k_descr: int = 128, thresholds_max: float = 0.25, seed: int = 0,
-                       verbose: bool = True, workers: int | None = None) -> dict:
+def point_map_recovery(store: ShapeStore, pairs, *, target_dim: int | None = None, source_dim: int | None = None,
+                       maps=("gt", "no17"), n_eval=None, no17_k_descr: int = 128, thresholds_max: float = 0.25,
+                       seed: int = 0, verbose: bool = True, workers: int | None = None, k_target: int | None = None,
+                       k_source: int | None = None) -> dict:
     """Run Figures 12/13 (module doc); returns ``{"results": ..., "timing": ...}``.
 
+    ``target_dim``, ``source_dim``: the rows and columns of ``C_12``, basis columns with the
+    constant (the paper's ``k_N + 1``, ``k_M + 1``); the results keep them as
+    ``map_size.k_target`` / ``map_size.k_source`` (the baselines' keys). ``k_target``,
+    ``k_source``: their old names (deprecated: they warn and give the same numbers).
     ``workers``: processes computing the pairs (:func:`prodmaps.experiments.parallel.map_tasks`;
     the pairs of one source shape go to one worker, which keeps its geodesic rows); the evaluated
     vertices are drawn here in the pairs' order, so the numbers do not depend on ``workers``.
     """
+    if k_target is not None or k_source is not None:
+        if target_dim is not None or source_dim is not None:
+            raise TypeError("point_map_recovery: give target_dim and source_dim, not also k_target / k_source")
+        warnings.warn("point_map_recovery(k_target=, k_source=) is deprecated: use target_dim=, source_dim= (the same "
+                      "numbers: basis columns with the constant)", DeprecationWarning, stacklevel=2)
+        target_dim, source_dim = k_target, k_source
+    if target_dim is None or source_dim is None:
+        raise TypeError("point_map_recovery needs target_dim and source_dim (basis columns with the constant)")
     bad = set(maps) - {"gt", "no17"}
     if bad:
         raise ValueError(f"maps must be a subset of ['gt', 'no17'], got {list(maps)}")
     errs = {m: {c: [] for c in CONVERSIONS} for m in maps}  # per pair: (n_eval,) arrays
     per_pair, timing = [], {**dict.fromkeys(CONVERSIONS, 0.0), "no17": 0.0}
     items = _evaluated(store, pairs, n_eval, seed)
-    for _, (row, E, t_pair, t_parts) in map_by_source(_recovery_pair, store, items, k_target, k_source, tuple(maps),
+    for _, (row, E, t_pair, t_parts) in map_by_source(_recovery_pair, store, items, target_dim, source_dim, tuple(maps),
                                                       no17_k_descr, workers=workers):
         for (m, method), e in E.items():
             errs[m][method].append(e)
@@ -87,7 +102,7 @@ def point_map_recovery(store: ShapeStore, pairs, *, k_target: int, k_source: int
     results = {
         "error_definition": "geodesic distance on the source between recovered and true image "
         "/ sqrt(area of source); heat method",
-        "map_size": {"k_target": k_target, "k_source": k_source, "C_shape": [k_target, k_source]},
+        "map_size": {"k_target": target_dim, "k_source": source_dim, "C_shape": [target_dim, source_dim]},
         "pairs": [r["pair"] for r in per_pair],
         "mean_error": means,
         "conversions": {"std": "nearest neighbours of Φ2 among Φ1 Cᵀ [OBCS*12]",
@@ -119,27 +134,27 @@ def _evaluated(store: ShapeStore, pairs, n_eval, seed: int) -> list:
     return items
 
 
-def _recovery_pair(store: ShapeStore, ip: int, s1: str, item, k_target: int, k_source: int, maps,
+def _recovery_pair(store: ShapeStore, ip: int, s1: str, item, target_dim: int, source_dim: int, maps,
                    no17_k_descr: int) -> tuple:
     """One pair ``s1 -> item[0]``, evaluated at the target vertices ``item[1]``.
 
     Returns ``(row, {(map, conversion): errors (n_eval,)}, seconds, {conversion|"no17": seconds})``.
-    The conversions get the store's whole bases: ``C`` uses their first ``k_source``/``k_target``
+    The conversions get the store's whole bases: ``C`` uses their first ``source_dim``/``target_dim``
     columns, the extended conversion's heat kernel all of them.
     """
     s2, ev = item
     t0 = time.perf_counter()
     timing = {**dict.fromkeys(CONVERSIONS, 0.0), "no17": 0.0}
     B1, B2 = store.basis(s1), store.basis(s2)  # (n, n_eig) each
-    b1, b2 = B1.truncate(k_source), B2.truncate(k_target)
+    b1, b2 = B1.truncate(source_dim), B2.truncate(target_dim)
     gt = datasets.ground_truth(store.dataset, s1, s2)  # (n2,) target vertex -> source vertex
     row, recovered = {"pair": f"{s1}->{s2}"}, {}
     for m in maps:
         if m == "gt":
-            C = fmap_from_p2p(gt, b1, b2)  # (k_target, k_source)
+            C = fmap_from_p2p(gt, b1, b2)  # (target_dim, source_dim)
         else:
             t1 = time.perf_counter()
-            C = no17_demo_map(store, s1, s2, gt, k_source, k_target, k_descr=no17_k_descr)
+            C = no17_demo_map(store, s1, s2, gt, source_dim, target_dim, k_descr=no17_k_descr)
             timing["no17"] += time.perf_counter() - t1
         for method in CONVERSIONS:
             t1 = time.perf_counter()
@@ -157,7 +172,8 @@ def point_map_sweep(store: ShapeStore, pairs, *, sizes=((40, 30),), t_scales=(1.
                     seed: int = 0, workers: int | None = None) -> dict:
     """How far the extended conversion's gain depends on ``t``, ``rtol`` and the map's size.
 
-    Ground-truth maps only. For every size ``(k_target, k_source)`` the standard conversion and
+    Ground-truth maps only. For every size ``(target_dim, source_dim)`` (basis columns with the
+    constant, as in :func:`point_map_recovery`) the standard conversion and
     the extended one at every ``t_scale`` (``t = t_scale / λ`` of the source's last basis
     function) with ``rtol`` 1e-3, and at every ``rtol`` with ``t_scale = 1``. Returns
     ``{"rows": [{"size", "setting", "mean_error", "better_than_std": {"better", "tie", "worse"}}],
@@ -168,22 +184,22 @@ def point_map_sweep(store: ShapeStore, pairs, *, sizes=((40, 30),), t_scales=(1.
     settings += [(f"extended t x{ts:g}", "extended", {"t_scale": float(ts)}) for ts in t_scales]
     settings += [(f"extended rtol {r:g}", "extended", {"rtol": float(r)}) for r in rtols if float(r) != 1e-3]
     rows = []
-    for kt, ks in sizes:
+    for dim_t, dim_s in sizes:
         per = {name: [] for name, _, _ in settings}
-        for _, means in map_by_source(_sweep_pair, store, items, int(kt), int(ks), settings, workers=workers):
+        for _, means in map_by_source(_sweep_pair, store, items, int(dim_t), int(dim_s), settings, workers=workers):
             for name, v in means.items():
                 per[name].append(v)
         for name, _, _ in settings:
-            rows.append({"size": [int(kt), int(ks)], "setting": name, "mean_error": float(np.mean(per[name])),
+            rows.append({"size": [int(dim_t), int(dim_s)], "setting": name, "mean_error": float(np.mean(per[name])),
                          "better_than_std": count_outcomes(zip(per[name], per["std"]))})
     return {"rows": rows, "pairs": [f"{a}->{b}" for a, b in pairs]}
 
 
-def _sweep_pair(store: ShapeStore, ip: int, s1: str, item, k_target: int, k_source: int, settings) -> dict:
+def _sweep_pair(store: ShapeStore, ip: int, s1: str, item, target_dim: int, source_dim: int, settings) -> dict:
     s2, ev = item
     B1, B2 = store.basis(s1), store.basis(s2)
     gt = datasets.ground_truth(store.dataset, s1, s2)
-    C = fmap_from_p2p(gt, B1.truncate(k_source), B2.truncate(k_target))  # (k_target, k_source)
+    C = fmap_from_p2p(gt, B1.truncate(source_dim), B2.truncate(target_dim))  # (target_dim, source_dim)
     P = np.stack([from_fmap(C, B1, B2, method, vertices=ev, **kw) for _, method, kw in settings])
     E = geodesics.map_error(store.mesh(s1), P, gt[ev], rows=store.distance_rows(s1))  # (settings, n_eval)
     return {name: float(e.mean()) for (name, _, _), e in zip(settings, E)}

@@ -3,12 +3,14 @@
 Conventions: ``k`` in the paper's sense counts the non-constant eigenfunctions (bases of
 ``k + 1`` columns, cotangent Laplacian, lumped mass); products are approximated with Approach B
 (``rtol``, the paper's ``1e-3``); errors are the paper's area-weighted relative L2 errors, and for
-coordinates the mean over x, y, z.
+coordinates the mean over x, y, z. A count of basis columns with the constant is a ``*_dim``
+(Figure 10's ``mh_dim``, ``global_dim``), or ``n_eig`` (Figure 5).
 """
 
 from __future__ import annotations
 
 import time
+import warnings
 
 import numpy as np
 
@@ -153,27 +155,39 @@ def indicator_region(mesh, ks, region_center, region_radius: float, *, threshold
     return {"results": results, "region": region, "chi": chi, "approx": approx}
 
 
-def lmh_reconstruction(mesh, *, k_mh: int, k_global: int, k_local: int, region_top_fraction: float,
-                       mu_region: float, mu_orth: float, pairs: str = "ordered", rtol: float = 1e-3) -> dict:
+def lmh_reconstruction(mesh, *, mh_dim: int | None = None, global_dim: int | None = None,
+                       local_dim: int | None = None, region_top_fraction: float, mu_region: float, mu_orth: float,
+                       pairs: str = "ordered", rtol: float = 1e-3, k_mh: int | None = None,
+                       k_global: int | None = None, k_local: int | None = None) -> dict:
     """Figure 10: coordinates in MH and in MH + LMH, each without and with products.
 
-    MH: ``k_mh`` eigenfunctions; MH + LMH: ``k_global`` eigenfunctions plus ``k_local`` localized
-    harmonics of the top ``region_top_fraction`` of the height. Errors on the whole surface and in the
-    region.
+    MH: the first ``mh_dim`` eigenfunctions (constant included); MH + LMH: the first
+    ``global_dim`` eigenfunctions (constant included) plus ``local_dim`` localized harmonics of
+    the top ``region_top_fraction`` of the height. Errors on the whole surface and in the region.
+    ``k_mh``, ``k_global``, ``k_local``: the old names of ``mh_dim``, ``global_dim``,
+    ``local_dim`` (deprecated: they warn and give the same numbers).
 
     Returns ``{"results": ..., "region": (n,) bool, "recon": {"MH"|"LMH": (X_std, X_prod)}}``.
     """
     from .. import lmh
 
+    if (k_mh, k_global, k_local) != (None, None, None):
+        if (mh_dim, global_dim, local_dim) != (None, None, None):
+            raise TypeError("lmh_reconstruction: give mh_dim, global_dim, local_dim, not also the old k_mh, ...")
+        warnings.warn("lmh_reconstruction(k_mh=, k_global=, k_local=) is deprecated: use mh_dim=, global_dim=, "
+                      "local_dim= (the same numbers)", DeprecationWarning, stacklevel=2)
+        mh_dim, global_dim, local_dim = k_mh, k_global, k_local
+    if mh_dim is None or global_dim is None or local_dim is None:
+        raise TypeError("lmh_reconstruction needs mh_dim, global_dim and local_dim")
     X = mesh.vertices
     z = X[:, 2]
     region = z > z.max() - region_top_fraction * (z.max() - z.min())  # (n,) the head (z is up)
-    mh = eigenbasis(mesh, max(k_mh, k_global))
-    lmh_basis = lmh.lmh_basis(mesh, region, k_local, global_basis=mh.truncate(k_global),
+    mh = eigenbasis(mesh, max(mh_dim, global_dim))
+    lmh_basis = lmh.lmh_basis(mesh, region, local_dim, global_basis=mh.truncate(global_dim),
                               mu_region=mu_region, mu_orth=mu_orth)
-    mh = mh.truncate(k_mh)
+    mh = mh.truncate(mh_dim)
     mass = mh.mass
-    loc = lmh_basis.vecs[:, k_global:]
+    loc = lmh_basis.vecs[:, global_dim:]
     inside = np.einsum("i,ij->j", mass * region, loc**2)  # L2 mass of each localized function in the region
     errors, sizes, recon = {}, {}, {}
     for name, basis in (("MH", mh), ("LMH", lmh_basis)):

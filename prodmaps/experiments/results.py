@@ -8,6 +8,9 @@ Every notebook writes into its ``out_dir``:
 * PNG figures saved by :func:`save_figure` (fixed DPI, no metadata, no anti-aliasing of
   lines), or rendered by :mod:`prodmaps.experiments.render`.
 
+The values a notebook's ``parameters`` are made of do not live here: profiles are tables of
+``paper/runs.toml``, read by :func:`prodmaps.pipeline.registry.run_parameters`.
+
 Matplotlib is imported inside the functions that need it.
 """
 
@@ -21,8 +24,7 @@ import numpy as np
 
 from ..files import atomic_path
 
-__all__ = ["write_results", "read_results", "save_figure", "setup_matplotlib", "to_jsonable",
-           "resolve_profile", "flatten"]
+__all__ = ["write_results", "read_results", "save_figure", "setup_matplotlib", "to_jsonable", "flatten"]
 
 
 def to_jsonable(obj):
@@ -40,15 +42,6 @@ def to_jsonable(obj):
     if isinstance(obj, Path):
         return str(obj)
     return obj
-
-
-def resolve_profile(profile: str, profiles: dict, **overrides) -> dict:
-    """Parameters of ``profile`` from a notebook's ``profiles`` table, with non-None overrides."""
-    if profile not in profiles:
-        raise ValueError(f"unknown profile {profile!r}; choose one of {sorted(profiles)}")
-    params = dict(profiles[profile])
-    params.update({k: v for k, v in overrides.items() if v is not None})
-    return params
 
 
 def write_results(out_dir, results: dict, parameters: dict) -> Path:

@@ -1,7 +1,10 @@
 """The reproduction pipeline: run the paper's notebooks, hash, diff, report.
 
 Layer 3 of the package (it runs notebooks and reads their results; nothing in the math library
-or :mod:`prodmaps.experiments` imports it, and its code does not enter the run hashes):
+or :mod:`prodmaps.experiments` imports it, and its code does not enter the run hashes). The
+notebooks import one function of it, :func:`.registry.run_parameters`, which reads their profile
+values from the registry: the same values the runner hands them as papermill parameters, which
+do enter the hashes.
 
 :mod:`.registry`    ``paper/runs.toml``: which notebook reproduces which figure, with which parameters
 :mod:`.hashing`     what a run's outputs depend on (notebook, parameters, importable code, data)

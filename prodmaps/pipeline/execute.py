@@ -376,6 +376,11 @@ def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, ov
             params["dataset"] = dataset
         for k, v in (overrides or {}).items():  # a default of None leaves the kind to the registry's value
             ref = params.get(k)
+            if isinstance(v, BareWord) and ref is not None and not isinstance(ref, str):
+                raise ParameterError(
+                    f"run {n!r}: parameter {k}={v!s} is not a literal (number, list, quoted string, ...) and its value "
+                    f"in params.{profile} is {ref!r}: give a literal (e.g. -p '{k}=[4, 8]'), or quote a string "
+                    f"(-p '{k}=\"{v!s}\"')")
             if ref is not None and v is not None and not _same_kind(v, ref):
                 raise ParameterError(f"run {n!r}: parameter {k}={v!r} ({type(v).__name__}) does not match the type "
                                      f"of the registry's params.{profile}.{k} = {ref!r} ({type(ref).__name__})")

@@ -3,6 +3,9 @@
 * :func:`declared_parameters` reads the ``parameters`` cell with ``papermill.inspect_notebook``
   (names, defaults as source text, help from the trailing comments), so the runner can refuse a
   ``-p NAME=VALUE`` the notebook does not declare.
+* :func:`parameters_cell` reads the same cell with :mod:`ast` alone (names and defaults as source
+  text, no papermill): what :func:`prodmaps.pipeline.registry.run_parameters` needs inside a
+  notebook's kernel.
 * :func:`strip` removes outputs, execution counts and volatile metadata with ``nbstripout``
   (committed notebooks carry no outputs; a test enforces it).
 * :func:`export_html` writes an executed notebook as standalone HTML (``nbconvert``, figures
@@ -19,7 +22,8 @@ from pathlib import Path
 
 from ..files import atomic_path
 
-__all__ = ["declared_parameters", "parameter_default", "strip", "has_outputs", "export_html", "code_lines"]
+__all__ = ["declared_parameters", "parameters_cell", "parameter_default", "strip", "has_outputs", "export_html",
+           "code_lines"]
 
 
 def declared_parameters(notebook) -> dict:
@@ -28,6 +32,41 @@ def declared_parameters(notebook) -> dict:
 
     return {k: {"default": v.get("default"), "help": v.get("help", "")}
             for k, v in papermill.inspect_notebook(str(notebook)).items()}
+
+
+def parameters_cell(notebook) -> dict:
+    r"""``{name: default as source text}`` of the notebook's ``parameters`` cell, read with :mod:`ast`.
+
+    Every top-level ``name = value`` of the first code cell tagged ``parameters``, in order, with
+    ``value`` as written (``"None"``, ``"[9, 19]"``, ``'"smoke"'``; comments dropped): the names and
+    defaults :func:`declared_parameters` reads through papermill, without importing it. Raises
+    ``ValueError`` if the notebook has no such cell.
+
+    Examples
+    --------
+    >>> import json, tempfile
+    >>> from pathlib import Path
+    >>> cell = {"cell_type": "code", "metadata": {"tags": ["parameters"]}, "outputs": [], "execution_count": None,
+    ...         "source": 'profile = "smoke"\nks = None   # the paper\'s k\nrtol = 1e-3\n'}
+    >>> path = Path(tempfile.mkdtemp()) / "demo.ipynb"
+    >>> _ = path.write_text(json.dumps({"cells": [cell], "metadata": {}, "nbformat": 4, "nbformat_minor": 5}))
+    >>> parameters_cell(path)
+    {'profile': '"smoke"', 'ks': 'None', 'rtol': '1e-3'}
+    """
+    path = Path(notebook)
+    nb = json.loads(path.read_text(encoding="utf-8"))
+    for cell in nb.get("cells", []):
+        if cell.get("cell_type") == "code" and "parameters" in cell.get("metadata", {}).get("tags", []):
+            src = cell.get("source", "")
+            src = "".join(src) if isinstance(src, list) else src
+            out = {}
+            for node in ast.parse(src, filename=str(path)).body:
+                if isinstance(node, ast.Assign):
+                    for target in node.targets:
+                        if isinstance(target, ast.Name):
+                            out[target.id] = ast.get_source_segment(src, node.value)
+            return out
+    raise ValueError(f"{path}: no code cell tagged `parameters`")
 
 
 def parameter_default(notebook, name: str):

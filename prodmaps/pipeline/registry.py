@@ -10,10 +10,21 @@ Every run is an entry of ``paper/runs.toml`` (another file through ``$PRODMAPS_R
     claims = ["fig04.products_improve"]                             # optional: ledger entries judged on it
     report = "prodmaps.experiments.default_study"                   # optional: the module owning its report section
     dataset_figures = true                                          # optional: its figures in every dataset's section
-    [runs.fig04.params.smoke]        # papermill parameters of the smoke profile
-    [runs.fig04.params.paper]        # ... and of the paper profile
+    [runs.fig04.params.smoke]        # the smoke profile's values of the notebook's knobs
+    ks = [9, 19]
+    [runs.fig04.params.paper]        # ... and the paper profile's
+    ks = [9, 29, 49, 69]
     [runs.fig04.tolerances]          # optional, for prodmaps.pipeline.diffing (dotted-key globs)
     "results.errors.*" = { rtol = 1e-6, atol = 1e-9 }
+
+Profiles live here, nowhere else. A notebook's ``parameters`` cell declares each knob once; a
+knob declared ``None`` is decided by the profile: its value is the run's ``params.<profile>``
+entry. The runner passes those tables to papermill as parameters; a notebook run by hand (or by
+papermill) gets the same values with one call, ``P = registry.run_parameters("fig04", profile,
+globals())`` (:func:`run_parameters`). TOML has no null: a knob whose value in a profile is
+``None`` is left out of that table, and the notebook's declared ``None`` stands (its comment there
+says what ``None`` means). A knob declared with a value of its own (``dataset``, ``seed``,
+``table``) is set in a table only to choose among the runs that share a notebook (``table``).
 
 A run with ``report`` has a section of its own in the report: the module's
 ``report_blocks(results, dataset, *, main=True)`` returns it as ``(kind, *args)`` blocks
@@ -37,9 +48,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..files import parse_toml
+from .notebooks import parameters_cell
 
 __all__ = ["PROFILES", "REGISTRY", "Run", "RegistryError", "find_project_root", "registry_path",
-           "project_root", "load_registry", "parse_param", "parse_params", "BareWord"]
+           "project_root", "load_registry", "run_parameters", "parse_param", "parse_params", "BareWord"]
 
 PROFILES = ("smoke", "paper")
 REGISTRY = Path("paper") / "runs.toml"
@@ -158,6 +170,74 @@ def load_registry(path=None) -> dict[str, Run]:
             dataset_figures=entry.get("dataset_figures", False),
         )
     return out
+
+
+def run_parameters(run: str, profile: str, namespace: dict, *, registry=None) -> dict:
+    r"""The values of a notebook's profile knobs: ``P = registry.run_parameters("fig04", profile, globals())``.
+
+    The knobs are the names the run's notebook declares ``None`` in its ``parameters`` cell (read
+    from the notebook file, :func:`prodmaps.pipeline.notebooks.parameters_cell`). Each one's value
+    is ``namespace[name]`` if that is not None (set in the cell by the user, or injected by
+    papermill: the runner passes ``params.<profile>`` and ``-p`` values that way), else the run's
+    ``params.<profile>`` entry in the registry, else ``None`` (a knob the profile leaves out: the
+    notebook's ``None`` stands, meaning what its comment says). A notebook run by hand and the
+    same notebook run by ``prodmaps reproduce`` therefore get the same values.
+
+    The registry is ``registry``, else ``$PRODMAPS_RUNS``, else ``paper/runs.toml`` found from the
+    working directory and its parents (:func:`registry_path`): from ``notebooks/`` when the
+    notebook is opened by hand, from the project root under papermill. Raises
+    :class:`RegistryError` for an unknown run, a profile the run has no table for, or a
+    ``params.<profile>`` key that the notebook does not declare (a typo would do nothing).
+
+    Examples
+    --------
+    A project with one run; its notebook declares ``ks`` and ``rtol`` as profile knobs and
+    ``seed`` with a value of its own:
+
+    >>> import json, shutil, tempfile
+    >>> from pathlib import Path
+    >>> root = Path(tempfile.mkdtemp())
+    >>> (root / "paper").mkdir()
+    >>> _ = (root / "paper" / "runs.toml").write_text(
+    ...     '[runs.demo]\nnotebook = "demo.ipynb"\n'
+    ...     '[runs.demo.params.smoke]\nks = [9, 19]\nrtol = 1e-3\n'
+    ...     '[runs.demo.params.paper]\nks = [9, 29, 49]\n')      # rtol left out: None
+    >>> cell = {"cell_type": "code", "metadata": {"tags": ["parameters"]}, "outputs": [], "execution_count": None,
+    ...         "source": 'profile = "smoke"\nks = None    # the paper\'s k\nrtol = None\nseed = 0\n'}
+    >>> _ = (root / "demo.ipynb").write_text(json.dumps({"cells": [cell], "metadata": {}, "nbformat": 4,
+    ...                                                  "nbformat_minor": 5}))
+    >>> reg = root / "paper" / "runs.toml"
+    >>> run_parameters("demo", "smoke", {"ks": None, "rtol": None, "seed": 0}, registry=reg)
+    {'ks': [9, 19], 'rtol': 0.001}
+    >>> run_parameters("demo", "smoke", {"ks": [4, 8], "rtol": None}, registry=reg)  # set in the cell, or by -p
+    {'ks': [4, 8], 'rtol': 0.001}
+    >>> run_parameters("demo", "paper", {"ks": None, "rtol": None}, registry=reg)
+    {'ks': [9, 29, 49], 'rtol': None}
+    >>> try:
+    ...     run_parameters("demo", "quick", {}, registry=reg)
+    ... except RegistryError as exc:
+    ...     print(exc)
+    run 'demo' has no params.quick table; its profiles: ['paper', 'smoke']
+    >>> shutil.rmtree(root)
+    """
+    path = registry_path(registry)
+    runs = load_registry(path)
+    if run not in runs:
+        raise RegistryError(f"unknown run {run!r} in {path}; its runs: {', '.join(runs)}")
+    entry = runs[run]
+    if profile not in entry.params:
+        raise RegistryError(f"run {run!r} has no params.{profile} table; its profiles: {sorted(entry.params)}")
+    values = entry.parameters(profile)
+    try:
+        declared = parameters_cell(entry.notebook)
+    except OSError as exc:
+        raise RegistryError(f"run {run!r}: cannot read its notebook {entry.notebook}: {exc}") from exc
+    undeclared = sorted(set(values) - set(declared))
+    if undeclared:
+        raise RegistryError(f"{path}: params.{profile} of run {run!r} sets {undeclared}, which the parameters cell "
+                            f"of {entry.notebook.name} does not declare; it declares {list(declared)}")
+    knobs = [name for name, default in declared.items() if default == "None"]
+    return {name: namespace[name] if namespace.get(name) is not None else values.get(name) for name in knobs}
 
 
 class BareWord(str):

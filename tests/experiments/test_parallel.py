@@ -161,7 +161,7 @@ def test_area_curves_are_measured_in_workers_with_the_same_numbers(store):
 
 
 def test_point_map_recovery_does_not_depend_on_the_number_of_workers(store):
-    kw = dict(k_target=12, k_source=10, maps=("gt",), n_eval=60, seed=3, verbose=False)
+    kw = dict(target_dim=12, source_dim=10, maps=("gt",), n_eval=60, seed=3, verbose=False)
     one = point_map_recovery(store, PAIRS, workers=1, **kw)["results"]
     two = point_map_recovery(store, PAIRS, workers=2, **kw)["results"]
     assert one["pairs"] == two["pairs"] == [f"{a}->{b}" for a, b in PAIRS]

@@ -1,8 +1,11 @@
-"""prodmaps.pipeline.registry: the real paper/runs.toml, malformed registries, -p parsing, the project root."""
+"""prodmaps.pipeline.registry: the real paper/runs.toml, malformed registries, -p parsing, the project root,
+the profile values a notebook reads (run_parameters) and their agreement with the notebooks."""
 
 from __future__ import annotations
 
+import ast
 import datetime
+import json
 import re
 from pathlib import Path
 
@@ -10,6 +13,7 @@ import pytest
 
 from prodmaps.experiments.claims import load_ledger
 from prodmaps.pipeline import registry
+from prodmaps.pipeline.notebooks import declared_parameters, parameters_cell
 from prodmaps.pipeline.registry import (
     PROFILES,
     RegistryError,
@@ -20,6 +24,7 @@ from prodmaps.pipeline.registry import (
     parse_params,
     project_root,
     registry_path,
+    run_parameters,
 )
 
 ROOT = find_project_root(Path(__file__).resolve().parent)  # the project these tests belong to
@@ -316,3 +321,155 @@ def test_module_exports():
     for name in registry.__all__:
         assert hasattr(registry, name), name
     assert PROFILES == ("smoke", "paper")
+
+
+# ------------------------------------------------------------------------------ run_parameters
+def _notebook(path: Path, cell: str, more: str = "P = None\n") -> Path:
+    cells = [{"cell_type": "markdown", "metadata": {}, "source": "# Demo\n"},
+             {"cell_type": "code", "metadata": {"tags": ["parameters"]}, "outputs": [], "execution_count": None,
+              "source": cell},
+             {"cell_type": "code", "metadata": {}, "outputs": [], "execution_count": None, "source": more}]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps({"cells": cells, "metadata": {}, "nbformat": 4, "nbformat_minor": 5}))
+    return path
+
+
+CELL = """profile = "smoke"
+out_dir = "results/demo"
+seed = 0                 # a value of its own: not a profile knob
+ks = None                # the paper's k
+rtol = None              # Approach B threshold
+sweep = None             # {"sizes", "rtols"}; None: no sweep
+"""
+
+DEMO = """
+[runs.demo]
+notebook = "notebooks/demo.ipynb"
+[runs.demo.params.smoke]
+ks = [9, 19]
+rtol = 1e-3
+sweep = { sizes = [[20, 15]], rtols = [1e-6] }
+[runs.demo.params.paper]
+ks = [9, 29, 49]
+rtol = 1e-3
+# sweep left out: None
+"""
+
+
+@pytest.fixture()
+def demo(tmp_path, monkeypatch):
+    monkeypatch.delenv("PRODMAPS_RUNS", raising=False)
+    reg = _write(tmp_path / "proj", DEMO)
+    _notebook(tmp_path / "proj" / "notebooks" / "demo.ipynb", CELL)
+    return reg
+
+
+def _defaults(notebook: Path) -> dict:
+    """The namespace of a notebook whose parameters cell has just run (declared defaults)."""
+    return {k: ast.literal_eval(v) for k, v in parameters_cell(notebook).items()}
+
+
+def test_run_parameters_gives_the_profile_values_of_the_knobs_declared_none(demo):
+    ns = _defaults(demo.parent.parent / "notebooks" / "demo.ipynb")
+    smoke = run_parameters("demo", "smoke", ns, registry=demo)
+    assert smoke == {"ks": [9, 19], "rtol": 1e-3, "sweep": {"sizes": [[20, 15]], "rtols": [1e-6]}}
+    assert list(smoke) == ["ks", "rtol", "sweep"]  # the cell's order; seed, profile, out_dir are not knobs
+    # a knob the profile leaves out keeps the notebook's None
+    assert run_parameters("demo", "paper", ns, registry=demo) == {"ks": [9, 29, 49], "rtol": 1e-3, "sweep": None}
+
+
+def test_run_parameters_a_value_set_in_the_notebook_or_by_papermill_wins(demo):
+    ns = {**_defaults(demo.parent.parent / "notebooks" / "demo.ipynb"), "ks": [4], "sweep": {}}
+    assert run_parameters("demo", "paper", ns, registry=demo) == {"ks": [4], "rtol": 1e-3, "sweep": {}}
+    injected = {**ns, **load_registry(demo)["demo"].parameters("smoke")}  # what the runner passes
+    assert run_parameters("demo", "smoke", injected, registry=demo) == run_parameters(
+        "demo", "smoke", _defaults(demo.parent.parent / "notebooks" / "demo.ipynb"), registry=demo)
+    # a knob missing from the namespace (a cell edited by hand) reads as None
+    assert run_parameters("demo", "smoke", {}, registry=demo)["ks"] == [9, 19]
+
+
+def test_run_parameters_finds_the_registry_from_the_notebooks_folder_or_the_environment(demo, tmp_path, monkeypatch):
+    monkeypatch.chdir(demo.parent.parent / "notebooks")  # a notebook opened by hand
+    assert run_parameters("demo", "smoke", {})["rtol"] == 1e-3
+    other = _write(tmp_path / "other", DEMO.replace("rtol = 1e-3", "rtol = 1e-2"))
+    _notebook(tmp_path / "other" / "notebooks" / "demo.ipynb", CELL)
+    monkeypatch.setenv("PRODMAPS_RUNS", str(other))
+    assert run_parameters("demo", "smoke", {})["rtol"] == 1e-2
+
+
+def test_run_parameters_errors_name_the_problem(demo, tmp_path):
+    with pytest.raises(RegistryError, match=r"unknown run 'dem0' in .*runs\.toml; its runs: demo"):
+        run_parameters("dem0", "smoke", {}, registry=demo)
+    with pytest.raises(RegistryError, match=r"no params\.quick table; its profiles: \['paper', 'smoke'\]"):
+        run_parameters("demo", "quick", {}, registry=demo)
+    typo = _write(tmp_path / "typo", DEMO.replace("rtol = 1e-3\nsweep", "rtoll = 1e-3\nsweep"))
+    _notebook(tmp_path / "typo" / "notebooks" / "demo.ipynb", CELL)
+    with pytest.raises(RegistryError, match=r"params\.smoke of run 'demo' sets \['rtoll'\], which the parameters "
+                                            r"cell of demo\.ipynb does not declare"):
+        run_parameters("demo", "smoke", {}, registry=typo)
+    assert run_parameters("demo", "paper", {}, registry=typo)["rtol"] == 1e-3  # the paper table has no typo
+    gone = _write(tmp_path / "gone", DEMO)
+    with pytest.raises(RegistryError, match="cannot read its notebook"):
+        run_parameters("demo", "smoke", {}, registry=gone)
+    _notebook(tmp_path / "gone" / "notebooks" / "demo.ipynb", CELL).write_text(json.dumps(
+        {"cells": [], "metadata": {}, "nbformat": 4, "nbformat_minor": 5}))
+    with pytest.raises(ValueError, match="no code cell tagged `parameters`"):
+        run_parameters("demo", "smoke", {}, registry=gone)
+
+
+# ------------------------------------------------------------------------------ runs.toml and the notebooks
+NOTEBOOKS = sorted({r.notebook for r in load_registry(REAL).values()})
+# the key that chooses among the runs sharing a notebook: declared with a value, set in every table
+RUN_SELECTORS = {"tables_transfer": {"table"}}
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
+def test_parameters_cell_reads_what_papermill_reads(path):
+    assert parameters_cell(path) == {k: v["default"] for k, v in declared_parameters(path).items()}
+
+
+def test_every_profile_value_is_a_knob_its_notebook_declares_none(real_runs):
+    problems = []
+    for name, run in real_runs.items():
+        cell = parameters_cell(run.notebook)
+        for prof, values in run.params.items():
+            for key in values:
+                if key not in cell:
+                    problems.append(f"{name}: params.{prof}.{key} is not declared in {run.notebook.name}")
+                elif cell[key] != "None" and key not in RUN_SELECTORS.get(run.notebook.stem, ()):
+                    problems.append(f"{name}: params.{prof}.{key} is declared `{key} = {cell[key]}` in "
+                                    f"{run.notebook.name}: a value there would win over the profile's when the "
+                                    "notebook is run by hand; declare it None")
+    assert problems == []
+    tables = [r for r in real_runs.values() if r.notebook.stem == "tables_transfer"]
+    assert all({"table"} <= set(r.params[p]) for r in tables for p in PROFILES)
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
+def test_notebook_reads_its_profiles_from_the_registry(path, real_runs):
+    code = "\n".join("".join(c["source"]) for c in json.loads(path.read_text(encoding="utf-8"))["cells"]
+                     if c["cell_type"] == "code")
+    assert "PROFILES" not in code and "resolve_profile" not in code, "profile values belong in paper/runs.toml"
+    calls = re.findall(r"registry\.run_parameters\(([^,]+),", code)
+    assert len(calls) == 1, f"{path.name}: call registry.run_parameters(<run>, profile, globals()) once"
+    own = {n for n, r in real_runs.items() if r.notebook == path}
+    named = re.findall(r'"([A-Za-z0-9_.-]+)"', calls[0]) or re.findall(r'"(tab0)\{', code)
+    assert named and all(n in own or f"{n}1" in own for n in named), (calls[0], sorted(own))
+
+
+@pytest.mark.parametrize("profile", PROFILES)
+def test_a_notebook_run_by_hand_gets_the_values_papermill_gets(real_runs, profile, monkeypatch):
+    """From ``notebooks/`` (a notebook opened by hand) with the declared defaults, and from the project
+    root with the registry's values injected as papermill does: the same profile values."""
+    monkeypatch.delenv("PRODMAPS_RUNS", raising=False)
+    for name, run in real_runs.items():
+        defaults = _defaults(run.notebook)
+        if "table" in run.params[profile]:  # the tables notebook picks its run by `table`
+            defaults["table"] = run.params[profile]["table"]
+        monkeypatch.chdir(ROOT / "notebooks")
+        by_hand = run_parameters(name, profile, defaults)
+        monkeypatch.chdir(ROOT)
+        injected = run_parameters(name, profile, {**defaults, **run.parameters(profile)})
+        assert by_hand == injected, name
+        set_here = {k for k, v in by_hand.items() if v is not None}
+        assert set_here >= set(run.params[profile]) - {"table"}, name
