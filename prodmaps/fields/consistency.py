@@ -72,7 +72,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..basis import Basis
-from ..checks import check_fmap, check_symmetry_order
+from ..checks import check_fmap, check_p2p, check_symmetry_order
 from ..mapping import extend_fmap
 from ..products import product_basis
 from ..transfers import transfer_operator
@@ -178,9 +178,7 @@ def _checked_inputs(basis_1: Basis, basis_2: Basis, fr_1: Frames, fr_2: Frames, 
     if kind == "p2p":
         if p2p_21 is None:
             raise ValueError("kind='p2p' needs p2p_21 (n2,)")
-        p2p_21 = np.asarray(p2p_21, dtype=np.int64)
-        if p2p_21.shape != (basis_2.n,):
-            raise ValueError(f"p2p_21 must have shape (n2,) = ({basis_2.n},); got {p2p_21.shape}")
+        p2p_21 = check_p2p(p2p_21, basis_1.n, basis_2.n)
     C = None
     if C_12 is None:
         if kind != "p2p":
@@ -194,8 +192,6 @@ def _checked_inputs(basis_1: Basis, basis_2: Basis, fr_1: Frames, fr_2: Frames, 
         raise ValueError("bases and frames describe different meshes")
     if not (b1.mass_is_diagonal and b2.mass_is_diagonal):
         raise ValueError("fields need lumped (diagonal) masses")
-    if kind == "default" and C_12 is None:
-        raise ValueError("kind='default' needs C_12 (k2, k1)")
     if tests is None:
         tests = "base" if kind in ("std", "default") else "products"
     if tests not in TESTS:
@@ -265,9 +261,7 @@ def _default_transfer(C, b1: Basis, b2: Basis, Q2):
     Tr = np.empty((Q2.shape[1], b1.n))
     step = 512
     for s0 in range(0, b1.n, step):  # the operator applied to blocks of the identity
-        E = np.zeros((b1.n, min(step, b1.n - s0)))
-        E[np.arange(s0, s0 + E.shape[1]), np.arange(E.shape[1])] = 1.0
-        Tr[:, s0:s0 + E.shape[1]] = M2 @ op(E)
+        Tr[:, s0:s0 + step] = M2 @ op(np.eye(b1.n, min(step, b1.n - s0), k=-s0))
     return Tr, {"kept_products": op.rank}
 
 
@@ -343,10 +337,9 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
     F1, F2, Ct = images_of_tests(b1, b2, C, tests, p2p_21)
     H1, H2 = scaled_actions(fr_1, fr_2, F1, F2, b1.mass, N, power)
     Q2, Tr, extra = comparison_span(kind, C, Ct, b1, b2, rtol=rtol, normalization=normalization, p2p_21=p2p_21)
-    info = {"k": b1.k - 1, "J": F1.shape[1], "tests": tests, **extra}
+    info = {"k": b1.k - 1, "J": F1.shape[1], "tests": tests, **extra, "r": Q2.shape[1]}
     W1 = face_to_vertex(fr_1).T @ Tr.T  # (m1, r): W1ᵀ h_face = Tr (S1 h_face)
     W2 = face_to_vertex(fr_2).T @ (Q2 * b2.mass[:, None])  # (m2, r): W2ᵀ h_face = Q2ᵀ A2 S2 h_face
-    info["r"] = Q2.shape[1]
     lam1 = float(b1.evals[1]) if b1.k > 1 else 1.0 / fr_1.area.sum()
     lam2 = float(b2.evals[1]) if b2.k > 1 else 1.0 / fr_2.area.sum()
     return ConsistencyProblem(kind, N, fr_1, fr_2, np.ascontiguousarray(W1), H1, np.ascontiguousarray(W2), H2,
@@ -357,22 +350,13 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
 def _cg(apply, rhs_c: np.ndarray, precond, tol: float, maxiter: int):
     """CG on the real form of a real-linear SPD operator given on complex vectors."""
     m = rhs_c.size
-
-    def to_c(x):
-        return x[:m] + 1j * x[m:]
-
-    def to_r(z):
-        return np.concatenate([z.real, z.imag])
-
+    to_c = lambda x: x[:m] + 1j * x[m:]
+    to_r = lambda z: np.concatenate([z.real, z.imag])
     A = spla.LinearOperator((2 * m, 2 * m), matvec=lambda x: to_r(apply(to_c(x))), dtype=np.float64)
     Mop = spla.LinearOperator((2 * m, 2 * m), matvec=lambda x: to_r(precond(to_c(x))), dtype=np.float64)
-    it = [0]
-
-    def cb(_):
-        it[0] += 1
-
-    x, flag = spla.cg(A, to_r(rhs_c), rtol=tol, maxiter=maxiter, M=Mop, callback=cb)
-    return to_c(x), {"cg_iterations": it[0], "cg_flag": int(flag)}
+    it = []  # one entry per iteration
+    x, flag = spla.cg(A, to_r(rhs_c), rtol=tol, maxiter=maxiter, M=Mop, callback=lambda _: it.append(1))
+    return to_c(x), {"cg_iterations": len(it), "cg_flag": int(flag)}
 
 
 def design_consistent_field(problem: ConsistencyProblem, z1: np.ndarray, *, smoothness: float = 1e-3,

@@ -241,9 +241,7 @@ def singularity_index(fr: Frames, z: np.ndarray, N: int = 4) -> np.ndarray:
     s = np.bincount(head[ok], weights=jump[ok], minlength=n)
     K = angle_defect(fr.vertices, fr.faces)
     idx = np.round((s + N * K) / (2 * np.pi)) / N
-    bd = np.zeros(n, bool)
-    bd[tail[~ok]] = True
-    idx[bd] = 0.0
+    idx[tail[~ok]] = 0.0  # boundary vertices
     return idx
 
 
@@ -285,13 +283,9 @@ def vertex_power_field(fr: Frames, z: np.ndarray, N: int = 4):
 
 def _face_lookup(F1: np.ndarray, n1: int, tri: np.ndarray) -> np.ndarray:
     """Index of the face of ``F1`` equal to each row of ``tri`` up to a cyclic shift, or -1."""
-    keys, ids = [], []
-    for s in range(3):
-        r = np.roll(F1, -s, axis=1)
-        keys.append((r[:, 0] * n1 + r[:, 1]) * n1 + r[:, 2])
-        ids.append(np.arange(F1.shape[0]))
-    keys = np.concatenate(keys)
-    ids = np.concatenate(ids)
+    R = np.concatenate([np.roll(F1, -s, axis=1) for s in range(3)])  # every cyclic shift of every face
+    keys = (R[:, 0] * n1 + R[:, 1]) * n1 + R[:, 2]
+    ids = np.tile(np.arange(F1.shape[0]), 3)
     o = np.argsort(keys)
     keys, ids = keys[o], ids[o]
     q = (tri[:, 0] * n1 + tri[:, 1]) * n1 + tri[:, 2]
@@ -353,11 +347,7 @@ def _image_frames(P: np.ndarray, fr1: Frames, fr2: Frames, min_area_ratio: float
 
 
 def _mapped_directions(alpha, P, Pu, Pv, valid, fr2: Frames, N: int) -> np.ndarray:
-    """The unit power field of shape 2 mapped from the directions at angle ``alpha`` in the frames of ``P``.
-
-    Each of the ``N`` directions ``w`` is mapped by the differential ``dT`` of ``P -> face``; the
-    result is the normalised mean of ``(dT w / |dT w|)^N`` (0 on the invalid faces).
-    """
+    """Unit power field of shape 2: the directions at ``alpha`` in the frames of ``P`` through ``dT`` (0 if invalid)."""
     # dT in frame coordinates: E2 = dT E1 with the two edge vectors as columns
     Q = fr2.vertices[fr2.faces]
     e1 = np.stack([P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]], axis=2)  # (m2, 3, 2)

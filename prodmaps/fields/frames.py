@@ -143,11 +143,8 @@ def halfedges(F: np.ndarray):
     if np.any(skey[1:] == skey[:-1]):
         raise ValueError("a directed edge appears twice: the mesh is non-manifold or badly oriented")
     tkey = head * n + tail
-    pos = np.searchsorted(skey, tkey)
-    pos = np.minimum(pos, skey.size - 1)
-    found = skey[pos] == tkey
-    twin = np.where(found, order[pos], -1)
-    return tail, head, face, twin
+    pos = np.minimum(np.searchsorted(skey, tkey), skey.size - 1)
+    return tail, head, face, np.where(skey[pos] == tkey, order[pos], -1)
 
 
 def dual_edges(fr: Frames):
@@ -159,12 +156,7 @@ def dual_edges(fr: Frames):
     """
     tail, head, face, twin = halfedges(fr.faces)
     h = np.flatnonzero((twin >= 0) & (np.arange(twin.size) < np.maximum(twin, 0)))
-    f, g = face[h], face[twin[h]]
-    a, b = tail[h], head[h]
-    e = fr.vertices[b] - fr.vertices[a]  # (E, 3) the shared edge vector
-    th_f = np.arctan2(np.einsum("ij,ij->i", e, fr.v[f]), np.einsum("ij,ij->i", e, fr.u[f]))
-    th_g = np.arctan2(np.einsum("ij,ij->i", e, fr.v[g]), np.einsum("ij,ij->i", e, fr.u[g]))
-    return {"f": f, "g": g, "a": a, "b": b, "h": h, "rho": wrap_angle(th_g - th_f)}
+    return {"f": face[h], "g": face[twin[h]], "a": tail[h], "b": head[h], "h": h, "rho": transport_angles(fr)[h]}
 
 
 def transport_angles(fr: Frames) -> np.ndarray:
