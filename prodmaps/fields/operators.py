@@ -20,15 +20,14 @@ symmetry of the field (``α -> α + 2π/N`` leaves ``z`` unchanged; a 45° turn 
 its sign), (iii) natural: for an isometry ``T`` and the pushed field,
 ``Q_{T_* z}(f ∘ T⁻¹) = Q_z(f) ∘ T⁻¹``, and (iv) **linear in z**, so designing a field from its
 action is a linear least-squares problem. ``p = N`` is the polynomial form ``Re(conj(z) g^N)``
-(a degree-N form in ``f``; for ``N = 1`` exactly the derivation ``D_X f``). ``p = 0`` keeps the
-gradient direction only: it is natural under *conformal* maps too, which matters between
-poses of a body: the ``|∇f|^4`` weight of ``p = 4`` amplifies the metric distortion of the
-map, and on ``anny_000 -> anny_003`` a few stretched faces dominated it (``docs/benchmarks.md``).
-We use ``p = 0`` by default. Either way, the functions the action produces from basis functions
-are high-frequency (powers of gradients), which a small standard basis cannot represent and
-products of basis functions represent much better. ACBCO17 relate cross fields
-across shapes through their action on functions in the same spirit (only real-valued functions
-cross the map); this particular action is our choice, see :mod:`prodmaps.fields.consistency`.
+(a degree-N form in ``f``; for ``N = 1`` exactly the derivation ``D_X f``). ``p = 0``, the
+default, keeps the gradient direction only: it is natural under *conformal* maps too, where the
+``|∇f|^4`` weight of ``p = 4`` amplifies the metric distortion of the map (``docs/benchmarks.md``).
+Either way, the functions the action produces from basis functions are high-frequency (powers of
+gradients), which a small standard basis cannot represent and products of basis functions
+represent much better. ACBCO17 relate cross fields across shapes through their action on
+functions in the same spirit (only real-valued functions cross the map); this particular action
+is our choice, see :mod:`prodmaps.fields.consistency`.
 
 [ABCO13] Azencot, Ben-Chen, Chazal, Ovsjanikov. An operator approach to tangent vector field
 processing. SGP 2013.

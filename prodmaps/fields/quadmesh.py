@@ -87,16 +87,13 @@ class _Seams:
         n = int(F.max()) + 1 if F.size else 0
         self._singular = np.zeros(n, bool)  # (n,) mesh vertices that are singular
         self._singular[np.asarray(singular, dtype=np.int64)] = True
-        nc = int(I.size)
-        ne = fs.size
-        self.ne, self.nc = ne, nc
+        self.ne = ne = fs.size
         self.x, self.y = F[fs, es], F[fs, (es + 1) % 3]
         self.xf, self.yf = Fc[fs, es], Fc[fs, (es + 1) % 3]
         self.xg, self.yg = Fc[g, (eg + 1) % 3], Fc[g, eg]
         self.rot = (-r) % 4
         deg = np.bincount(np.concatenate([self.x, self.y]), minlength=n)
-        node = (deg > 0) & (deg != 2)
-        node |= self._singular
+        node = ((deg > 0) & (deg != 2)) | self._singular
         while True:
             # chains: seam edges linked through shared non-node vertices (edge ids, then vertex ids + ne)
             ends = np.concatenate([self.x, self.y])
@@ -115,15 +112,11 @@ class _Seams:
             node[self.x[lonely[first]]] = True
         self.node, self.chain, self.n_chains = node, chain.ravel(), nch
         # sides: the f-side and g-side copies of a chain, linked through copies of regular vertices
-        sx = np.concatenate([self.xf, self.xg])  # side-edge s = e (f side) or ne + e (g side)
-        sy = np.concatenate([self.yf, self.yg])
-        sid = np.arange(2 * ne)
-        a, b = [], []
-        for cp, v in ((sx, np.concatenate([self.x, self.x])), (sy, np.concatenate([self.y, self.y]))):
-            keep = ~node[v]
-            a.append(sid[keep])
-            b.append(2 * ne + cp[keep])
-        side = graph_components(2 * ne + nc, np.concatenate(a), np.concatenate(b))[1][:2 * ne]
+        # side-edge s = e (f side) or ne + e (g side), linked to the copies at its x then its y end
+        cp = np.concatenate([self.xf, self.xg, self.yf, self.yg])
+        keep = ~node[np.concatenate([self.x, self.x, self.y, self.y])]
+        sid = np.tile(np.arange(2 * ne), 2)
+        side = graph_components(2 * ne + I.size, sid[keep], 2 * ne + cp[keep])[1][:2 * ne]
         ref = np.full(nch, np.iinfo(np.int64).max)
         np.minimum.at(ref, self.chain, np.minimum(side[:ne], side[ne:]))
         self.fwd = side[:ne] == ref[self.chain]
@@ -366,8 +359,11 @@ def _solve_uv(A, b, nc: int) -> np.ndarray:
     return np.stack([x[:nc], x[nc:]], axis=1)
 
 
-def _soft_rows(seams, fixed: dict, rels, t, nc: int):
-    """Rows ``(M, rhs)`` pulling the continuous solve towards ``fixed``, ``rels`` and the chains with known ``t``."""
+def _resolve(fixed: dict, rels, t, *, seams, A0, b0, nc: int, weight: float) -> np.ndarray:
+    """The continuous solve again, pulled towards the roundings so far (``round_nodes``' ``resolve``).
+
+    Soft rows for ``fixed``, ``rels`` and the chains whose translation ``t`` is known.
+    """
     fc = np.fromiter(fixed.keys(), dtype=np.int64, count=len(fixed))
     fp = np.array(list(fixed.values())).reshape(-1, 2)
     cp, st, kk, tau = _concat_relations(rels, seams.chain_relations(t, np.isfinite(t[:, 0])))
@@ -383,12 +379,7 @@ def _soft_rows(seams, fixed: dict, rels, t, nc: int):
         vals += [np.ones(nr), -Rk[:, i, 0], -Rk[:, i, 1]]
     M = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                       shape=(2 * nf_ + 2 * nr, 2 * nc))
-    return M, np.concatenate([fp[:, 0], fp[:, 1], tau[:, 0], tau[:, 1]])
-
-
-def _resolve(fixed: dict, rels, t, *, seams, A0, b0, nc: int, weight: float) -> np.ndarray:
-    """The continuous solve again, pulled towards the roundings so far (``round_nodes``' ``resolve``)."""
-    M, r_ = _soft_rows(seams, fixed, rels, t, nc)
+    r_ = np.concatenate([fp[:, 0], fp[:, 1], tau[:, 0], tau[:, 1]])
     return _solve_uv(sp.vstack([A0, weight * M]).tocsr(), np.concatenate([b0, weight * r_]), nc)
 
 
@@ -402,34 +393,28 @@ def _hard_constraints(seams, fixed_d: dict, node_rels, t_c, nc: int):
     S = seams
     elim_c, elim_ref, elim_k, elim_t = _concat_relations(
         S.chain_relations(t_c, np.ones(S.n_chains, bool), at_nodes=False), node_rels)
-    fixed = np.zeros(nc, bool)
-    Pfix = np.zeros((nc, 2))
-    if fixed_d:
-        fc = np.fromiter(fixed_d.keys(), dtype=np.int64)
-        fixed[fc] = True
-        Pfix[fc] = np.array(list(fixed_d.values()))
-    elim = np.zeros(nc, bool)
-    elim[elim_c] = True
+    fc = np.fromiter(fixed_d.keys(), dtype=np.int64, count=len(fixed_d))
+    fixed, elim = np.zeros(nc, bool), np.zeros(nc, bool)
+    fixed[fc], elim[elim_c] = True, True
     free = ~fixed & ~elim
-    idx = np.full(nc, -1)
-    idx[free] = np.arange(free.sum())
     nf = int(free.sum())
+    idx = np.full(nc, -1)
+    idx[free] = np.arange(nf)
     if np.any(idx[elim_ref] < 0):
         raise RuntimeError("a seam copy is related to a fixed or eliminated copy; the cut graph is not a tree")
     rows, cols, vals = [np.flatnonzero(free), nc + np.flatnonzero(free)], [idx[free], nf + idx[free]], \
         [np.ones(nf), np.ones(nf)]
     Ro = _ROT[elim_k]
-    for i in range(2):
-        for j in range(2):
-            rows.append(i * nc + elim_c)
-            cols.append(j * nf + idx[elim_ref])
-            vals.append(Ro[:, i, j])
+    for i, j in np.ndindex(2, 2):
+        rows.append(i * nc + elim_c)
+        cols.append(j * nf + idx[elim_ref])
+        vals.append(Ro[:, i, j])
     Smat = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                          shape=(2 * nc, 2 * nf))
     s0 = np.zeros((2, nc))  # (u, v) of the fixed copies, the translations of the eliminated ones
-    s0[:, fixed] = Pfix[fixed].T
+    s0[:, fc] = np.array(list(fixed_d.values())).reshape(-1, 2).T
     s0[:, elim_c] = elim_t.T
-    return Smat, s0.ravel(), bool(fixed.any())
+    return Smat, s0.ravel(), bool(fc.size)
 
 
 def integer_solve(A, b, seams, uv: np.ndarray, I: np.ndarray, A0, b0, pin, *, weight: float, batches: int):
@@ -443,13 +428,10 @@ def integer_solve(A, b, seams, uv: np.ndarray, I: np.ndarray, A0, b0, pin, *, we
     resolve = partial(_resolve, seams=seams, A0=A0, b0=b0, nc=nc, weight=weight)
     fixed_d, node_rels, t_c, off = seams.round_nodes(uv, I, resolve=resolve, batches=batches)
     Smat, s0, any_fixed = _hard_constraints(seams, fixed_d, node_rels, t_c, nc)
-    AS = (A @ Smat).tocsr()
-    if not any_fixed:
-        AS = sp.vstack([AS, pin @ Smat]).tocsr()
-        y = _solve_normal(AS, np.concatenate([b - A @ s0, np.zeros(2)]))
-    else:
-        y = _solve_normal(AS, b - A @ s0)
-    xx = Smat @ y + s0
+    AS, rhs = (A @ Smat).tocsr(), b - A @ s0
+    if not any_fixed:  # nothing fixes the translation: pin the first cut vertex
+        AS, rhs = sp.vstack([AS, pin @ Smat]).tocsr(), np.concatenate([rhs, np.zeros(2)])
+    xx = Smat @ _solve_normal(AS, rhs) + s0
     return np.stack([xx[:nc], xx[nc:]], axis=1), off
 
 
