@@ -19,13 +19,11 @@ each shape's curvature, singularities at low-curvature vertices matched through 
 Second setting, this package's own (``params["map_only"]``, on by default): **map only**. The
 source keeps its no-map field (the ``"independent"`` baseline's, smooth and curvature-aligned) and
 the target is designed by consistency and smoothness alone (no alignment on the target), through
-the same problems: the map has to carry the field. In the joint design the curvature alone makes
-near-isometric fields consistent and the oracle rarely beats ``C``; a claim is judged only in a
-setting where it does (the ledger's "not demonstrable in this setting"). Every k row carries the
-no-map result (``"no_map"``); ``out["map"]`` has the singular values of ``C`` and the ``"ext"``
-rows the Approach-B ranks and the transfer gain of ``C~`` (large where ``k`` cuts a cluster of
-close eigenvalues and ``C`` has a nearly zero singular value: the k = 10 instability).
-:func:`verdict_table` counts, per setting and k, the pairs where each design beats ``C``.
+the same problems: the map has to carry the field. Every k row carries the no-map result
+(``"no_map"``); ``out["map"]`` has the singular values of ``C`` and the ``"ext"`` rows the
+Approach-B ranks and the transfer gain of ``C~`` (large where ``k`` cuts a cluster of close
+eigenvalues and ``C`` has a nearly zero singular value). :func:`verdict_table` counts, per
+setting and k, the pairs where each design beats ``C``.
 
 ``k`` is the paper's k: the number of **non-constant** eigenfunctions (``C`` has ``k+1`` rows
 and columns); the paper uses ``k = 5`` and a ground-truth functional map.
@@ -38,14 +36,27 @@ import time
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 from scipy.sparse.csgraph import dijkstra
+from scipy.spatial import cKDTree
 
+from .. import datasets
 from ..basis import eigenbasis
 from ..fields.consistency import consistency_problem, design_consistent_field, design_joint
-from ..fields.crossfield import angle_stats, cross_angle, curvature_guide, pushforward_field, singularities
-from ..fields.frames import mesh_frames
+from ..fields.crossfield import (
+    angle_stats,
+    closest_point_correspondence,
+    cross_angle,
+    curvature_guide,
+    pushforward_field,
+    pushforward_field_barycentric,
+    singularities,
+)
+from ..fields.frames import angle_defect, mesh_frames
+from ..fields.quadmesh import extract_quads, quad_mesh_stats, seamless_parametrization
 from ..geodesics import distances, edge_graph
 from ..mapping import fmap_from_p2p
 from ..mesh import Mesh, mean_edge_length
+from ..operators import lumped_mass
+from .parallel import map_tasks
 
 __all__ = ["match_singularities", "surface_ground_truth", "low_curvature_vertices", "pair_measures",
            "figure14_joint_pair", "summarize_pairs", "summarize_quads", "figure14_joint_study", "quad_meshes_pair",
@@ -123,9 +134,6 @@ def surface_ground_truth(dataset: str, id_1: str, id_2: str) -> dict:
     (:func:`prodmaps.fields.crossfield.pushforward_field_barycentric`), not through the nearest
     vertex. A variant as shape 1 is not supported.
     """
-    from .. import datasets
-    from ..fields.crossfield import closest_point_correspondence
-
     if id_1 in datasets.variants(dataset):
         raise ValueError(f"{id_1!r} is a remeshed variant; put it as shape 2")
     m1, m2 = datasets.load_shape(dataset, id_1), datasets.load_shape(dataset, id_2)
@@ -140,8 +148,6 @@ def surface_ground_truth(dataset: str, id_1: str, id_2: str) -> dict:
 
 
 def _pushforward(fr1, z1, fr2, gt):
-    from ..fields.crossfield import pushforward_field_barycentric
-
     if gt.get("face_21") is not None:
         return pushforward_field_barycentric(fr1, z1, fr2, gt["face_21"], gt["bary_21"])
     return pushforward_field(fr1, z1, fr2, gt["p2p_21"])
@@ -158,9 +164,6 @@ def _far_from(mesh: Mesh, vertices, radius):
 
 def low_curvature_vertices(mesh: Mesh, quantile: float = 0.8) -> np.ndarray:
     """Vertex mask ``(n,)``: curvature density ``|angle defect| / lumped area`` below its ``quantile``."""
-    from ..fields.frames import angle_defect
-    from ..operators import lumped_mass
-
     K = np.abs(angle_defect(mesh.vertices, mesh.faces)) / lumped_mass(mesh.vertices, mesh.faces)
     return K < np.quantile(K, quantile)
 
@@ -224,10 +227,6 @@ def quad_mesh_of(mesh: Mesh, z, size: float):
     the parametrisation's flipped faces, integer error, ``h``, the field's singularities and
     ``polygons_near_singularities`` (non-quad faces with a corner within 2 quad sizes of one).
     """
-    from scipy.spatial import cKDTree
-
-    from ..fields.quadmesh import extract_quads, quad_mesh_stats, seamless_parametrization
-
     h = size * np.sqrt(mesh.area)
     par = seamless_parametrization(mesh, z, h)
     q = extract_quads(par)
@@ -263,8 +262,6 @@ def quad_meshes_pair(mesh_1: Mesh, mesh_2: Mesh, z1, z2, gt: dict, size: float, 
     the singularity clusters that face, hands and feet force on every field. ``sides``: the two
     :func:`quad_mesh_of` results when already computed (then ``z1``, ``z2`` are not used).
     """
-    from scipy.spatial import cKDTree
-
     if sides is None:
         sides = (quad_mesh_of(mesh_1, z1, size), quad_mesh_of(mesh_2, z2, size))
     (st1, mesh_q1, val1), (st2, mesh_q2, val2) = sides
@@ -501,9 +498,6 @@ def figure14_joint_study(dataset: str, pairs, ks, *, params=None, shown: int = 0
     processes computing the pairs (:func:`prodmaps.experiments.parallel.map_tasks`; the same
     numbers for any number).
     """
-    from .. import datasets
-    from .parallel import map_tasks
-
     pairs = [tuple(p) for p in pairs]
     tasks = [(dataset, a, b, list(ks), params, i == shown) for i, (a, b) in enumerate(pairs)]
     per, shown_out = {}, None
@@ -529,8 +523,6 @@ def figure14_joint_study(dataset: str, pairs, ks, *, params=None, shown: int = 0
 
 def _joint_pair_task(dataset: str, a: str, b: str, ks, params, keep_fields: bool) -> dict:
     """:func:`figure14_joint_pair` of the pair ``a -> b`` of ``dataset`` (one task of the study)."""
-    from .. import datasets
-
     gt = surface_ground_truth(dataset, a, b)
     m1, m2 = datasets.load_shape(dataset, a), datasets.load_shape(dataset, b)
     return figure14_joint_pair(m1, m2, gt, ks, params=params, keep_fields=keep_fields)
