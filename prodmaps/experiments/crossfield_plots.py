@@ -23,13 +23,16 @@ def _camera(view):
     return d, up, right  # d points from the object to the camera
 
 
-def _visible_faces(P2, depth, front, cell):
-    """Faces whose centroid depth is within one cell of the nearest one in its screen cell."""
+def _visible_faces(fr, view, front):
+    """Screen centroids ``(m, 2)`` and the faces whose centroid depth is within a cell of the nearest in its cell."""
+    d, up, right = _camera(view)
+    c3 = fr.centroids
+    P2, depth, cell = np.stack([c3 @ right, c3 @ up], axis=1), c3 @ d, 2.0 * np.sqrt(fr.area.mean())
     ij = np.floor((P2 - P2.min(0)) / cell).astype(np.int64)
     key = ij[:, 0] * (ij[:, 1].max() + 1) + ij[:, 1]
     best = np.full(key.max() + 1, np.inf)
     np.minimum.at(best, key[front], -depth[front])
-    return front & (-depth <= best[key] + cell)
+    return P2, front & (-depth <= best[key] + cell)
 
 
 def _shaded_mesh(ax, V, F, view, facecolors=None, shade=True):
@@ -69,12 +72,9 @@ def plot_cross_field(V, F, z, *, ax=None, view="front", n_glyphs=1500, glyph_sca
     F = np.asarray(F, np.int64)
     if ax is None:
         _, ax = plt.subplots(figsize=(3, 5))
-    fr, P, depth, front = _shaded_mesh(ax, V, F, view)
-    d, up, right = _camera(view)
-    c3 = fr.centroids
-    c2 = np.stack([c3 @ right, c3 @ up], axis=1)
-    h = np.sqrt(fr.area.mean())
-    vis = _visible_faces(c2, c3 @ d, front, 2.0 * h)
+    fr, P, _, front = _shaded_mesh(ax, V, F, view)
+    _, up, right = _camera(view)
+    c2, vis = _visible_faces(fr, view, front)
     cand = np.flatnonzero(vis)
     rng = np.random.default_rng(seed)
     pick = cand if cand.size <= n_glyphs else np.sort(rng.choice(cand, n_glyphs, replace=False,
@@ -89,9 +89,7 @@ def plot_cross_field(V, F, z, *, ax=None, view="front", n_glyphs=1500, glyph_sca
     if show_singularities:
         v, ind = singularities(fr, np.asarray(z), 4)
         if v.size:
-            vf = np.zeros(V.shape[0], bool)
-            vf[F[vis].ravel()] = True
-            keep = vf[v]
+            keep = np.isin(v, F[vis])
             ax.scatter(P[v[keep], 0], P[v[keep], 1], s=10, c=np.where(ind[keep] > 0, "red", "blue"),
                        zorder=3, linewidths=0)
     return ax
@@ -207,12 +205,9 @@ def plot_quad_mesh(V, F, Vq, Q, polygons=(), *, ax=None, view="front", title=Non
         # visible as plot_cross_field decides it: the nearest mesh vertex belongs to a visible face
         from scipy.spatial import cKDTree
 
-        c3 = fr.centroids
-        vis = _visible_faces(np.stack([c3 @ right, c3 @ up], axis=1), c3 @ d, front, 2.0 * np.sqrt(fr.area.mean()))
-        on_vis = np.zeros(len(V), bool)
-        on_vis[np.asarray(F)[vis].ravel()] = True
+        vis = _visible_faces(fr, view, front)[1]
         irr = np.asarray(irregular, dtype=np.int64)
-        irr = irr[on_vis[cKDTree(V).query(Vq[irr])[1]]]
+        irr = irr[np.isin(cKDTree(V).query(Vq[irr])[1], np.asarray(F)[vis])]
         ax.plot(P[irr, 0], P[irr, 1], "o", ms=1.8, color=(0.8, 0.0, 0.0))
     if title:
         ax.set_title(title, fontsize=8)
