@@ -93,48 +93,39 @@ def function_transfer(dataset: str, source_id: str, target_id: str, sizes, *, rt
         b1, b2 = full_1.truncate(kM + 1), full_2.truncate(kN + 1)
         C = fmap_from_p2p(p2p_21, b1, b2)  # (kN + 1, kM + 1)
         ext1 = product_basis(b1, 2, pairs_convention)
-        approx_std = b1.vecs @ b1.project(f)  # (n1,)
-        approx_prod = ext1.evaluate(ext1.operator("svd", rtol=rtol).coefficients(f))
+        fit = lambda r: ext1.evaluate(ext1.operator("svd", rtol=r).coefficients(f))  # Approach B at rtol r
+        err_1 = lambda a: relative_error(a, f, b1.mass)  # approximation error, on the source
+        err_2 = lambda t: relative_error(t, g_true, b2.mass)  # transfer error, on the target
+        approx_std, approx_prod = b1.vecs @ b1.project(f), fit(rtol)  # (n1,)
         trans_std = transfer(f, C, b1, b2, "std")  # (n2,)
         trans_prod = transfer(f, C, b1, b2, "svd", rtol=rtol, **kw)
-        key = f"kM{kM}_kN{kN}"
-        errors[key] = {
-            "approx": {"std": relative_error(approx_std, f, b1.mass), "prod": relative_error(approx_prod, f, b1.mass)},
-            "transfer": {
-                "std": relative_error(trans_std, g_true, b2.mass),
-                "prod": relative_error(trans_prod, g_true, b2.mass),
-            },
-        }
         # beside the paper: Approach B with the gain rule's threshold, and the library's default transfer
         r_g = select_rtol(b1, method="gain", C_12=C, basis_2=b2, pairs=pairs_convention)
         default = transfer_operator(C, b1, b2, "default")
         trans_default = default(f)
-        errors[key]["approx"].update({
-            "gain_rule": relative_error(ext1.evaluate(ext1.operator("svd", rtol=r_g).coefficients(f)), f, b1.mass),
-            "default": relative_error(default.approximate(f), f, b1.mass)})
-        errors[key]["transfer"].update({
-            "gain_rule": relative_error(transfer(f, C, b1, b2, "svd", rtol=r_g, **kw), g_true, b2.mass),
-            "default": relative_error(trans_default, g_true, b2.mass)})
-        errors[key]["gain_rule_rtol"] = r_g
+        key = f"kM{kM}_kN{kN}"
+        errors[key] = {
+            "approx": {"std": err_1(approx_std), "prod": err_1(approx_prod), "gain_rule": err_1(fit(r_g)),
+                       "default": err_1(default.approximate(f))},
+            "transfer": {"std": err_2(trans_std), "prod": err_2(trans_prod),
+                         "gain_rule": err_2(transfer(f, C, b1, b2, "svd", rtol=r_g, **kw)),
+                         "default": err_2(trans_default)},
+            "gain_rule_rtol": r_g,
+        }
         Fp = np.column_stack(list(parts.values()))  # (n1, 4): each part alone, same pipeline
         Gp = Fp[p2p_21]
         eps = relative_error(transfer(Fp, C, b1, b2, "std"), Gp, b2.mass)
         epp = relative_error(transfer(Fp, C, b1, b2, "svd", rtol=rtol, **kw), Gp, b2.mass)
         errors[key]["transfer_per_part"] = {name: {"std": eps[i], "prod": epp[i]} for i, name in enumerate(parts)}
-        extra[key] = {}
-        for r in rtol_compare:
-            a_r = ext1.evaluate(ext1.operator("svd", rtol=r).coefficients(f))
-            t_r = transfer(f, C, b1, b2, "svd", rtol=r, **kw)
-            extra[key][f"rtol{r:g}"] = {"approx_prod": relative_error(a_r, f, b1.mass),
-                                         "transfer_prod": relative_error(t_r, g_true, b2.mass)}
+        extra[key] = {f"rtol{r:g}": {"approx_prod": err_1(fit(r)),
+                                     "transfer_prod": err_2(transfer(f, C, b1, b2, "svd", rtol=r, **kw))}
+                      for r in rtol_compare}
         fields[key] = (approx_std, approx_prod, trans_std, trans_prod, trans_default)
         if verbose:
             e = errors[key]
-            print(
-                f"k_M = {kM}, k_N = {kN}: approx std {e['approx']['std']:.4f} prod {e['approx']['prod']:.4f} | "
-                f"transfer std {e['transfer']['std']:.4f} prod {e['transfer']['prod']:.4f}  "
-                f"[{time.perf_counter() - t0:.1f} s]"
-            )
+            print(f"k_M = {kM}, k_N = {kN}: approx std {e['approx']['std']:.4f} prod {e['approx']['prod']:.4f} | "
+                  f"transfer std {e['transfer']['std']:.4f} prod {e['transfer']['prod']:.4f}  "
+                  f"[{time.perf_counter() - t0:.1f} s]")
     results = {
         "error_definition": "sqrt(int (f-g)^2)/sqrt(int g^2), area-weighted (source for approx, target for transfer)",
         "pair": f"{source_id}->{target_id}", "anchors": anchors, "errors": errors, "other_rtol": extra,
@@ -191,12 +182,10 @@ def remeshing_transfer(dataset: str, targets, sizes, *, source_ids=None, laplaci
     for tgt, by_lap in errors.items():
         for lap, by_size in by_lap.items():
             for key, e in by_size.items():
+                v, r = e["variant"], e["reference"]
                 summary[f"{tgt}/{lap}/{key}"] = {
-                    "prod": e["variant"]["prod"], "std": e["variant"]["std"],
-                    "prod_vs_std": outcome(e["variant"]["prod"], e["variant"]["std"]),
-                    "std_change_vs_reference": e["variant"]["std"] - e["reference"]["std"],
-                    "prod_change_vs_reference": e["variant"]["prod"] - e["reference"]["prod"],
-                }
+                    "prod": v["prod"], "std": v["std"], "prod_vs_std": outcome(v["prod"], v["std"]),
+                    "std_change_vs_reference": v["std"] - r["std"], "prod_change_vs_reference": v["prod"] - r["prod"]}
     results = {"error_definition": "sqrt(int (f-g)^2)/sqrt(int g^2), area-weighted on the target",
                "pairs": [f"{c['source']}->{c['target']}" for c in cases], "errors": errors, "summary": summary}
     return {"results": results, "cases": cases, "fields": fields, "source_ids": source_ids}

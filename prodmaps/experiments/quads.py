@@ -48,12 +48,9 @@ def coarse_remesh(mesh: Mesh, edge_length: float, target_faces: int = 800, itera
     ms.add_mesh(pymeshlab.Mesh(np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces, dtype=np.int32)))
     ms.meshing_decimation_quadric_edge_collapse(targetfacenum=int(target_faces), preservetopology=True,
                                                 preservenormal=True)
-    ms.meshing_isotropic_explicit_remeshing(
-        iterations=int(iterations),
-        targetlen=pymeshlab.PureValue(float(edge_length)),
-        checksurfdist=True,
-        maxsurfdist=pymeshlab.PureValue(float(max_surface_distance)),
-    )
+    ms.meshing_isotropic_explicit_remeshing(iterations=int(iterations), checksurfdist=True,
+                                            targetlen=pymeshlab.PureValue(float(edge_length)),
+                                            maxsurfdist=pymeshlab.PureValue(float(max_surface_distance)))
     out = ms.current_mesh()
     return Mesh(out.vertex_matrix(), out.face_matrix().astype(np.int64), name=mesh.name + "_coarse")
 
@@ -160,10 +157,8 @@ def point_map_quad_transport(dataset: str, source_id: str, target_id: str, ks, *
     dist_snap, snap = cKDTree(mesh_1.vertices).query(coarse.vertices)  # coarse vertex -> nearest source vertex
     src_v = snap.astype(np.int64)  # (m,) quad vertices as source vertices
     if verbose:
-        print(
-            f"coarse remesh: {coarse.n_vertices} vertices, {coarse.faces.shape[0]} triangles -> {quads.shape[0]} quads "
-            f"+ {tris.shape[0]} triangles; snapping {dist_snap.mean() * 1000:.1f} mm mean"
-        )
+        print(f"coarse remesh: {coarse.n_vertices} vertices, {coarse.faces.shape[0]} triangles -> {quads.shape[0]} "
+              f"quads + {tris.shape[0]} triangles; snapping {dist_snap.mean() * 1000:.1f} mm mean")
     p2p_12_true = datasets.ground_truth(dataset, target_id, source_id)  # (n1,) source vertex -> target vertex
     # the big bases: C uses their first k + 1 columns, the extended conversion's heat kernel all of them
     store = ShapeStore(dataset, max(max(ks) + 1, DEFAULT_KERNEL_EIG))
