@@ -155,11 +155,9 @@ class ConsistencyProblem:
     # ------------------------------------------------------------------ pieces for solvers
     def laplacian(self, side: int):
         """The connection Laplacian of ``N``-power fields on shape ``side`` (1 or 2), cached."""
-        key = ("L", side)
-        if key not in self._cache:
-            fr = self.fr_1 if side == 1 else self.fr_2
-            self._cache[key] = connection_laplacian(fr, self.N)[0]
-        return self._cache[key]
+        if ("L", side) not in self._cache:
+            self._cache[("L", side)] = connection_laplacian(self.fr_1 if side == 1 else self.fr_2, self.N)[0]
+        return self._cache[("L", side)]
 
     def data_diagonal(self, side: int) -> np.ndarray:
         """Diagonal of the data term's normal matrix (per face, averaged over Re/Im)."""
@@ -169,10 +167,7 @@ class ConsistencyProblem:
 
 def _checked_inputs(basis_1: Basis, basis_2: Basis, fr_1: Frames, fr_2: Frames, C_12, kind: str, tests,
                     p2p_21, span_k):
-    """Validate :func:`consistency_problem`'s inputs: ``(C (k2, k1) or None, b1, b2, tests, p2p_21)``.
-
-    The bases are truncated to the map's sizes and ``tests`` defaulted for the kind.
-    """
+    """Checked inputs of :func:`consistency_problem`: ``(C or None, truncated b1, b2, tests or default, p2p_21)``."""
     if kind not in KINDS:
         raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
     if kind == "p2p":

@@ -324,11 +324,9 @@ def pushforward_field(fr1: Frames, z1: np.ndarray, fr2: Frames, p2p_21: np.ndarr
     dv = np.cos(av)[:, None] * tv + np.sin(av)[:, None] * bv  # (n1, 3) vertex representatives
     ang_face = np.arctan2(np.einsum("ij,ij->i", d_face[np.maximum(hit, 0)], Pv),
                           np.einsum("ij,ij->i", d_face[np.maximum(hit, 0)], Pu))
-    zc = np.zeros(fr2.n_faces, dtype=np.complex128)
-    for c in range(3):
-        dc = dv[tri[:, c]]
-        a = np.arctan2(np.einsum("ij,ij->i", dc, Pv), np.einsum("ij,ij->i", dc, Pu))
-        zc += np.abs(zv[tri[:, c]]) * np.exp(1j * N * a)
+    D = dv[tri]  # (m2, 3, 3) at the corners
+    a = np.arctan2(np.einsum("fcd,fd->fc", D, Pv), np.einsum("fcd,fd->fc", D, Pu))
+    zc = np.sum(np.abs(zv[tri]) * np.exp(1j * N * a), axis=1)
     alpha = np.where(hit >= 0, ang_face, np.angle(zc) / N)  # (m2,)
     return _mapped_directions(alpha, P, Pu, Pv, valid, fr2, N), valid
 
@@ -400,13 +398,9 @@ def pushforward_field_barycentric(fr1: Frames, z1: np.ndarray, fr2: Frames, face
     P = X[fr2.faces]  # (m2, 3, 3)
     valid, Pu, Pv = _image_frames(P, fr1, fr2, min_area_ratio)
     d_face = field_vectors(z1, fr1, N)[:, 0, :]  # (m1, 3)
-    src = fa[fr2.faces]  # (m2, 3) source faces at the corners
-    zc = np.zeros(fr2.n_faces, dtype=np.complex128)
-    for c in range(3):
-        dc = d_face[src[:, c]]
-        a = np.arctan2(np.einsum("ij,ij->i", dc, Pv), np.einsum("ij,ij->i", dc, Pu))
-        zc += np.exp(1j * N * a)
-    return _mapped_directions(np.angle(zc) / N, P, Pu, Pv, valid, fr2, N), valid
+    D = d_face[fa[fr2.faces]]  # (m2, 3, 3) the directions of the source faces at the corners
+    a = np.arctan2(np.einsum("fcd,fd->fc", D, Pv), np.einsum("fcd,fd->fc", D, Pu))
+    return _mapped_directions(np.angle(np.sum(np.exp(1j * N * a), axis=1)) / N, P, Pu, Pv, valid, fr2, N), valid
 
 
 def closest_point_correspondence(V_query: np.ndarray, V: np.ndarray, F: np.ndarray):

@@ -176,12 +176,8 @@ def transport_angles(fr: Frames) -> np.ndarray:
 def corner_angles(V: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Interior angle in radians at each corner ``(m, 3)`` (see :func:`polygon_corner_degrees` for polygons)."""
     P = V[F]  # (m, 3, 3)
-    out = np.empty(F.shape)
-    for c in range(3):
-        e1 = P[:, (c + 1) % 3] - P[:, c]
-        e2 = P[:, (c + 2) % 3] - P[:, c]
-        out[:, c] = np.arctan2(np.linalg.norm(np.cross(e1, e2), axis=1), np.einsum("ij,ij->i", e1, e2))
-    return out
+    e1, e2 = np.roll(P, -1, axis=1) - P, np.roll(P, -2, axis=1) - P  # (m, 3, 3): the two edges at each corner
+    return np.arctan2(np.linalg.norm(np.cross(e1, e2), axis=2), np.einsum("mcd,mcd->mc", e1, e2))
 
 
 def polygon_corner_degrees(P: np.ndarray) -> np.ndarray:
@@ -235,14 +231,10 @@ def complex_gradient(fr: Frames) -> sp.csr_matrix:
     """
     V, F = fr.vertices, fr.faces
     m, n = F.shape[0], V.shape[0]
-    rows, cols, vals = [], [], []
-    for c in range(3):
-        e = V[F[:, (c + 2) % 3]] - V[F[:, (c + 1) % 3]]  # (m, 3) edge opposite corner c
-        ec = np.einsum("ij,ij->i", e, fr.u) + 1j * np.einsum("ij,ij->i", e, fr.v)
-        rows.append(np.arange(m))
-        cols.append(F[:, c])
-        vals.append(1j * ec / (2 * fr.area))
-    return sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(m, n))
+    E = V[np.roll(F, -2, axis=1)] - V[np.roll(F, -1, axis=1)]  # (m, 3, 3) the edge opposite each corner
+    ec = np.einsum("mcd,md->mc", E, fr.u) + 1j * np.einsum("mcd,md->mc", E, fr.v)
+    vals = 1j * ec / (2 * fr.area[:, None])
+    return sp.csr_matrix((vals.ravel(), (np.repeat(np.arange(m), 3), F.ravel())), shape=(m, n))
 
 
 def face_to_vertex(fr: Frames) -> sp.csr_matrix:

@@ -360,10 +360,7 @@ def _solve_uv(A, b, nc: int) -> np.ndarray:
 
 
 def _resolve(fixed: dict, rels, t, *, seams, A0, b0, nc: int, weight: float) -> np.ndarray:
-    """The continuous solve again, pulled towards the roundings so far (``round_nodes``' ``resolve``).
-
-    Soft rows for ``fixed``, ``rels`` and the chains whose translation ``t`` is known.
-    """
+    """The continuous solve again, pulled by soft rows towards the roundings so far (``round_nodes``' ``resolve``)."""
     fc = np.fromiter(fixed.keys(), dtype=np.int64, count=len(fixed))
     fp = np.array(list(fixed.values())).reshape(-1, 2)
     cp, st, kk, tau = _concat_relations(rels, seams.chain_relations(t, np.isfinite(t[:, 0])))
@@ -436,10 +433,7 @@ def integer_solve(A, b, seams, uv: np.ndarray, I: np.ndarray, A0, b0, pin, *, we
 
 
 def _face_transitions(m: int, fs, es, g, eg, rot, t_edge):
-    """Per face and local edge ``(rot (m, 3), trans (m, 3, 2))``: the transition into the neighbour's chart.
-
-    ``p_g = R^rot p_f + trans`` (identity off the seams).
-    """
+    """Per face and local edge the transition ``p_g = R^rot p_f + trans``: ``(rot (m, 3), trans (m, 3, 2))``."""
     out_rot = np.zeros((m, 3), np.int64)
     trans = np.zeros((m, 3, 2))
     if fs.size:
@@ -666,11 +660,7 @@ def _integer_points(U, e1, e2, det, ok, TT, rot, trans, grid, eps: float):
 
 
 def _quads_of_cells(cf, cij, cls, n_cls: int, charts, pts: "_Keys", pid) -> np.ndarray:
-    """The quads ``(q, 4)``: the consistent cell classes with one distinct integer point per corner slot.
-
-    Exactly one integer point per corner slot of their root square, four slots, four distinct points
-    (the corners of every fragment in its closed triangle, by slot of the root square).
-    """
+    """The quads ``(q, 4)``: consistent cell classes with exactly one integer point per corner slot, all distinct."""
     kk, tau, ref_cell, bad_cls = charts
     fr_idx = np.repeat(np.arange(cf.size), 4)
     corner = (cij[:, None, :] + _CORNERS[None]).reshape(-1, 2)
