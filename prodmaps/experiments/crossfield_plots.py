@@ -35,7 +35,7 @@ def _visible_faces(fr, view, front):
     return P2, front & (-depth <= best[key] + cell)
 
 
-def _shaded_mesh(ax, V, F, view, facecolors=None, shade=True):
+def _shaded_mesh(ax, V, F, view, facecolors=None):
     from matplotlib.collections import PolyCollection
 
     d, up, right = _camera(view)
@@ -49,13 +49,13 @@ def _shaded_mesh(ax, V, F, view, facecolors=None, shade=True):
     if facecolors is None:
         col = np.repeat(lum[:, None], 3, axis=1) * 0.92
     else:
-        col = np.asarray(facecolors, float)[:, :3] * (lum[:, None] if shade else 1.0)
+        col = np.asarray(facecolors, float)[:, :3] * lum[:, None]
     ax.add_collection(PolyCollection(P[F[order]], facecolors=col[order], edgecolors="none", antialiased=False))
     ax.set_xlim(P[:, 0].min(), P[:, 0].max())
     ax.set_ylim(P[:, 1].min(), P[:, 1].max())
     ax.set_aspect("equal")
     ax.axis("off")
-    return fr, P, depth, front
+    return fr, P, front
 
 
 def plot_cross_field(V, F, z, *, ax=None, view="front", n_glyphs=1500, glyph_scale=0.5,
@@ -72,7 +72,7 @@ def plot_cross_field(V, F, z, *, ax=None, view="front", n_glyphs=1500, glyph_sca
     F = np.asarray(F, np.int64)
     if ax is None:
         _, ax = plt.subplots(figsize=(3, 5))
-    fr, P, _, front = _shaded_mesh(ax, V, F, view)
+    fr, P, front = _shaded_mesh(ax, V, F, view)
     _, up, right = _camera(view)
     c2, vis = _visible_faces(fr, view, front)
     cand = np.flatnonzero(vis)
@@ -189,7 +189,7 @@ def plot_quad_mesh(V, F, Vq, Q, polygons=(), *, ax=None, view="front", title=Non
     if ax is None:
         _, ax = plt.subplots(figsize=(3, 6))
     hole = np.array([1.0, 0.62, 0.3])
-    fr, _, _, front = _shaded_mesh(ax, V, F, view, facecolors=np.tile(hole, (len(F), 1)) if len(polygons) else None)
+    fr, _, front = _shaded_mesh(ax, V, F, view, facecolors=np.tile(hole, (len(F), 1)) if len(polygons) else None)
     Q = np.asarray(Q, dtype=np.int64).reshape(-1, 4)
     d, up, right = _camera(view)
     P = np.stack([Vq @ right, Vq @ up], axis=1)

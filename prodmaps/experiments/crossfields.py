@@ -60,8 +60,7 @@ from .parallel import map_tasks
 
 __all__ = ["match_singularities", "surface_ground_truth", "low_curvature_vertices", "pair_measures",
            "figure14_joint_pair", "summarize_pairs", "summarize_quads", "figure14_joint_study", "quad_meshes_pair",
-           "quad_mesh_of",
-           "study_lines", "verdict_table", "verdict_lines", "setting_summary", "SETTINGS", "PAIRS",
+           "quad_mesh_of", "study_lines", "verdict_table", "verdict_lines", "setting_summary", "SETTINGS", "PAIRS",
            "JOINT_DEFAULTS", "JOINT_KINDS", "BASELINES"]
 
 
@@ -69,9 +68,9 @@ def match_singularities(mesh: Mesh, sing_a, index_a, sing_b, index_b, *, radius:
     """Match two sets of singular vertices of one mesh (same index only), minimising distances.
 
     Optimal assignment (Hungarian) on edge-graph distances (:func:`prodmaps.geodesics.distances`,
-    ``method="graph"``); pairs of different index are not
-    allowed. Returns counts, the mean/median matched distance (mesh units), and the fraction
-    of ``b`` (the reference) matched within ``radius`` (default 3 mean edge lengths).
+    ``method="graph"``); pairs of different index are not allowed. Returns counts, the mean/median
+    matched distance (mesh units), and the fraction of ``b`` (the reference) matched within
+    ``radius`` (default 3 mean edge lengths).
     """
     sa, sb = np.asarray(sing_a), np.asarray(sing_b)
     ia, ib = np.asarray(index_a), np.asarray(index_b)
@@ -178,18 +177,16 @@ def pair_measures(fr1, fr2, mesh_1, mesh_2, z1, z2, gt, g1, g2, *, params=None) 
       singularity of either field (umbilic and singular regions, where a cross is ill-defined, out);
     * ``align_1_deg`` / ``align_2_deg``: guide-weighted angle of each field to its own shape's
       curvature directions (what the alignment term asks);
-    * singularities: counts of the raw fields (``n_sing_1``, ``n_sing_2``; ~230 on a human, most
-      forced by the angle defects of face, fingers and toes: even the smoothest field has them,
-      and they match trivially); the comparison keeps those at **low-curvature** vertices of
-      shape 2 (``|K_v|/A_v`` below its ``sing_quantile`` quantile, :func:`low_curvature_vertices`;
-      ~20 per field), ``z1``'s carried to shape 2 by ``gt["p2p_12"]``: ``sing_recall`` is the
+    * singularities: counts of the raw fields (``n_sing_1``, ``n_sing_2``, most forced by the angle
+      defects); the comparison keeps those at **low-curvature** vertices of shape 2 (``|K_v|/A_v``
+      below its ``sing_quantile`` quantile, :func:`low_curvature_vertices`), ``z1``'s carried to
+      shape 2 by ``gt["p2p_12"]``: ``sing_recall`` is the
       fraction of ``z1``'s matched (same index, :func:`match_singularities`) to one of ``z2``'s
       within ``sing_radius·sqrt(area_2)``, ``sing_mean_dist`` the mean matched distance over
       ``sqrt(area_2)`` and ``sing_extra`` the unmatched ones of both.
     """
     P = {**JOINT_DEFAULTS, **(params or {})}
-    q1, w1 = g1
-    q2, w2 = g2
+    (q1, w1), (q2, w2) = g1, g2
     ref, valid = _pushforward(fr1, z1, fr2, gt)
     V2, F2 = mesh_2.vertices, mesh_2.faces
     st = angle_stats(z2, ref, fr2.area, 4, valid)
@@ -258,9 +255,8 @@ def quad_meshes_pair(mesh_1: Mesh, mesh_2: Mesh, z1, z2, gt: dict, size: float, 
     target (:func:`low_curvature_vertices`, the source's through the ground truth):
     "irregular_low_matched", "irregular_low_source", "irregular_low_target",
     "irregular_low_match_fraction"}, "meshes": ((V, Q, polygons, irregular) source, (...) target)}``.
-    The low-curvature fraction is the discriminating one: most irregular vertices of a human sit at
-    the singularity clusters that face, hands and feet force on every field. ``sides``: the two
-    :func:`quad_mesh_of` results when already computed (then ``z1``, ``z2`` are not used).
+    ``sides``: the two :func:`quad_mesh_of` results when already computed (then ``z1``, ``z2`` are
+    not used).
     """
     if sides is None:
         sides = (quad_mesh_of(mesh_1, z1, size), quad_mesh_of(mesh_2, z2, size))
@@ -365,19 +361,13 @@ def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT
             row_m["no_map"] = no_map
             map_only[f"k{k}"] = row_m
     z1, z2 = z1_ind, z2_ind
-    base = {"independent": no_map}
-    fields["independent"] = (z1, z2)
-    if gt["same_triangulation"]:
-        base["copy"] = measure(z1, z1.copy())
-        fields["copy"] = (z1, z1.copy())
     zp, _ = _pushforward(fr1, z1, fr2, gt)
-    zp = np.where(np.abs(zp) > 0, zp, z2)  # invalid faces (degenerate images): the independent field
-    base["pushforward"] = measure(z1, zp)
-    fields["pushforward"] = (z1, zp)
-    out["baselines"] = base
+    base_fields = {"independent": (z1, z2), **({"copy": (z1, z1.copy())} if gt["same_triangulation"] else {}),
+                   "pushforward": (z1, np.where(np.abs(zp) > 0, zp, z2))}  # invalid faces: the independent field
+    fields.update(base_fields)
+    out["baselines"] = {n: no_map if n == "independent" else measure(*zz) for n, zz in base_fields.items()}
     if P["quad_size"] > 0:
-        quad_fields[("baselines", "independent")] = fields["independent"]
-        quad_fields[("baselines", "pushforward")] = fields["pushforward"]
+        quad_fields.update({("baselines", n): base_fields[n] for n in ("independent", "pushforward")})
         qs, qm, side = {}, {}, {}
 
         def quad_side(i, mesh, z):  # a field shared by two settings (the baselines' source) once
@@ -473,8 +463,7 @@ def summarize_quads(per_pair: dict) -> dict:
             for pn, a, b in zip(per_pair, frac, frac_low):
                 cells.setdefault(name, {})[f"{pn}|{grp}"] = float(a)
                 cells_low.setdefault(name, {})[f"{pn}|{grp}"] = float(b)
-    pooled = {n: _stats(np.array(list(c.values()))) for n, c in cells.items()}
-    pooled_low = {n: _stats(np.array(list(c.values()))) for n, c in cells_low.items()}
+    pooled, pooled_low = ({n: _stats(np.array(list(c.values()))) for n, c in cc.items()} for cc in (cells, cells_low))
     return {"size": first["size"], "groups": groups, "cells": cells, "pooled": pooled, "cells_low": cells_low,
             "pooled_low": pooled_low}
 

@@ -93,9 +93,8 @@ def _test_functions(k: int, pairs: bool) -> np.ndarray:
     cols = [np.eye(k + 1)[:, 1:]]
     if pairs:
         a, b = np.triu_indices(k, 1)
-        P = np.zeros((k + 1, a.size))
-        P[a + 1, np.arange(a.size)] = 1 / np.sqrt(2)
-        P[b + 1, np.arange(a.size)] = 1 / np.sqrt(2)
+        P, j = np.zeros((k + 1, a.size)), np.arange(a.size)
+        P[a + 1, j] = P[b + 1, j] = 1 / np.sqrt(2)
         cols.append(P)
     return np.concatenate(cols, axis=1)
 
