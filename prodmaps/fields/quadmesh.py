@@ -92,12 +92,11 @@ class _Seams:
         self.xf, self.yf = Fc[fs, es], Fc[fs, (es + 1) % 3]
         self.xg, self.yg = Fc[g, (eg + 1) % 3], Fc[g, eg]
         self.rot = (-r) % 4
-        deg = np.bincount(np.concatenate([self.x, self.y]), minlength=n)
+        ends, eid = np.concatenate([self.x, self.y]), np.tile(np.arange(ne), 2)
+        deg = np.bincount(ends, minlength=n)
         node = ((deg > 0) & (deg != 2)) | self._singular
         while True:
             # chains: seam edges linked through shared non-node vertices (edge ids, then vertex ids + ne)
-            ends = np.concatenate([self.x, self.y])
-            eid = np.concatenate([np.arange(ne), np.arange(ne)])
             link = ~node[ends]
             lab = graph_components(ne + n, eid[link], ne + ends[link])[1][:ne]
             _, chain = np.unique(lab, return_inverse=True)
@@ -157,10 +156,9 @@ class _Seams:
         ends = np.full((nch, 2), -1)
         o = np.lexsort((nv, ncn))
         cc, vv = ncn[o], nv[o]
-        first = np.r_[True, cc[1:] != cc[:-1]]
-        ends[cc[first], 0] = vv[first]
-        last = np.r_[cc[1:] != cc[:-1], True]
-        ends[cc[last], 1] = vv[last]
+        brk = np.r_[True, cc[1:] != cc[:-1], True]  # brk[:-1] a chain's first entry, brk[1:] its last
+        ends[cc[brk[:-1]], 0] = vv[brk[:-1]]
+        ends[cc[brk[1:]], 1] = vv[brk[1:]]
         pos = np.searchsorted(nodes, ends)
         T = sp.csr_matrix((np.ones(nch), (pos[:, 0], pos[:, 1])), shape=(nodes.size, nodes.size))
         deg = np.bincount(pos.ravel(), minlength=nodes.size)
@@ -189,16 +187,14 @@ class _Seams:
         c_lo = np.searchsorted(I[copies_order], nodes, side="left")
         c_hi = np.searchsorted(I[copies_order], nodes, side="right")
         t = np.full((nch, 2), np.nan)
-        fixed, rels = {}, []
-        off = 0.0
+        fixed, rels, off = {}, [], 0.0
         proc = order[np.argsort(height[order], kind="stable")]  # by height, leaves first
         cuts = np.searchsorted(height[proc], np.quantile(height[proc], np.arange(1, batches) / batches)
                                if proc.size else [], side="right") if batches > 1 else []
         groups = np.split(proc, np.unique(cuts)) if len(cuts) else [proc]
         # a short loop over the cut graph's nodes (hundreds), never over faces or vertices; plain
         # Python lists and small arrays inside it
-        na_l, nb_l, ncn_l = na.tolist(), nb.tolist(), ncn.tolist()
-        rot_l = self.rot_c.tolist()
+        na_l, nb_l, ncn_l, rot_l = na.tolist(), nb.tolist(), ncn.tolist(), self.rot_c.tolist()
         for gi, group in enumerate(groups):
             if gi > 0 and resolve is not None and group.size:
                 uv = resolve(fixed, _relation_arrays(rels), t)
@@ -217,12 +213,11 @@ class _Seams:
                     ku, tu = sym[u_]
                     for i in known:
                         a_i, b_i, c_i = na_l[i], nb_l[i], ncn_l[i]
+                        r_ = rot_l[c_i]
                         if a_i == u_ and b_i not in sym:
-                            r_ = rot_l[c_i]
                             sym[b_i] = ((ku + r_) % 4, _ROT[r_] @ tu + t[c_i])
                             stack.append(b_i)
                         elif b_i == u_ and a_i not in sym:
-                            r_ = rot_l[c_i]
                             sym[a_i] = ((ku - r_) % 4, _ROT[(-r_) % 4] @ (tu - t[c_i]))
                             stack.append(a_i)
                 if singular[q]:
