@@ -427,18 +427,6 @@ def integer_solve(A, b, seams, uv: np.ndarray, I: np.ndarray, A0, b0, pin, *, we
     return np.stack([xx[:nc], xx[nc:]], axis=1), off
 
 
-def _face_transitions(m: int, fs, es, g, eg, rot, t_edge):
-    """Per face and local edge the transition ``p_g = R^rot p_f + trans``: ``(rot (m, 3), trans (m, 3, 2))``."""
-    out_rot = np.zeros((m, 3), np.int64)
-    trans = np.zeros((m, 3, 2))
-    if fs.size:
-        out_rot[fs, es] = rot
-        trans[fs, es] = t_edge
-        out_rot[g, eg] = (-rot) % 4
-        trans[g, eg] = -np.einsum("eij,ej->ei", _ROT[(-rot) % 4], t_edge)
-    return out_rot, trans
-
-
 def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bool = True,
                              weight: float = 1e3, batches: int = 4) -> dict:
     """Seamless ``(u, v)`` parametrisation of a closed mesh along the cross field ``z`` (module doc).
@@ -474,6 +462,9 @@ def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bo
     uv = _solve_uv(A0, b0, nc)
     if ne and integer:
         uv, off = integer_solve(A, b, S, uv, I, A0, b0, pin, weight=weight, batches=batches)
+    # per face and local edge the transition into the neighbour's chart, p_g = R^rot p_f + trans
+    rot, trans = np.zeros((m, 3), np.int64), np.zeros((m, 3, 2))  # identity off the seams
+    trans_err = int_err = 0.0
     if ne:
         Rm = _ROT[S.rot]  # the translation of every seam edge read at its two ends
         t_edge = uv[S.xg] - np.einsum("eij,ej->ei", Rm, uv[S.xf])
@@ -483,11 +474,10 @@ def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bo
         if integer:
             int_err = float(max(off, int_err))
             t_edge = np.round(t_edge)
-    else:
-        trans_err, int_err, t_edge = 0.0, 0.0, None
+        rot[fs, es], trans[fs, es] = S.rot, t_edge
+        rot[g, eg], trans[g, eg] = (-S.rot) % 4, -np.einsum("eij,ej->ei", _ROT[(-S.rot) % 4], t_edge)
     U = uv[Fc]
     det = (U[:, 1, 0] - U[:, 0, 0]) * (U[:, 2, 1] - U[:, 0, 1]) - (U[:, 1, 1] - U[:, 0, 1]) * (U[:, 2, 0] - U[:, 0, 0])
-    rot, trans = _face_transitions(m, fs, es, g, eg, S.rot if ne else None, t_edge)
     return {"uv": uv, "Vc": cut["Vc"], "Fc": Fc, "I": I, "F": F, "TT": cut["TT"], "singular": cut["singular"],
             "n_seam_edges": int(ne), "n_chains": int(S.n_chains if S is not None else 0),
             "n_flipped": int(np.sum(det <= 0)), "transition_error": trans_err, "integer_error": int_err,
