@@ -417,15 +417,11 @@ def summarize_pairs(per_pair: dict, ks, kinds=JOINT_KINDS, measure: str = "angle
             row[kd] = _stats(v, finite=False)
             if kd != "std":
                 s = np.array([p[f"k{k}"]["std"][measure] for p in per_pair.values()], dtype=float)
-                row[kd]["n_better"] = int(np.sum(v < s))
-                row[kd]["n_pairs"] = int(v.size)
-            for name, p in per_pair.items():
-                out["cells"][kd][f"{name}|k{k}"] = float(p[f"k{k}"][kd][measure])
+                row[kd].update(n_better=int(np.sum(v < s)), n_pairs=int(v.size))
+            out["cells"][kd].update({f"{name}|k{k}": float(p[f"k{k}"][kd][measure]) for name, p in per_pair.items()})
         out[f"k{k}"] = row
-    out["pooled"] = {}
-    for kd in kinds:
-        v = np.array(list(out["cells"][kd].values()))
-        out["pooled"][kd] = {**_stats(v, finite=False), "n_cells": int(v.size)}
+    out["pooled"] = {kd: {**_stats(np.array(list(c.values())), finite=False), "n_cells": len(c)}
+                     for kd, c in out["cells"].items()}
     return out
 
 
