@@ -321,9 +321,7 @@ def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT
     B1, B2 = eigenbasis(mesh_1, kmax), eigenbasis(mesh_2, kmax)
     out, fields = {}, {}
 
-    def measure(z1, z2):
-        return _finite_or_none(pair_measures(fr1, fr2, mesh_1, mesh_2, z1, z2, gt, g1, g2, params=P))
-
+    measure = lambda z1, z2: _finite_or_none(pair_measures(fr1, fr2, mesh_1, mesh_2, z1, z2, gt, g1, g2, params=P))
     # baselines first: no map (each shape's own smooth curvature-aligned field); its source field is
     # also the fixed source field of the map-only setting
     b1, b2 = B1.truncate(2), B2.truncate(2)

@@ -379,9 +379,7 @@ def design_consistent_field(problem: ConsistencyProblem, z1: np.ndarray, *, smoo
     wq = np.zeros_like(area) if guide is None or align == 0 else align * area * np.abs(guide) / area.sum()
     q = np.zeros(area.size, np.complex128) if guide is None else normalize_field(guide)
 
-    def apply(z):
-        return mu * (L @ z) + P._adjoint(2, P.model(z)) / nc + wq * z
-
+    apply = lambda z: mu * (L @ z) + P._adjoint(2, P.model(z)) / nc + wq * z
     rhs = P._adjoint(2, c) / nc + wq * q
     pre = spla.splu((mu * L + sp.diags(P.data_diagonal(2) / nc + wq + 1e-12 * mu * P.lam_2 * area)).tocsc())
     z2, info = _cg(apply, rhs, pre.solve, tol, maxiter)
@@ -404,10 +402,8 @@ def design_joint(problem: ConsistencyProblem, guide_1: np.ndarray, guide_2: np.n
     m1 = P.fr_1.n_faces
     L1, L2 = P.laplacian(1), P.laplacian(2)
     a1, a2 = P.fr_1.area, P.fr_2.area
-    mu1 = smoothness / (P.lam_1 * a1.sum())
-    mu2 = smoothness / (P.lam_2 * a2.sum())
-    w1 = align * a1 * np.abs(guide_1) / a1.sum()
-    w2 = align * a2 * np.abs(guide_2) / a2.sum()
+    mu1, mu2 = smoothness / (P.lam_1 * a1.sum()), smoothness / (P.lam_2 * a2.sum())
+    w1, w2 = align * a1 * np.abs(guide_1) / a1.sum(), align * a2 * np.abs(guide_2) / a2.sum()
     q1, q2 = normalize_field(guide_1), normalize_field(guide_2)
     z_ref = aligned_field(P.fr_1, guide_1, P.N, L=L1)
     nu = max(float(np.sum(P.data(z_ref) ** 2)), 1e-300)
@@ -423,10 +419,7 @@ def design_joint(problem: ConsistencyProblem, guide_1: np.ndarray, guide_2: np.n
     rhs = np.concatenate([w1 * q1, w2 * q2])
     pre1 = spla.splu((mu1 * L1 + sp.diags(beta * P.data_diagonal(1) + w1 + 1e-12 * mu1 * P.lam_1 * a1)).tocsc())
     pre2 = spla.splu((mu2 * L2 + sp.diags(beta * P.data_diagonal(2) + w2 + 1e-12 * mu2 * P.lam_2 * a2)).tocsc())
-
-    def precond(z):
-        return np.concatenate([pre1.solve(z[:m1]), pre2.solve(z[m1:])])
-
+    precond = lambda z: np.concatenate([pre1.solve(z[:m1]), pre2.solve(z[m1:])])
     z, info = _cg(apply, rhs, precond, tol, maxiter)
     z1, z2 = z[:m1], z[m1:]
     info.update(consistency=P.energy(z1, z2), kind=P.kind, **P.info)
