@@ -166,10 +166,9 @@ def remeshing_transfer(dataset: str, targets, sizes, *, source_ids=None, laplaci
             Br = eigenbasis(c["m_ref"], k2_max, kind=lap)
             for kM, kN in sizes:
                 b1, b2, br = B1.truncate(kM + 1), B2.truncate(kN + 1), Br.truncate(kN + 1)
-                g_true, g_ref = c["f"][c["p2p_21"]], c["f"][c["p2p_ref"]]
                 out = {}
-                for name, bb, p2p, g in (("variant", b2, c["p2p_21"], g_true), ("reference", br, c["p2p_ref"], g_ref)):
-                    C = fmap_from_p2p(p2p, b1, bb)  # (kN + 1, kM + 1)
+                for name, bb, p2p in (("variant", b2, c["p2p_21"]), ("reference", br, c["p2p_ref"])):
+                    g, C = c["f"][p2p], fmap_from_p2p(p2p, b1, bb)  # ground truth, C (kN + 1, kM + 1)
                     ts = transfer(c["f"], C, b1, bb, "std")
                     tp = transfer(c["f"], C, b1, bb, "svd", rtol=rtol, pairs=pairs_convention)
                     out[name] = {"std": relative_error(ts, g, bb.mass), "prod": relative_error(tp, g, bb.mass)}

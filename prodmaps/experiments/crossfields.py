@@ -349,15 +349,13 @@ def figure14_joint_pair(mesh_1: Mesh, mesh_2: Mesh, gt: dict, ks, *, kinds=JOINT
                 row_m[kd] = {**measure(z1_ind, zm), **_design_info(infm)}
                 if keep_fields:
                     fields[(int(k), "map_only", kd)] = (z1_ind, zm)
-        row["no_map"] = no_map
-        out[f"k{k}"] = row
+        out[f"k{k}"] = {**row, "no_map": no_map}
         # how far C is from orthogonal: a k that cuts a cluster of close eigenvalues leaves a nearly
         # zero singular value (the cluster's other half is outside the basis), and C~ then amplifies
         sv = np.linalg.svd(C, compute_uv=False)
         out.setdefault("map", {})[f"k{k}"] = {"C_sigma_min": float(sv.min()), "C_sigma_max": float(sv.max())}
         if map_only is not None:
-            row_m["no_map"] = no_map
-            map_only[f"k{k}"] = row_m
+            map_only[f"k{k}"] = {**row_m, "no_map": no_map}
     z1, z2 = z1_ind, z2_ind
     zp, _ = _pushforward(fr1, z1, fr2, gt)
     base_fields = {"independent": (z1, z2), **({"copy": (z1, z1.copy())} if gt["same_triangulation"] else {}),
