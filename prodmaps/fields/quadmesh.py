@@ -341,11 +341,8 @@ def continuous_system(A, b, seams, nc: int, weight: float):
     pin = sp.csr_matrix(([1.0, 1.0], ([0, 1], [0, nc])), shape=(2, 2 * nc))
     if seams is None:
         return sp.vstack([A, pin]).tocsr(), np.concatenate([b, np.zeros(2)]), pin
-    S = seams
-    D = _transition_rows(S.rot, S.xf, S.xg, S.yf, S.yg, nc)
-    A0 = sp.vstack([A, weight * D, weight * pin]).tocsr()
-    b0 = np.concatenate([b, np.zeros(2 * S.ne + 2)])
-    return A0, b0, pin
+    D = _transition_rows(seams.rot, seams.xf, seams.xg, seams.yf, seams.yg, nc)
+    return sp.vstack([A, weight * D, weight * pin]).tocsr(), np.concatenate([b, np.zeros(2 * seams.ne + 2)]), pin
 
 
 def _solve_uv(A, b, nc: int) -> np.ndarray:
@@ -382,9 +379,8 @@ def _hard_constraints(seams, fixed_d: dict, node_rels, t_c, nc: int):
     fixed, every other copy of a seam vertex eliminated through its chain (regular vertices) or its
     node's chains (regular nodes).
     """
-    S = seams
     elim_c, elim_ref, elim_k, elim_t = _concat_relations(
-        S.chain_relations(t_c, np.ones(S.n_chains, bool), at_nodes=False), node_rels)
+        seams.chain_relations(t_c, np.ones(seams.n_chains, bool), at_nodes=False), node_rels)
     fc = np.fromiter(fixed_d.keys(), dtype=np.int64, count=len(fixed_d))
     fixed, elim = np.zeros(nc, bool), np.zeros(nc, bool)
     fixed[fc], elim[elim_c] = True, True
@@ -776,14 +772,11 @@ def quad_mesh_stats(V: np.ndarray, Q: np.ndarray, polygons=()) -> dict:
                 "n_boundary_edges": 0, "n_nonmanifold_edges": 0, "n_irregular": 0, "valence": {},
                 "irregular": np.zeros(0, np.int64), "irregular_valence": np.zeros(0, np.int64)}
     E = np.concatenate([np.stack([f, np.roll(f, -1, axis=1)], axis=2).reshape(-1, 2) for f in faces if f.size])
-    Es = np.sort(E, axis=1)
-    uniq, cnt = np.unique(Es, axis=0, return_counts=True)
+    uniq, cnt = np.unique(np.sort(E, axis=1), axis=0, return_counts=True)
     bnd = uniq[cnt == 1]
     used = np.unique(np.concatenate([f.ravel() for f in faces]))
     val = np.bincount(uniq.ravel(), minlength=int(used.max()) + 1)
-    on_bnd = np.zeros(val.size, bool)
-    on_bnd[bnd.ravel()] = True
-    interior = used[~on_bnd[used]]
+    interior = used[~np.isin(used, bnd)]
     irr = interior[val[interior] != 4]
     hist = {int(a): int(b) for a, b in zip(*np.unique(val[interior], return_counts=True))}
     sizes = np.array([len(p) for p in polygons], dtype=np.int64)
