@@ -73,8 +73,7 @@ def pair_triangles(V: np.ndarray, F: np.ndarray, max_deviation: float = 40.0, ma
     same = np.flatnonzero(ks[1:] == ks[:-1])  # consecutive half-edges of one edge
     h1, h2 = order[same], order[same + 1]  # (E,) the two half-edges
     fa, fb = face[h1], face[h2]
-    u, v = half[h1, 0], half[h1, 1]  # in face a: a -> u -> v
-    quads = np.stack([opp[h1], u, opp[h2], v], axis=1)  # (E, 4) a, u, b, v
+    quads = np.stack([opp[h1], half[h1, 0], opp[h2], half[h1, 1]], axis=1)  # (E, 4) a, u, b, v; face a: a -> u -> v
     score = np.abs(polygon_corner_degrees(V[quads]) - 90.0).max(axis=1)  # (E,)
     n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
     n /= np.linalg.norm(n, axis=1, keepdims=True)
@@ -91,8 +90,7 @@ def pair_triangles(V: np.ndarray, F: np.ndarray, max_deviation: float = 40.0, ma
         cnt = np.bincount(np.concatenate([fa[ok], fb[ok]]), minlength=m)
         keep = (cnt[fa[ok]] == 1) & (cnt[fb[ok]] == 1)  # drop edges sharing a face in this round
         if not keep.any():  # only ties left: take the lowest index
-            keep = np.zeros(ok.size, dtype=bool)
-            keep[0] = True
+            keep = np.arange(ok.size) == 0
         ok = ok[keep]
         chosen.append(ok)
         paired[fa[ok]] = paired[fb[ok]] = True
