@@ -263,9 +263,7 @@ def quad_meshes_pair(mesh_1: Mesh, mesh_2: Mesh, z1, z2, gt: dict, size: float, 
     (st1, mesh_q1, val1), (st2, mesh_q2, val2) = sides
     stats, valences = {"source": st1, "target": st2}, (val1, val2)
     (V1, _, _, I1), (V2, _, _, I2) = mesh_q1, mesh_q2
-    # irregular vertices of the source carried to the target (nearest source vertex, p2p_12), then
-    # paired one to one with the target's of the same valence within 2 quad sizes: all of them, and
-    # those at low-curvature places of the target (where the map, not the geometry, places them)
+    # the source's irregular vertices carried to the target (nearest source vertex, then p2p_12)
     tree2 = cKDTree(mesh_2.vertices)
     img = mesh_2.vertices[gt["p2p_12"][cKDTree(mesh_1.vertices).query(V1[I1])[1]]] if len(I1) else np.zeros((0, 3))
     low = low_curvature_vertices(mesh_2, JOINT_DEFAULTS["sing_quantile"])

@@ -110,8 +110,7 @@ class _Seams:
             first = np.unique(chain[lonely], return_index=True)[1]
             node[self.x[lonely[first]]] = True
         self.node, self.chain, self.n_chains = node, chain.ravel(), nch
-        # sides: the f-side and g-side copies of a chain, linked through copies of regular vertices
-        # side-edge s = e (f side) or ne + e (g side), linked to the copies at its x then its y end
+        # sides: side-edges s = e (f side), ne + e (g side) linked through their copies of regular vertices
         cp = np.concatenate([self.xf, self.xg, self.yf, self.yg])
         keep = ~node[np.concatenate([self.x, self.x, self.y, self.y])]
         sid = np.tile(np.arange(2 * ne), 2)
