@@ -9,6 +9,7 @@ deterministically (fixed sub-sampling seed).
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..fields.crossfield import field_vectors, singularities
 from ..fields.frames import tangent_frames
@@ -195,16 +196,13 @@ def plot_quad_mesh(V, F, Vq, Q, polygons=(), *, ax=None, view="front", title=Non
     P = np.stack([Vq @ right, Vq @ up], axis=1)
     if Q.size:
         C = Vq[Q]  # (q, 4, 3)
-        nrm = np.cross(C[:, 2] - C[:, 0], C[:, 3] - C[:, 1])
-        front_q = nrm @ d > 0
+        front_q = np.cross(C[:, 2] - C[:, 0], C[:, 3] - C[:, 1]) @ d > 0  # normal by the diagonals
         order = np.argsort((Vq @ d)[Q].mean(1))
         order = order[front_q[order]]
         ax.add_collection(PolyCollection(P[Q[order]], facecolors=(0.85, 0.9, 1.0), edgecolors=(0.1, 0.2, 0.5),
                                          linewidths=0.3))
     if irregular is not None and len(irregular):
         # visible as plot_cross_field decides it: the nearest mesh vertex belongs to a visible face
-        from scipy.spatial import cKDTree
-
         vis = _visible_faces(fr, view, front)[1]
         irr = np.asarray(irregular, dtype=np.int64)
         irr = irr[np.isin(cKDTree(V).query(Vq[irr])[1], np.asarray(F)[vis])]

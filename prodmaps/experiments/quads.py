@@ -20,6 +20,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .. import datasets, geodesics
 from ..fields.frames import polygon_corner_degrees
@@ -147,8 +148,6 @@ def point_map_quad_transport(dataset: str, source_id: str, target_id: str, ks, *
     target to source). Returns ``{"results": {quad_mesh, measures}, ...}`` with the placed vertices at
     ``ks[0]`` for rendering.
     """
-    from scipy.spatial import cKDTree
-
     mesh_1, mesh_2 = datasets.load_shape(dataset, source_id), datasets.load_shape(dataset, target_id)
     coarse = coarse_remesh(mesh_1, edge_length, target_faces)
     quads, tris = pair_triangles(coarse.vertices, coarse.faces)
