@@ -83,8 +83,7 @@ def connection_laplacian(fr: Frames, N: int = 4):
     rows = np.concatenate([g, f, np.arange(m)])
     cols = np.concatenate([f, g, np.arange(m)])
     vals = np.concatenate([-w * r, -w * np.conj(r), diag.astype(np.complex128)])
-    L = sp.csr_matrix((vals, (rows, cols)), shape=(m, m))
-    return L, fr.area.copy()
+    return sp.csr_matrix((vals, (rows, cols)), shape=(m, m)), fr.area.copy()
 
 
 def smoothest_field(fr: Frames, N: int = 4, *, L=None):
@@ -148,8 +147,7 @@ def aligned_field(fr: Frames, q: np.ndarray, N: int = 4, *, scale: float = 0.05,
     if L is None:
         L, _ = connection_laplacian(fr, N)
     ell2 = (scale ** 2) * fr.area.sum()
-    A = (L + sp.diags(fr.area / ell2)).tocsc()
-    z = spla.spsolve(A, fr.area * q / ell2)
+    z = spla.spsolve((L + sp.diags(fr.area / ell2)).tocsc(), fr.area * q / ell2)
     return normalize_field(z) if normalize else z
 
 
