@@ -584,8 +584,7 @@ def _cell_charts(nfr: int, cls: np.ndarray, n_cls: int, links, cij: np.ndarray):
     roots = np.unique(cls, return_index=True)[1]
     kk[roots] = 0
     # both directions of every link: chart_b = R^r chart_a + t  and  chart_a = R^-r chart_b - R^-r t
-    la = np.concatenate([ia, ib])
-    lb = np.concatenate([ib, ia])
+    la, lb = np.concatenate([ia, ib]), np.concatenate([ib, ia])
     lr = np.concatenate([r_, (-r_) % 4])
     lt = np.concatenate([t_, -_apply((-r_) % 4, np.zeros_like(t_), t_)])
     for _ in range(nfr):
@@ -727,12 +726,8 @@ def _close_holes(Q: np.ndarray, n: int) -> list:
     At a vertex where several holes meet, incoming and outgoing boundary edges are paired in a
     fixed order, so every boundary edge gets exactly one closing polygon.
     """
-    if Q.size == 0:
-        return []
     E = np.stack([Q, np.roll(Q, -1, axis=1)], axis=2).reshape(-1, 2)
-    key = E[:, 0] * n + E[:, 1]
-    rev = E[:, 1] * n + E[:, 0]
-    bnd = E[~np.isin(rev, key)]
+    bnd = E[~np.isin(E[:, 1] * n + E[:, 0], E[:, 0] * n + E[:, 1])]  # reverse edge not in the quads
     if bnd.size == 0:
         return []
     H = bnd[:, ::-1]  # hole half-edges a -> b, each hole traversed counter-clockwise from outside
