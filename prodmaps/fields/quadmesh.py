@@ -693,10 +693,6 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
     * ``polygons`` (list of int arrays) the faces that close the holes, each counter-clockwise;
     * ``n_cells`` (cells of the iso-line partition), ``n_inconsistent`` (cells not a unit square:
       singular or folded), ``n_dropped`` (quads removed to keep every edge manifold).
-
-    The steps: the cell fragments per triangle, linked across edges into cells (classes) with a
-    chart each; the integer points merged across edges; a cell with four distinct corner points is a
-    quad; quads that break manifoldness are dropped and every hole is closed by one polygon.
     """
     uv, Fc, rot, trans, TT = param["uv"], param["Fc"], param["rot"], param["trans"], param["TT"]
     U = uv[Fc]  # (m, 3, 2)
