@@ -23,11 +23,11 @@ random target vertices per pair.
 from __future__ import annotations
 
 import time
-import warnings
 
 import numpy as np
 
 from .. import datasets, geodesics
+from ..checks import renamed_keywords
 from ..mapping import fmap_from_p2p
 from ..p2p import from_fmap
 from .compare import count_outcomes
@@ -65,14 +65,9 @@ def point_map_recovery(store: ShapeStore, pairs, *, target_dim: int | None = Non
     the pairs of one source shape go to one worker, which keeps its geodesic rows); the evaluated
     vertices are drawn here in the pairs' order, so the numbers do not depend on ``workers``.
     """
-    if k_target is not None or k_source is not None:
-        if target_dim is not None or source_dim is not None:
-            raise TypeError("point_map_recovery: give target_dim and source_dim, not also k_target / k_source")
-        warnings.warn("point_map_recovery(k_target=, k_source=) is deprecated: use target_dim=, source_dim= (the same "
-                      "numbers: basis columns with the constant)", DeprecationWarning, stacklevel=2)
-        target_dim, source_dim = k_target, k_source
-    if target_dim is None or source_dim is None:
-        raise TypeError("point_map_recovery needs target_dim and source_dim (basis columns with the constant)")
+    target_dim, source_dim = renamed_keywords(
+        "point_map_recovery", {"target_dim": target_dim, "source_dim": source_dim},
+        {"k_target": k_target, "k_source": k_source}, "basis columns with the constant")
     bad = set(maps) - {"gt", "no17"}
     if bad:
         raise ValueError(f"maps must be a subset of ['gt', 'no17'], got {list(maps)}")

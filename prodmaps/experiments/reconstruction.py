@@ -10,11 +10,11 @@ coordinates the mean over x, y, z. A count of basis columns with the constant is
 from __future__ import annotations
 
 import time
-import warnings
 
 import numpy as np
 
 from ..basis import eigenbasis
+from ..checks import renamed_keywords
 from ..metrics import relative_error
 from ..products import product_basis
 
@@ -171,14 +171,9 @@ def lmh_reconstruction(mesh, *, mh_dim: int | None = None, global_dim: int | Non
     """
     from .. import lmh
 
-    if (k_mh, k_global, k_local) != (None, None, None):
-        if (mh_dim, global_dim, local_dim) != (None, None, None):
-            raise TypeError("lmh_reconstruction: give mh_dim, global_dim, local_dim, not also the old k_mh, ...")
-        warnings.warn("lmh_reconstruction(k_mh=, k_global=, k_local=) is deprecated: use mh_dim=, global_dim=, "
-                      "local_dim= (the same numbers)", DeprecationWarning, stacklevel=2)
-        mh_dim, global_dim, local_dim = k_mh, k_global, k_local
-    if mh_dim is None or global_dim is None or local_dim is None:
-        raise TypeError("lmh_reconstruction needs mh_dim, global_dim and local_dim")
+    mh_dim, global_dim, local_dim = renamed_keywords(
+        "lmh_reconstruction", {"mh_dim": mh_dim, "global_dim": global_dim, "local_dim": local_dim},
+        {"k_mh": k_mh, "k_global": k_global, "k_local": k_local})
     X = mesh.vertices
     z = X[:, 2]
     region = z > z.max() - region_top_fraction * (z.max() - z.min())  # (n,) the head (z is up)

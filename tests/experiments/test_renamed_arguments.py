@@ -32,7 +32,7 @@ def test_lmh_reconstruction_old_names_warn_and_give_the_same_numbers(bumpy):
         old = lmh_reconstruction(bumpy, k_mh=8, k_global=5, k_local=3, **LMH)
     assert old["results"] == new["results"]
     assert new["results"]["sizes"]["MH"]["std"] == 8 and new["results"]["sizes"]["LMH"]["std"] == 8  # 5 + 3
-    with pytest.raises(TypeError, match="not also the old"):
+    with pytest.raises(TypeError, match="not also the old k_mh, k_global, k_local"):
         lmh_reconstruction(bumpy, mh_dim=8, k_global=5, local_dim=3, **LMH)
     with pytest.raises(TypeError, match="needs mh_dim, global_dim and local_dim"):
         lmh_reconstruction(bumpy, mh_dim=8, global_dim=5, **LMH)
@@ -43,7 +43,7 @@ def test_point_map_recovery_old_names_warn_and_take_the_same_path():
     with pytest.warns(DeprecationWarning, match="use target_dim=, source_dim="), \
             pytest.raises(ValueError, match="maps must be a subset"):
         point_map_recovery(None, [], k_target=12, k_source=10, maps=("bad",))
-    with pytest.raises(TypeError, match="not also k_target"):
+    with pytest.raises(TypeError, match="not also the old k_target, k_source"):
         point_map_recovery(None, [], target_dim=12, k_source=10)
     with pytest.raises(TypeError, match="needs target_dim and source_dim"):
         point_map_recovery(None, [], target_dim=12)
