@@ -26,31 +26,11 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-__all__ = [
-    "Mesh",
-    "MeshError",
-    "validate",
-    "face_areas",
-    "face_normals",
-    "face_mean_ratio",
-    "face_radius_ratio",
-    "vertex_normals",
-    "check_mesh",
-    "check_vertex_indices",
-    "edges",
-    "boundary_edges",
-    "graph_components",
-    "face_components",
-    "mean_edge_length",
-    "largest_component",
-    "remove_unreferenced_vertices",
-    "remove_degenerate_faces",
-    "remove_duplicate_faces",
-    "repair",
-    "subdivide_midpoint",
-    "icosphere",
-    "ellipsoid",
-]
+__all__ = ["Mesh", "MeshError", "validate", "face_areas", "face_normals", "face_mean_ratio", "face_radius_ratio",
+           "vertex_normals", "check_mesh", "check_vertex_indices", "edges", "boundary_edges", "graph_components",
+           "face_components", "mean_edge_length", "largest_component", "remove_unreferenced_vertices",
+           "remove_degenerate_faces", "remove_duplicate_faces", "repair", "subdivide_midpoint", "icosphere",
+           "ellipsoid"]
 
 
 class MeshError(ValueError):
@@ -269,29 +249,21 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -
     if f.ndim != 2 or f.shape[0] == 0:
         raise MeshError(f"empty mesh: no faces (faces shape {f.shape})")
     if f.shape[1] != 3:
-        raise MeshError(
-            f"non-triangular faces: faces have {f.shape[1]} corners; triangulate the mesh first"
-        )
+        raise MeshError(f"non-triangular faces: faces have {f.shape[1]} corners; triangulate the mesh first")
     if not np.issubdtype(f.dtype, np.integer):
         raise MeshError(f"face indices must be integers; got dtype {f.dtype}")
     if not np.all(np.isfinite(v)):
         bad = np.flatnonzero(~np.all(np.isfinite(v), axis=1))
-        raise MeshError(
-            f"non-finite coordinates (NaN or inf) at {bad.size} vertices, first {bad[:5].tolist()}"
-        )
+        raise MeshError(f"non-finite coordinates (NaN or inf) at {bad.size} vertices, first {bad[:5].tolist()}")
     vmax = float(np.max(np.abs(v)))
     if vmax > 1e150:  # squared edge lengths (~4 vmax**2) would overflow float64
-        raise MeshError(
-            f"coordinates too large (max |x| = {vmax:.3g}): squared lengths overflow float64; "
-            "rescale the mesh"
-        )
+        raise MeshError(f"coordinates too large (max |x| = {vmax:.3g}): squared lengths overflow float64; "
+                        "rescale the mesh")
     n = v.shape[0]
     if f.min() < 0:
         raise MeshError(f"negative face indices (min {int(f.min())}); indices must be 0-based")
     if f.max() >= n:
-        raise MeshError(
-            f"face indices out of range: max index {int(f.max())} but only {n} vertices"
-        )
+        raise MeshError(f"face indices out of range: max index {int(f.max())} but only {n} vertices")
     bad = np.flatnonzero((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2]))
     if bad.size:
         raise MeshError(f"degenerate faces: {bad.size} faces repeat a vertex (first {bad[:5].tolist()}); " + _REPAIR)
@@ -299,10 +271,8 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -
         diag2 = float(np.sum((v.max(0) - v.min(0)) ** 2))
         areas = face_areas(v, f)
     if not (np.isfinite(diag2) and np.all(np.isfinite(areas))):  # finite coordinates, see above
-        raise MeshError(
-            f"coordinates too large (max |x| = {vmax:.3g}): face areas overflow float64; "
-            "rescale the mesh"
-        )
+        raise MeshError(f"coordinates too large (max |x| = {vmax:.3g}): face areas overflow float64; "
+                        "rescale the mesh")
     degen = np.flatnonzero(areas <= area_tol * max(diag2, np.finfo(float).tiny))
     if degen.size:
         raise MeshError(f"degenerate (zero-area) faces: {degen.size} faces, first {degen[:5].tolist()}; " + _REPAIR)
@@ -310,29 +280,22 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14) -
     _, counts = np.unique(fs, axis=0, return_counts=True)
     if np.any(counts > 1):
         raise MeshError(f"duplicate faces: {int(np.sum(counts - 1))} faces repeat another face's vertices; " + _REPAIR)
-    used = np.zeros(n, dtype=bool)
-    used[f.ravel()] = True
-    if not used.all():
-        bad = np.flatnonzero(~used)
-        raise MeshError(
-            f"unreferenced vertices: {bad.size} vertices belong to no face (first {bad[:5].tolist()}); "
-            "use prodmaps.mesh.remove_unreferenced_vertices(vertices, faces), or load the file with "
-            "pm.io.load_mesh_repaired(path)"
-        )
+    bad = np.setdiff1d(np.arange(n), f)
+    if bad.size:
+        raise MeshError(f"unreferenced vertices: {bad.size} vertices belong to no face (first {bad[:5].tolist()}); "
+                        "use prodmaps.mesh.remove_unreferenced_vertices(vertices, faces), or load the file with "
+                        "pm.io.load_mesh_repaired(path)")
     e, c = edges(f)
     if np.any(c > 2):
         bad = e[c > 2]
-        raise MeshError(
-            f"non-manifold edges: {bad.shape[0]} edges are shared by more than two faces "
-            f"(first {bad[:3].tolist()}); the Laplacian is undefined there"
-        )
+        raise MeshError(f"non-manifold edges: {bad.shape[0]} edges are shared by more than two faces "
+                        f"(first {bad[:3].tolist()}); the Laplacian is undefined there")
     ncomp, labels = face_components(n, f)
     if ncomp > 1:
-        sizes = np.bincount(labels)
-        raise MeshError(
-            f"several connected components: {ncomp} (sizes {sorted(sizes.tolist(), reverse=True)[:5]}); "
-            "use prodmaps.mesh.largest_component(vertices, faces), or load the file with pm.io.load_mesh_repaired(path)"
-        )
+        sizes = sorted(np.bincount(labels).tolist(), reverse=True)[:5]
+        raise MeshError(f"several connected components: {ncomp} (sizes {sizes}); use "
+                        "prodmaps.mesh.largest_component(vertices, faces), or load the file with "
+                        "pm.io.load_mesh_repaired(path)")
 
 
 @dataclass(frozen=True, eq=False)
