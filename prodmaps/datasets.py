@@ -58,21 +58,8 @@ from .files import sha256_file
 from .io import load_mesh
 from .mesh import Mesh
 
-__all__ = [
-    "DatasetNotPreparedError",
-    "data_root",
-    "dataset_dir",
-    "names",
-    "shape_ids",
-    "variants",
-    "base_shape",
-    "shape_class",
-    "load_shape",
-    "pairs",
-    "ground_truth",
-    "verify_checksums",
-    "clear_cache",
-]
+__all__ = ["DatasetNotPreparedError", "data_root", "dataset_dir", "names", "shape_ids", "variants", "base_shape",
+           "shape_class", "load_shape", "pairs", "ground_truth", "verify_checksums", "clear_cache"]
 
 
 class DatasetNotPreparedError(FileNotFoundError):
@@ -88,38 +75,24 @@ class _Spec:
     shared_triangulation: bool  # True: whole family in one triangulation; False: one per class
 
 
-_REGISTRY = {
-    "anny_humans": _Spec(
-        "anny_humans",
-        "6 synthetic subjects x 10 poses (Anny/MakeHuman, CC0), 5002 vertices, one triangulation",
-        "It ships inside the package as prodmaps/data/anny_humans/ (reinstall prodmaps, restore it "
-        "with `git checkout -- prodmaps/data/anny_humans`, or point PRODMAPS_DATA at a folder that holds it).",
-        "div10",
-        True,
-    ),
-    "faust": _Spec(
-        "faust",
-        "MPI-FAUST training registrations: 10 subjects x 10 poses, 6890 vertices, one triangulation",
-        "Register at https://faust.is.tue.mpg.de, accept the licence (research only, no "
-        "redistribution), download MPI-FAUST.zip, then run: "
-        "python -m prodmaps.prepare faust --archive MPI-FAUST.zip [--data-root DIR] "
-        "(any subset works, e.g. the eight public registrations: "
-        "--archive FundCG-s1-2018 --archive Laplacian-Mesh, see python -m prodmaps.prepare faust --help)",
-        "div10",
-        True,
-    ),
-    "tosca": _Spec(
-        "tosca",
-        "TOSCA high-resolution: 9 classes (cat, centaur, david, dog, gorilla, horse, michael, "
-        "victoria, wolf), one triangulation per class",
-        "Download toscahires-asci.zip from the TOSCA page "
-        "(http://tosca.cs.technion.ac.il/book/resources_data.html; if it is down, an archived "
-        "copy is on web.archive.org), then run: "
-        "python data_scripts/prepare_tosca.py --archive toscahires-asci.zip [--data-root DIR]",
-        "prefix",
-        False,
-    ),
-}
+_REGISTRY = {s.name: s for s in (
+    _Spec("anny_humans", "6 synthetic subjects x 10 poses (Anny/MakeHuman, CC0), 5002 vertices, one triangulation",
+          "It ships inside the package as prodmaps/data/anny_humans/ (reinstall prodmaps, restore it with "
+          "`git checkout -- prodmaps/data/anny_humans`, or point PRODMAPS_DATA at a folder that holds it).",
+          "div10", True),
+    _Spec("faust", "MPI-FAUST training registrations: 10 subjects x 10 poses, 6890 vertices, one triangulation",
+          "Register at https://faust.is.tue.mpg.de, accept the licence (research only, no redistribution), "
+          "download MPI-FAUST.zip, then run: python -m prodmaps.prepare faust --archive MPI-FAUST.zip "
+          "[--data-root DIR] (any subset works, e.g. the eight public registrations: --archive FundCG-s1-2018 "
+          "--archive Laplacian-Mesh, see python -m prodmaps.prepare faust --help)",
+          "div10", True),
+    _Spec("tosca", "TOSCA high-resolution: 9 classes (cat, centaur, david, dog, gorilla, horse, michael, victoria, "
+          "wolf), one triangulation per class",
+          "Download toscahires-asci.zip from the TOSCA page (http://tosca.cs.technion.ac.il/book/resources_data.html; "
+          "if it is down, an archived copy is on web.archive.org), then run: "
+          "python data_scripts/prepare_tosca.py --archive toscahires-asci.zip [--data-root DIR]",
+          "prefix", False),
+)}
 
 
 def names() -> list[str]:
@@ -202,10 +175,9 @@ def _index_at(folder_str: str, name: str) -> _Index:
     shapes = folder / "shapes"
     files = sorted(shapes.glob("*.ply")) if shapes.is_dir() else []
     if not files:
-        raise DatasetNotPreparedError(
-            f"dataset {name!r} is not prepared: no shapes/*.ply under {folder}. {spec.how_to_get} "
-            "(prepared datasets are found under $PRODMAPS_DATA if set, else ~/.local/share/prodmaps)"
-        )
+        raise DatasetNotPreparedError(f"dataset {name!r} is not prepared: no shapes/*.ply under {folder}. "
+                                      f"{spec.how_to_get} (prepared datasets are found under $PRODMAPS_DATA if "
+                                      "set, else ~/.local/share/prodmaps)")
     manifest = folder / "manifest.json"
     if manifest.is_file():
         meta = json.loads(manifest.read_text())
@@ -216,10 +188,9 @@ def _index_at(folder_str: str, name: str) -> _Index:
         tri = {e["id"]: str(e["triangulation"]) for e in entries}
         missing = [i for i in ids if not fmap[i].is_file()]
         if missing:
-            raise DatasetNotPreparedError(
-                f"dataset {name!r} under {folder} is incomplete: {len(missing)} shape files listed in "
-                f"manifest.json are missing (first {missing[:3]}). Prepare it again. {spec.how_to_get}"
-            )
+            raise DatasetNotPreparedError(f"dataset {name!r} under {folder} is incomplete: {len(missing)} shape "
+                                          f"files listed in manifest.json are missing (first {missing[:3]}). "
+                                          f"Prepare it again. {spec.how_to_get}")
     else:
         ids = [p.stem for p in files]
         fmap = {p.stem: p for p in files}
@@ -373,10 +344,8 @@ def ground_truth(name: str, id_1: str, id_2: str) -> np.ndarray:
     root = str(idx.root)
     b1, b2 = base_shape(name, id_1), base_shape(name, id_2)
     if idx.tri[b1] != idx.tri[b2]:
-        raise ValueError(
-            f"no ground truth between {id_1!r} and {id_2!r} in {name!r}: different triangulations "
-            f"(classes {idx.cls[b1]!r} and {idx.cls[b2]!r})"
-        )
+        raise ValueError(f"no ground truth between {id_1!r} and {id_2!r} in {name!r}: different triangulations "
+                         f"(classes {idx.cls[b1]!r} and {idx.cls[b2]!r})")
     # the family vertex of each vertex of 2, then its vertex on 1
     fam = (_gt_file(root, name, id_2) if id_2 in idx.variant_files
            else np.arange(_load_at(root, name, id_2).n_vertices, dtype=np.int64))
@@ -407,10 +376,7 @@ def verify_checksums(name: str, *, strict: bool = True) -> dict[str, bool]:
         path = (folder / rel).resolve()
         if base not in path.parents:
             raise ValueError(f"{sums}: entry {rel!r} points outside {folder}")
-        if not path.is_file():
-            result[rel] = False
-            continue
-        result[rel] = sha256_file(path) == digest.lower()
+        result[rel] = path.is_file() and sha256_file(path) == digest.lower()
     bad = [k for k, ok in result.items() if not ok]
     if strict and bad:
         raise ValueError(f"{name}: {len(bad)} of {len(result)} files are missing or do not match "
