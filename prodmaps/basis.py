@@ -249,10 +249,8 @@ def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped", *,
     if not isinstance(k, (int, np.integer)) or isinstance(k, bool):
         raise TypeError(f"k must be an integer, got {type(k).__name__}")
     if not 1 <= k < n:
-        raise ValueError(
-            f"k={k} is out of range for a mesh with {n} vertices: need 1 <= k < {n} "
-            "(k counts the constant; the paper's k_M = 9 is k = 10)"
-        )
+        raise ValueError(f"k={k} is out of range for a mesh with {n} vertices: need 1 <= k < {n} "
+                         "(k counts the constant; the paper's k_M = 9 is k = 10)")
     ncomp, labels = face_components(n, mesh.faces)
     if ncomp > 1:  # a mesh loaded with validate=False: the constant is not the only zero mode
         sizes = np.bincount(labels)
@@ -407,19 +405,15 @@ def from_arrays(vecs, evals, mass, *, name: str = "", atol: float = 1e-6) -> Bas
         raise ValueError(f"mass must have one area weight per vertex ({V.shape[0]},); got {mass_v.shape}")
     c = V[:, 0]
     if np.max(np.abs(c - c.mean())) > atol * abs(c.mean()) or c.mean() == 0:
-        raise ValueError(
-            "the first column of vecs is not constant: prodmaps bases have the constant "
-            "eigenfunction first (sort the eigenpairs by eigenvalue)"
-        )
+        raise ValueError("the first column of vecs is not constant: prodmaps bases have the constant "
+                         "eigenfunction first (sort the eigenpairs by eigenvalue)")
     AV = mass_v @ V if sp.issparse(mass_v) else mass_v[:, None] * V
     G = V.T @ AV  # (k, k)
     dev = float(np.max(np.abs(G - np.eye(V.shape[1]))))
     if dev > atol:
-        raise ValueError(
-            f"the eigenvectors are not orthonormal in the area inner product (max |ΦᵀAΦ - I| = "
-            f"{dev:.2e}); pass the mass the eigenproblem was solved with (pyFM: vertex_areas), "
-            "or A-normalise the columns"
-        )
+        raise ValueError(f"the eigenvectors are not orthonormal in the area inner product (max |ΦᵀAΦ - I| = "
+                         f"{dev:.2e}); pass the mass the eigenproblem was solved with (pyFM: vertex_areas), "
+                         "or A-normalise the columns")
     if np.any(np.diff(ev) < -atol * max(abs(ev).max(), 1.0)) or abs(ev[0]) > atol * max(abs(ev).max(), 1.0):
         raise ValueError("evals must be ascending with the constant's eigenvalue 0 first")
     return Basis(V, ev, mass_v, name=name)

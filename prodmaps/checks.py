@@ -126,16 +126,12 @@ def check_fmap(C_12, basis_1: Basis, basis_2: Basis, allow_truncation: bool = Fa
         raise ValueError(f"C_12 must be a 2D array (k2, k1); got shape {C.shape}")
     if allow_truncation:
         if C.shape[1] > basis_1.k or C.shape[0] > basis_2.k:
-            raise ValueError(
-                f"C_12 has shape (k2, k1) = {C.shape} but basis_1 has {basis_1.k} columns and basis_2 "
-                f"{basis_2.k}: rows of C_12 index shape 2, columns index shape 1 (transpose it or "
-                "pass the bases in the other order?)"
-            )
+            raise ValueError(f"C_12 has shape (k2, k1) = {C.shape} but basis_1 has {basis_1.k} columns and basis_2 "
+                             f"{basis_2.k}: rows of C_12 index shape 2, columns index shape 1 (transpose it or "
+                             "pass the bases in the other order?)")
     elif C.shape != (basis_2.k, basis_1.k):
-        raise ValueError(
-            f"C_12 must have shape (basis_2.k, basis_1.k) = ({basis_2.k}, {basis_1.k}); got {C.shape}. "
-            "C_12 maps coefficients on shape 1 to shape 2"
-        )
+        raise ValueError(f"C_12 must have shape (basis_2.k, basis_1.k) = ({basis_2.k}, {basis_1.k}); got {C.shape}. "
+                         "C_12 maps coefficients on shape 1 to shape 2")
     if not np.all(np.isfinite(C)):
         raise ValueError("C_12 contains non-finite values")
     return C

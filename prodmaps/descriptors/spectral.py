@@ -135,10 +135,8 @@ def wks_energies_from_evals(evals, num: int = 100, *, variance: float = 7.0,
     sigma = variance * (e_max - e_min) / num
     lo, hi = e_min + margin * sigma, e_max - margin * sigma
     if hi < lo or (num > 1 and hi == lo):
-        raise ValueError(
-            f"num={num} energies with variance={variance} and margin={margin} leave an empty "
-            f"energy range; use num > {2 * margin * variance:g}, or a smaller margin/variance"
-        )
+        raise ValueError(f"num={num} energies with variance={variance} and margin={margin} leave an empty "
+                         f"energy range; use num > {2 * margin * variance:g}, or a smaller margin/variance")
     return np.linspace(lo, hi, int(num)), float(sigma)
 
 
@@ -164,10 +162,8 @@ def wks_weights(evals, energies, sigma: float, *, scaled: bool = True) -> np.nda
     if scaled:
         tot = w.sum(axis=1, keepdims=True)  # (E, 1)
         if np.any(tot <= np.finfo(float).tiny):
-            raise ValueError(
-                "an energy lies so far outside the spectrum that its filter vanishes; "
-                "choose energies within [log λ_1, log λ_max] or a larger sigma"
-            )
+            raise ValueError("an energy lies so far outside the spectrum that its filter vanishes; "
+                             "choose energies within [log λ_1, log λ_max] or a larger sigma")
         w = w / tot
     return w
 

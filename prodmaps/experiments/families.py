@@ -438,10 +438,8 @@ def make_family(
     if not isinstance(k_M, (int, np.integer)) or isinstance(k_M, bool) or k_M < 1:
         raise ValueError(f"k_M must be a positive integer (non-constant basis functions), got {k_M!r}")
     if k_M + 1 > basis_1.k:
-        raise ValueError(
-            f"k_M={k_M} needs k_M+1={k_M + 1} basis columns but basis_1 has {basis_1.k}; "
-            f"compute pm.eigenbasis(mesh, {k_M + 1}) or more"
-        )
+        raise ValueError(f"k_M={k_M} needs k_M+1={k_M + 1} basis columns but basis_1 has {basis_1.k}; "
+                         f"compute pm.eigenbasis(mesh, {k_M + 1}) or more")
     if cache is not None and not isinstance(cache, Cache):
         raise TypeError(f"cache must be a prodmaps.cache.Cache (one per source mesh), got {type(cache).__name__}")
     spec = FAMILIES[name]

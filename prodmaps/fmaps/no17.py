@@ -222,10 +222,8 @@ def no17_terms(
     d1 = d1[:, None] if d1.ndim == 1 else d1
     d2 = d2[:, None] if d2.ndim == 1 else d2
     if d1.shape[0] != basis_1.n or d2.shape[0] != basis_2.n:
-        raise ValueError(
-            f"descr_1 must have {basis_1.n} rows (shape 1) and descr_2 {basis_2.n} rows (shape 2); "
-            f"got {d1.shape} and {d2.shape}"
-        )
+        raise ValueError(f"descr_1 must have {basis_1.n} rows (shape 1) and descr_2 {basis_2.n} rows (shape 2); "
+                         f"got {d1.shape} and {d2.shape}")
     if d1.shape[1] != d2.shape[1]:
         raise ValueError(
             f"descr_1 and descr_2 must have the same number of columns; got {d1.shape[1]} and {d2.shape[1]}"
