@@ -98,17 +98,15 @@ class ProtocolResult:
     seconds: list
 
 
-def _operator(ext1, method: str, s: ProtocolSettings):
+def _operator(ext1, method: str, s: ProtocolSettings, rtol: float | None = None):
     norm = {} if s.normalization is None else {"normalization": s.normalization}
-    if method == "B":
-        return ext1.operator("svd", rtol=s.rtol, **norm)
-    if method.startswith("B@"):
-        return ext1.operator("svd", rtol=float(method[2:]), **norm)
     if method == "l2":
         return ext1.operator("ridge", eps=s.eps_ridge, **norm)
     if method == "l1":
         return ext1.operator("lasso", eps=s.eps_lasso, max_iter=s.lasso_max_iter, **norm)
-    raise ValueError(method)
+    if rtol is None:  # "B", "B@<rtol>"; "B_gain" passes the gain rule's
+        rtol = s.rtol if method == "B" else float(method[2:])
+    return ext1.operator("svd", rtol=rtol, **norm)
 
 
 def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collect=None,
@@ -131,9 +129,7 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
     s = settings
     pairs = [tuple(p) for p in pairs]
     errors = {z: {st: {m: [] for m in s.methods} for st in STAGES} for z in s.sizes}
-    map_dev = {z: [] for z in s.sizes}
-    ranks = {z: [] for z in s.sizes}
-    gain_rtol = {z: [] for z in s.sizes}
+    map_dev, ranks, gain_rtol = ({z: [] for z in s.sizes} for _ in range(3))
     cols, seconds = None, []
     split = _measures(collect)
     workers = 1 if collect is not None and not split else workers
@@ -143,10 +139,9 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
             if split:
                 collect.add(ip, z, by.pop("collected"))
             map_dev[z].append(by["map_dev"])
-            if by["rank"] is not None:
-                ranks[z].append(by["rank"])
-            if by["gain_rtol"] is not None:
-                gain_rtol[z].append(by["gain_rtol"])
+            for key, acc in (("rank", ranks), ("gain_rtol", gain_rtol)):
+                if by[key] is not None:
+                    acc[z].append(by[key])
             for st in STAGES:
                 for m in s.methods:
                     errors[z][st][m].append(by["errors"][st][m])
@@ -208,14 +203,10 @@ def _protocol_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, s: Protocol
                     outputs[m] = (op.approximate(F), op(F))
                     continue
                 if m == "B_gain":
-                    r_g = truncation.select_rtol(b1, method="gain", C_12=C, basis_2=b2, max_gain=s.max_gain,
-                                                 normalization=s.normalization)
-                    rec["gain_rtol"] = r_g
-                    op = ext1.operator("svd", rtol=r_g, **({} if s.normalization is None
-                                                            else {"normalization": s.normalization}))
-                else:
-                    op = _operator(ext1, m, s)
-                coefs[m] = op.coefficients(F)  # (K1, m)
+                    rec["gain_rtol"] = truncation.select_rtol(b1, method="gain", C_12=C, basis_2=b2,
+                                                              max_gain=s.max_gain, normalization=s.normalization)
+                rtol = rec["gain_rtol"] if m == "B_gain" else None
+                coefs[m] = _operator(ext1, m, s, rtol).coefficients(F)  # (K1, m)
                 outputs[m] = None  # keeps the methods' order
             if coefs:
                 a = np.concatenate(list(coefs.values()), axis=1)  # (K1, m·methods)

@@ -116,13 +116,9 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
                 "method": c[3], "value": ours[c + (r,)]}
                for c in shown for r in rows if table and c + (r,) in pub]
     better = {}
-    for s in sizes:
-        for m in prod_methods:
-            lab = method_label(m, table)
-            for r in rows:
-                o, st = ours[(s[0], s[1], "transfer", lab, r)], ours[(s[0], s[1], "transfer", "std", r)]
-                better[f"k{s[0]}_{s[1]}/{lab}/{r}"] = {"ours": o, "std": st, "ratio": o / st,
-                                                         "outcome": outcome(o, st)}
+    for s, lab, r in ((s, method_label(m, table), r) for s in sizes for m in prod_methods for r in rows):
+        o, st = ours[(s[0], s[1], "transfer", lab, r)], ours[(s[0], s[1], "transfer", "std", r)]
+        better[f"k{s[0]}_{s[1]}/{lab}/{r}"] = {"ours": o, "std": st, "ratio": o / st, "outcome": outcome(o, st)}
     n_better = {m: count_outcomes((v["ours"], v["std"]) for k, v in better.items()
                                   if f"/{method_label(m, table)}/" in k)
                 for m in prod_methods}  # {"better": n, "tie": n, "worse": n}; ties never count as wins
@@ -138,9 +134,8 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
         "table": entries,
         "products_better_than_std": better,
         "n_products_better": n_better,
-        "map_deviation_from_gt": {
-            skey(s): {"mean": float(np.mean(res.map_deviation[s])), "per_pair": res.map_deviation[s]} for s in sizes
-        },
+        "map_deviation_from_gt": {skey(s): {"mean": float(np.mean(res.map_deviation[s])),
+                                            "per_pair": res.map_deviation[s]} for s in sizes},
         "approach_B_rank_kept": {skey(s): res.ranks[s] for s in sizes},
         "gain_rule_rtol": {skey(s): res.gain_rtol[s] for s in sizes},
         "seconds": {"total": time.perf_counter() - t_start, "per_pair": res.seconds},
@@ -208,9 +203,8 @@ def table_figure(run: dict, name: str, dataset: str):
 
     plt = setup_matplotlib()
     ours, pub, rows, shown = run["ours"], run["published"], run["rows"], run["shown_columns"]
-    extra = [
-        c for c in run["all_columns"] if c[2] == "transfer" and c[3] not in {s[3] for s in shown} and c[3] != "std"
-    ]
+    extra = [c for c in run["all_columns"]
+             if c[2] == "transfer" and c[3] not in {s[3] for s in shown} and c[3] != "std"]
     plot_cols = shown + [c for c in extra if c not in shown]
     multi = len({c[:2] for c in plot_cols}) > 1
     vals = np.array([[ours[c + (r,)] for c in plot_cols] for r in rows])  # (rows, cols)
@@ -227,9 +221,8 @@ def table_figure(run: dict, name: str, dataset: str):
     for i in range(len(rows)):
         for j in range(len(plot_cols)):
             txt = f"{vals[i, j]:.2f}" + ("" if np.isnan(pubv[i, j]) else f"\n({pubv[i, j]:.2f})")
-            ax.text(
-                j, i, txt, ha="center", va="center", fontsize=7, color="white" if abs(diff[i, j]) > 0.7 else "black"
-            )
+            ax.text(j, i, txt, ha="center", va="center", fontsize=7,
+                    color="white" if abs(diff[i, j]) > 0.7 else "black")
     if len(plot_cols) > len(shown):
         ax.axvline(len(shown) - 0.5, color="k", lw=1.5)
     ax.set_yticks(range(len(rows)), rows)
