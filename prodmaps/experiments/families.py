@@ -41,15 +41,9 @@ AWFT         10  no    10 random columns of :func:`prodmaps.descriptors.awft` (3
 =========== ==== ===== =================================================================
 
 The table above gives each family's **textbook** reading (this module's defaults). The paper does
-not state the parameters; :data:`READINGS` names every plausible reading of each definition as
-options of :func:`make_family` (all free of the mesh's units), and :data:`PUBLISHED_READINGS`
-holds those that reproduce the paper's standard columns, the control no product method touches
-(``notebooks/study_family_readings.ipynb``): hk K at ``t_rel = 5e-4``; HKS with the eigenvalues
-paired in reverse order (``weights="reversed"``, dominated by the squares of the highest
-eigenfunctions: it differs in kind from the textbook HKS, so the experiments carry both);
-Random with ``U[0, 1]`` coefficients on the ordered extended basis of the eigenfunctions of the
-mesh scaled to unit area; Indicator balls of ``U[0.3, 0.5]`` of the area; SHOT of radius
-``0.05·sqrt(area)``. The experiments (:mod:`prodmaps.experiments.protocol`, the store) use the
+not state the parameters: :data:`READINGS` names every plausible reading of each definition as
+options of :func:`make_family`, and :data:`PUBLISHED_READINGS` those that reproduce the paper's
+standard columns. The experiments (:mod:`prodmaps.experiments.protocol`, the store) use the
 published readings unless told ``family_reading="textbook"``; an entry ``"HKS:textbook"`` names one
 family under one reading.
 

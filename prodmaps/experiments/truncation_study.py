@@ -85,20 +85,12 @@ def run(store: ShapeStore, pairs, *, sizes, map_kinds, families, rtols, eps_list
             sid1, sid2 = pairs[ip]
             print(f"pair {ip + 1}/{len(pairs)} {sid1} -> {sid2}: {seconds:.1f} s", flush=True)
 
-    summary = {}
-    for key in R:
-        summary[key] = {}
-        for fam in families:
-            o = R[key][fam]
-            summary[key][pfam.PAPER_LABELS[fam]] = {
-                "std_transfer": float(np.mean(o["std"])),
-                "rtol": {q: np.mean(o["rtol"][q], axis=0).tolist() for q in QUANTITIES},
-                "eps": {q: np.mean(o["eps"][q], axis=0).tolist() for q in QUANTITIES},
-                "chosen": {
-                    k: {"rtol_geomean": float(np.exp(np.mean(np.log(v["rtol"])))), "transfer": float(np.mean(v["err"]))}
-                    for k, v in o["chosen"].items()
-                },
-            }
+    summary = {key: {pfam.PAPER_LABELS[fam]: {
+        "std_transfer": float(np.mean(o["std"])),
+        **{axis: {q: np.mean(o[axis][q], axis=0).tolist() for q in QUANTITIES} for axis in ("rtol", "eps")},
+        "chosen": {k: {"rtol_geomean": float(np.exp(np.mean(np.log(v["rtol"])))), "transfer": float(np.mean(v["err"]))}
+                   for k, v in o["chosen"].items()},
+    } for fam, o in by_fam.items()} for key, by_fam in R.items()}
     gain_at = {key: {f"{r:g}": float(np.median([g[g[:, 0] > r, 1].max() for g in lst])) for r in RT}
                for key, lst in GAINS.items()}
     preserve = {k: {q: float(np.mean(v[q])) for q in v} for k, v in PRESERVE.items()}
@@ -233,8 +225,7 @@ def figure_error_vs_threshold(results: dict, axis_name: str, xlabel: str, mark: 
                 g = d["chosen"]["gain"]
                 ax.plot([g["rtol_geomean"]], [g["transfer"]], marker="*", ms=9, color=col, ls="none")
         ax.axvline(mark, color="k", lw=0.8, ls=":")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+        ax.set(xscale="log", yscale="log")
         ax.set_title(lab, fontsize=8)
         ax.set_xlabel(xlabel, fontsize=7)
         ax.set_ylabel("transfer error", fontsize=7)
@@ -268,12 +259,8 @@ def figure_why(results: dict, gains: dict, families=("XYZ", "Indicator", "WKS"))
     ax.axvline(1e-2, color="grey", ls=":", lw=0.8)
     ax.axhline(1.0, color="k", lw=0.6)
     ax.axhline(results["max_gain"], color="tab:red", lw=0.6, ls="--")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlim(1e-5, 1.1)
-    ax.set_ylim(0.3, 1.5e4)
-    ax.set_xlabel("σ_i / σ_max (source direction)")
-    ax.set_ylabel("transfer gain ||B2 C̃ v_i|| / σ_i")
+    ax.set(xscale="log", yscale="log", xlim=(1e-5, 1.1), ylim=(0.3, 1.5e4), xlabel="σ_i / σ_max (source direction)",
+           ylabel="transfer gain ||B2 C̃ v_i|| / σ_i")
     ax.set_title("transfer gain of singular directions", fontsize=8)
     ax.legend(fontsize=5.5, markerscale=3)
     for ax, lab in zip(axes[1:], [lb for lb in families if lb in labels][:2]):
@@ -283,9 +270,7 @@ def figure_why(results: dict, gains: dict, families=("XYZ", "Indicator", "WKS"))
             ax.plot(RT, d["map_part"], ls, color=col, marker="x", ms=3, lw=0.8)
             ax.plot(RT, d["transfer"], ls, color=col, marker="o", ms=3, label=key)
         ax.axvline(paper_rtol, color="k", ls=":", lw=0.8)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("rtol")
+        ax.set(xscale="log", yscale="log", xlabel="rtol")
         ax.set_title(f"{lab}: total (o), map part (x), approximation (plain)", fontsize=8)
         ax.legend(fontsize=5.5)
     fig.tight_layout()
@@ -302,10 +287,9 @@ def report_blocks(results: dict, dataset: str, *, main: bool = True) -> list:
     if not main:
         return []
     gains = results.get("median_max_gain_of_kept_directions", {})
-    lines = []
-    for case, g in gains.items():
-        lines.append(f"`{case}`: median over pairs of the largest transfer gain kept at rtol = 1e-3: "
-                     f"{g.get('0.001', float('nan')):.1f}; at 1e-2: {g.get('0.01', float('nan')):.1f}")
+    lines = [f"`{case}`: median over pairs of the largest transfer gain kept at rtol = 1e-3: "
+             f"{g.get('0.001', float('nan')):.1f}; at 1e-2: {g.get('0.01', float('nan')):.1f}"
+             for case, g in gains.items()]
     wins = {}
     for case, fams in results.get("summary", {}).items():
         for fam, v in fams.items():

@@ -1,15 +1,8 @@
 """The NO17 functional-map energy, its explicit quadratic form and two solvers (L-BFGS, direct).
 
-Conventions (the same everywhere in prodmaps)
----------------------------------------------
-* A basis ``Φ`` is ``(n, k)``, column 0 is the constant ``φ0 = 1/sqrt(area)``, columns are
-  orthonormal in the **area inner product** ``ΦᵀAΦ = I``. ``k`` counts **all** columns, the
-  constant included (the paper's ``k_M = 9`` is a basis with 10 columns).
-* A functional map ``C_12`` has shape ``(k2, k1)`` and maps coefficients on shape 1 to shape 2:
-  ``T f ≈ Φ2 C_12 Φ1ᵀ A1 f``.
-* A point map ``p2p_21`` has shape ``(n2,)``: for every vertex of shape 2 a vertex of shape 1
-  (the pull-back direction, ``(T f)(y) = f(p2p_21[y])``). Its functional map is
-  ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` (:func:`prodmaps.fmap_from_p2p`).
+Conventions (:mod:`prodmaps.conventions`): bases ``(n, k)`` are A-orthonormal with the constant
+``φ0 = 1/sqrt(area)`` first and ``k`` counting it; ``C_12`` ``(k2, k1)`` maps coefficients on
+shape 1 to shape 2; ``p2p_21`` ``(n2,)`` pulls back, ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]``.
 
 The NO17 energy (Nogneng & Ovsjanikov 2017, "Informative descriptor preservation via
 commutativity for shape matching")
