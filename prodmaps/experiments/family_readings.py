@@ -44,12 +44,8 @@ METHODS = ("std", "our_B")
 
 def _published_cells(sizes) -> dict:
     """``{(k_M, k_N, stage, method, label): value}`` of the ground-truth tables at ``sizes``."""
-    out = {}
-    for z in sizes:
-        t = _TABLE_OF[tuple(z)]
-        out.update({c: v for c, v in published_values(t, "ground_truth").items()
-                    if (c[0], c[1]) == tuple(z) and c[3] in METHODS})
-    return out
+    return {c: v for z in map(tuple, sizes) for c, v in published_values(_TABLE_OF[z], "ground_truth").items()
+            if (c[0], c[1]) == z and c[3] in METHODS}
 
 
 def family_readings_study(store, pairs, *, readings: dict | None = None, groups: dict | None = None,
@@ -120,12 +116,8 @@ def score_table(errors_by_size: dict, published: dict, label: str) -> dict:
     ``errors_by_size["k{k_M}_{k_N}"][stage][method]`` are our means; ``published`` the published
     cells ``{(k_M, k_N, stage, method, label): value}``; only the family's ``label`` counts.
     """
-    ours = {}
-    for key, by_stage in errors_by_size.items():
-        kM, kN = (int(v) for v in key[1:].split("_"))
-        for st, by_m in by_stage.items():
-            for m, v in by_m.items():
-                ours[(kM, kN, st, m, label)] = v
+    ours = {(*map(int, key[1:].split("_")), st, m, label): v for key, by_stage in errors_by_size.items()
+            for st, by_m in by_stage.items() for m, v in by_m.items()}
     return score_cells(ours, {c: v for c, v in published.items() if c[4] == label}, methods=METHODS)
 
 

@@ -104,10 +104,8 @@ def _score_pair(store: ShapeStore, ip: int, s1: str, s2: str, *, recipes, k1: in
         maps[r] = no17_fit(full_1, full_2, lm, k1, k2, rec)
         fit_seconds[r] = time.perf_counter() - t0
     a = b1.project(F)  # (k1, m)
-    transfer = {}
-    for r in names:
-        e = relative_error(b2.vecs @ (maps[r] @ a), G, b2.mass)  # (m,)
-        transfer[r] = {f: float(np.mean(e[cols[f]])) for f in fams}
+    errs = {r: relative_error(b2.vecs @ (maps[r] @ a), G, b2.mass) for r in names}  # (m,) each
+    transfer = {r: {f: float(np.mean(e[cols[f]])) for f in fams} for r, e in errs.items()}
     idx = np.arange(b2.n)
     if n_eval is not None and n_eval < b2.n:
         idx = np.sort(np.random.default_rng([seed, ip]).choice(b2.n, int(n_eval), replace=False))

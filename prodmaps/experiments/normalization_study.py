@@ -162,13 +162,10 @@ def figure(results: dict):
         frac = [v.get("within", 0) / max(v.get("cells", 1), 1) for v in sc]
         ax.bar(np.arange(len(names)) + (j - 1.5) * w, frac, w, label=lab, color=col)
     ax.set_xticks(np.arange(len(names)), names, rotation=20, ha="right")
-    ax.set_ylabel("published cells within ±0.02")
-    ax.set_ylim(0, 1)
+    ax.set(ylabel="published cells within ±0.02", ylim=(0, 1))
     ax.legend(fontsize=8, loc="upper left")
     ax.set_title("How many published cells each reading reproduces")
-    pub = {}
-    for t in results["tables"]:
-        pub.update(published_values(t, "ground_truth"))
+    pub = {c: v for t in results["tables"] for c, v in published_values(t, "ground_truth").items()}
     lim = 0.0
     for i, n in enumerate(names):
         xs, ys = [], []
@@ -185,10 +182,7 @@ def figure(results: dict):
     lim = min(1.05 * lim, 2.5)
     bx.fill_between([0, lim], [-WITHIN, lim - WITHIN], [WITHIN, lim + WITHIN], color="0.9")
     bx.plot([0, lim], [0, lim], color="0.5", lw=0.8)
-    bx.set_xlim(0, lim)
-    bx.set_ylim(0, lim)
-    bx.set_xlabel("published (Approach B, transfer)")
-    bx.set_ylabel("ours")
+    bx.set(xlim=(0, lim), ylim=(0, lim), xlabel="published (Approach B, transfer)", ylabel="ours")
     bx.legend(fontsize=7)
     bx.set_title("Approach B, cell by cell")
     fig.tight_layout()

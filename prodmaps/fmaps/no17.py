@@ -72,23 +72,12 @@ import numpy as np
 from ..basis import Basis
 from ..checks import check_basis
 
-__all__ = [
-    "first_column",
-    "laplacian_mask",
-    "multiplication_operators",
-    "NO17Terms",
-    "no17_terms",
-    "energy_and_gradient",
-    "quadratic_form",
-    "fit_no17",
-]
+__all__ = ["first_column", "laplacian_mask", "multiplication_operators", "NO17Terms", "no17_terms",
+           "energy_and_gradient", "quadratic_form", "fit_no17"]
 
 LAP_FORMS = ("resolvent", "eigdiff")
 NORMALIZATIONS = ("expected", "sum", "frobenius", None)
 DESCR_NORMALIZATIONS = (True, False, "source")
-
-
-# ---------------------------------------------------------------------------- helpers
 
 
 def first_column(basis_1: Basis, basis_2: Basis, k2: int | None = None) -> np.ndarray:
@@ -110,11 +99,6 @@ def _column_norms(descr: np.ndarray, basis: Basis) -> np.ndarray:
         bad = np.flatnonzero(sq <= 0)[:5]
         raise ValueError(f"descriptor columns {bad.tolist()} are zero; drop them before fitting")
     return np.sqrt(sq)
-
-
-def _normalize_columns(descr: np.ndarray, basis: Basis) -> np.ndarray:
-    """Every column divided by its area L2 norm ``sqrt(dᵀ A d)``."""
-    return descr / _column_norms(descr, basis)[None, :]
 
 
 def multiplication_operators(basis: Basis, descr: np.ndarray) -> np.ndarray:
@@ -218,16 +202,14 @@ def no17_terms(
         raise ValueError(f"descr_1 must have {basis_1.n} rows (shape 1) and descr_2 {basis_2.n} rows (shape 2); "
                          f"got {d1.shape} and {d2.shape}")
     if d1.shape[1] != d2.shape[1]:
-        raise ValueError(
-            f"descr_1 and descr_2 must have the same number of columns; got {d1.shape[1]} and {d2.shape[1]}"
-        )
+        raise ValueError(f"descr_1 and descr_2 must have the same number of columns; got {d1.shape[1]} and "
+                         f"{d2.shape[1]}")
     if not (np.all(np.isfinite(d1)) and np.all(np.isfinite(d2))):
         raise ValueError("descriptors contain non-finite values")
     ws = np.array([w_descr, w_lap, w_dcomm], dtype=np.float64)
     if np.any(ws < 0) or ws.sum() <= 0:
-        raise ValueError(
-            f"weights must be >= 0 with a positive sum; got w_descr={w_descr}, w_lap={w_lap}, w_dcomm={w_dcomm}"
-        )
+        raise ValueError(f"weights must be >= 0 with a positive sum; got w_descr={w_descr}, w_lap={w_lap}, "
+                         f"w_dcomm={w_dcomm}")
     if normalize not in NORMALIZATIONS:
         raise ValueError(f"normalize must be one of {NORMALIZATIONS}, got {normalize!r}")
     if not isinstance(normalize_descr, (bool, np.bool_, str)) or normalize_descr not in DESCR_NORMALIZATIONS:
@@ -236,9 +218,8 @@ def no17_terms(
     if normalize_descr == "source":
         norms = _column_norms(d1, basis_1)  # (p,) the source norms divide both shapes' columns
         d1, d2 = d1 / norms[None, :], d2 / norms[None, :]
-    elif normalize_descr:
-        d1 = _normalize_columns(d1, basis_1)
-        d2 = _normalize_columns(d2, basis_2)
+    elif normalize_descr:  # every column divided by its own area L2 norm
+        d1, d2 = d1 / _column_norms(d1, basis_1)[None, :], d2 / _column_norms(d2, basis_2)[None, :]
     k1, k2 = basis_1.k, basis_2.k
     D1 = basis_1.project(d1)  # (k1, p)
     D2 = basis_2.project(d2)  # (k2, p)
@@ -266,9 +247,8 @@ def no17_terms(
     else:
         taus = (1.0, 1.0, 1.0)
     mus = ws / np.array(taus)
-    return NO17Terms(
-        D1, D2, M1, M2, L, float(mus[0]), float(mus[1]), float(mus[2]), first_column(basis_1, basis_2), taus
-    )
+    return NO17Terms(D1, D2, M1, M2, L, float(mus[0]), float(mus[1]), float(mus[2]), first_column(basis_1, basis_2),
+                     taus)
 
 
 def energy_and_gradient(C: np.ndarray, terms: NO17Terms) -> tuple[float, np.ndarray]:
@@ -291,9 +271,7 @@ def energy_and_gradient(C: np.ndarray, terms: NO17Terms) -> tuple[float, np.ndar
     if terms.mu_dcomm > 0 and terms.M1 is not None:
         R = np.matmul(C, terms.M1) - np.matmul(terms.M2, C)  # (p, k2, k1)
         E += terms.mu_dcomm * 0.5 * float(np.sum(R * R))
-        G += terms.mu_dcomm * (
-            np.einsum("qab,qcb->ac", R, terms.M1) - np.einsum("qba,qbc->ac", terms.M2, R)
-        )
+        G += terms.mu_dcomm * (np.einsum("qab,qcb->ac", R, terms.M1) - np.einsum("qba,qbc->ac", terms.M2, R))
     return E, G
 
 
@@ -401,11 +379,9 @@ def fit_no17(
     # with it); the map of the given bases is sqrt(area_2 / area_1) times the unit-area map.
     area_ratio = np.sqrt(basis_2.area / basis_1.area)
     basis_1, basis_2 = basis_1.scaled(1.0 / np.sqrt(basis_1.area)), basis_2.scaled(1.0 / np.sqrt(basis_2.area))
-    terms = no17_terms(
-        basis_1, basis_2, descr_1, descr_2, w_descr=w_descr, w_lap=w_lap, w_dcomm=w_dcomm,
-        w_orient=w_orient, lap=lap, resolvent_gamma=resolvent_gamma, normalize=normalize,
-        normalize_descr=normalize_descr,
-    )
+    terms = no17_terms(basis_1, basis_2, descr_1, descr_2, w_descr=w_descr, w_lap=w_lap, w_dcomm=w_dcomm,
+                       w_orient=w_orient, lap=lap, resolvent_gamma=resolvent_gamma, normalize=normalize,
+                       normalize_descr=normalize_descr)
     k2, k1 = terms.shape
     if solver not in ("lbfgs", "direct"):
         raise ValueError(f"solver must be 'lbfgs' or 'direct', got {solver!r}")
