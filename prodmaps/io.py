@@ -8,14 +8,11 @@
   endian), every property type name (``uchar``/``uint8``, ``int``/``int32``, ``uint``/
   ``uint32``, ...), any extra vertex or face property (normals, colours, texture coordinates,
   quality, flags, before or after the index list), face lists named ``vertex_indices`` or
-  ``vertex_index``, extra elements (edges, materials) and CRLF headers are read.
-  trimesh alone is not enough, so this module also parses the header (strictly: malformed
-  and truncated headers are named) and checks that every face list has 3 indices before
-  trusting trimesh, which silently triangulates ASCII polygons and reads binary files as if
-  every list were as long as the first one (it refuses mixed triangles/quads as "unexpected
-  length"). Files with polygons, and files trimesh cannot read (truncated data, trailing
-  bytes, blank lines, non-UTF-8 header comments), are read by the small numpy/struct reader
-  here, which keeps polygons as written and names what is wrong with a broken file.
+  ``vertex_index``, extra elements (edges, materials) and CRLF headers are read. The header is
+  parsed here (strictly), and trimesh is trusted only once every face list is known to hold 3
+  indices (it silently triangulates ASCII polygons); files with polygons and files trimesh
+  cannot read go to the small numpy/struct reader here, which keeps polygons as written and
+  names what is wrong with a broken file.
 * OFF and OBJ are plain line-based text formats, read here (mesh libraries' OBJ readers
   split or merge vertices because of texture coordinates and normals, and some triangulate
   polygons; see tests/data/variants/README.md). OFF: ``OFF`` with any of the ``ST``/``C``/
@@ -484,14 +481,8 @@ _OFF_MAGIC = re.compile(r"(?:ST|C|N)*OFF")  # [ST][C][N]OFF in any order (MeshLa
 def _text_lines(fh) -> list[str]:
     """Decoded lines (any line ending), comments and surrounding blanks stripped, empty lines kept out."""
     text = fh.read().decode("utf-8-sig", errors="replace")  # names/comments may be latin-1
-    out = []
-    for ln in text.splitlines():
-        if "#" in ln:
-            ln = ln[:ln.index("#")]
-        ln = ln.strip()
-        if ln:
-            out.append(ln)
-    return out
+    lines = (ln.partition("#")[0].strip() for ln in text.splitlines())
+    return [ln for ln in lines if ln]
 
 
 def _read_off(fh):

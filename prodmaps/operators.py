@@ -126,17 +126,15 @@ def laplacian(mesh: Mesh, kind: str = "cotan", mass: str = "lumped"):
         try:
             import robust_laplacian
         except ImportError as exc:  # pragma: no cover - depends on the environment
-            raise ImportError(
-                "kind='robust' needs the optional package robust-laplacian: pip install robust-laplacian"
-            ) from exc
+            raise ImportError("kind='robust' needs the optional package robust-laplacian: "
+                              "pip install robust-laplacian") from exc
         L, M = robust_laplacian.mesh_laplacian(np.asarray(mesh.vertices), np.asarray(mesh.faces))
         return sp.csr_matrix(L), np.asarray(M.diagonal(), dtype=np.float64)
     raise ValueError(f"kind must be 'cotan' or 'robust', got {kind!r}")
 
 
-def anisotropic_laplacian(
-    mesh: Mesh, angle: float, alpha: float, curvature: dict | None = None
-) -> tuple[sp.csr_matrix, np.ndarray]:
+def anisotropic_laplacian(mesh: Mesh, angle: float, alpha: float,
+                          curvature: dict | None = None) -> tuple[sp.csr_matrix, np.ndarray]:
     """Anisotropic stiffness ``W_αθ`` (PSD, ``(n, n)``) and lumped mass ``A`` ``(n,)``.
 
     Linear FEM for ``-div(D ∇f)`` with a constant-per-face conductivity tensor
@@ -156,22 +154,14 @@ def anisotropic_laplacian(
     fn, _, _, area = face_frames(V, F)
     w1 = np.cos(angle) * curv["dir_max"] + np.sin(angle) * curv["dir_min"]  # (m, 3)
     w2 = np.cross(fn, w1)
-    grads = []
-    for c in range(3):  # gradient of hat function at corner c: n × (opposite edge) / (2 area)
-        e = V[F[:, (c + 2) % 3]] - V[F[:, (c + 1) % 3]]
-        grads.append(np.cross(fn, e) / (2.0 * area[:, None]))
+    # gradient of the hat function at corner c: n × (opposite edge) / (2 area), along w1 and w2
+    grads = [np.cross(fn, V[F[:, (c + 2) % 3]] - V[F[:, (c + 1) % 3]]) / (2.0 * area[:, None]) for c in range(3)]
+    g = [(np.einsum("ij,ij->i", gc, w1), np.einsum("ij,ij->i", gc, w2)) for gc in grads]
     d_perp = 1.0 / (1.0 + alpha)
-    rows, cols, vals = [], [], []
-    for a in range(3):
-        ga1, ga2 = np.einsum("ij,ij->i", grads[a], w1), np.einsum("ij,ij->i", grads[a], w2)
-        for b in range(3):
-            gb1, gb2 = np.einsum("ij,ij->i", grads[b], w1), np.einsum("ij,ij->i", grads[b], w2)
-            rows.append(F[:, a])
-            cols.append(F[:, b])
-            vals.append(area * (ga1 * gb1 + d_perp * ga2 * gb2))
-    W = sp.coo_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)
-    ).tocsr()
+    ab = [(a, b) for a in range(3) for b in range(3)]
+    vals = [area * (g[a][0] * g[b][0] + d_perp * g[a][1] * g[b][1]) for a, b in ab]
+    rows, cols = np.concatenate([F[:, a] for a, _ in ab]), np.concatenate([F[:, b] for _, b in ab])
+    W = sp.coo_matrix((np.concatenate(vals), (rows, cols)), shape=(n, n)).tocsr()
     W = 0.5 * (W + W.T)
     return W.tocsr(), lumped_mass(V, F)
 

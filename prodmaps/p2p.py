@@ -31,8 +31,6 @@ Extended conversion (``method="extended"``, Sections 4.4 and 5.3)
 
     ``t`` (the paper gives none): default ``t_scale / λ_{k1−1}``, the eigenvalue of the source's
     last basis function (``t_scale = 1``). Shape 2 uses the same time relative to its area.
-    The gain over ``"std"`` needs a small ``t``, the larger basis on the target and the
-    truncation (the measurements: ``docs/benchmarks.md``).
 
     Cost and memory: the point functions are evaluated ``KERNEL_BLOCK_BYTES`` (64 MB) of
     ``(n, b)`` columns at a time and reduced to ``(K, b)`` coefficients at once, so no ``n × n``
@@ -44,10 +42,10 @@ Extended conversion (``method="extended"``, Sections 4.4 and 5.3)
     Precision: the two large products (the kernels ``Φ W Φ[x]ᵀ`` and their canonical
     coefficients ``Ψᵀ A f``) run in float32 by default (``dtype``), faster than float64;
     the embeddings then agree with the float64 ones to ~1e-6 relative (distances to 1e-5 in the
-    tests) and the maps on the embedded humans are identical. ``dtype="float64"`` is the exact
-    computation. Canonical coefficients come from ``Ψ = B_s D V_r Σ_r⁻¹`` ``(n, r)``, the
-    A-orthonormal functions of the operator's retained directions (``ã = Ψᵀ A f``, the same
-    numbers as ``Σ Vᵀ a`` of the fit ``a``, with ``r`` instead of ``K`` products per point).
+    tests). ``dtype="float64"`` is the exact computation. Canonical coefficients come from
+    ``Ψ = B_s D V_r Σ_r⁻¹`` ``(n, r)``, the A-orthonormal functions of the operator's retained
+    directions (``ã = Ψᵀ A f``, the same numbers as ``Σ Vᵀ a`` of the fit ``a``, with ``r``
+    instead of ``K`` products per point).
 
     Units: the functions are those of the mesh scaled to unit area (``area·h`` and ``area·δ``
     are free of units) and the canonical coefficients are divided by ``sqrt(area_2)``; with the
@@ -85,9 +83,7 @@ Search at scale (``search=`` of :func:`from_fmap` and :func:`nearest_neighbors`)
     :func:`from_fmap`) is approximate when the search compares more than
     ``APPROX_MIN_PAIRS`` = 1e11 query-point pairs and faiss is installed, exact otherwise:
     every mesh of the paper (and any pair up to ~300k vertices each) keeps the exact path and
-    its numbers. The recall and geodesic-error cost against the exact answer, and why this index
-    (against faiss's flat and HNSW indexes), are measured by ``benchmarks/scale_1m.py``
-    (``docs/benchmarks.md``).
+    its numbers (recall against the exact answer: ``benchmarks/scale_1m.py``).
 """
 
 from __future__ import annotations

@@ -63,11 +63,8 @@ def multi_indices(k: int, order: int, pairs: str) -> np.ndarray:
         raise ValueError(f"order must be >= 1, got {order}")
     rows = [np.zeros((1, order), dtype=np.int64)]
     for d in range(1, order + 1):
-        gen = (
-            itertools.product(range(1, k + 1), repeat=d)
-            if (pairs == "ordered" and d > 1)
-            else itertools.combinations_with_replacement(range(1, k + 1), d)
-        )
+        gen = (itertools.product(range(1, k + 1), repeat=d) if pairs == "ordered" and d > 1
+               else itertools.combinations_with_replacement(range(1, k + 1), d))
         block = np.array(list(gen), dtype=np.int64).reshape(-1, d)
         rows.append(np.pad(block, ((0, 0), (0, order - d))))
     return np.concatenate(rows)
@@ -226,11 +223,8 @@ class ProductBasis:
 
     # ----------------------------------------------------- blocked products with B_s
     # The solvers only need B_sᵀ A B_s, B_sᵀ Y and B_s X. Unless the matrix was asked for
-    # (``matrix``, ``solver_basis``), they evaluate the product columns block of rows by block
-    # of rows (``block_bytes``, 32 MB: small enough for the allocator to reuse the memory, so
-    # no page faults), so the extended basis is never held at once: 100k vertices at k = 69
-    # never allocate the 2 GB matrix, and a 5k mesh computes its operator faster than with
-    # the materialised matrix.
+    # (``matrix``, ``solver_basis``), they evaluate the product columns by blocks of rows
+    # (``block_bytes``), so the extended basis is never held at once.
     def _materialize_solver(self) -> bool:
         return "solver" in self.cache
 
@@ -300,11 +294,7 @@ class ProductBasis:
         """``B_sᵀ Y`` for ``Y`` ``(n,)`` or ``(n, m)``."""
         if self._materialize_solver():
             return self.solver_basis()[0].T @ Y
-        out = None
-        for rows, Bb in self._solver_blocks():
-            part = Bb.T @ Y[rows]
-            out = part if out is None else out + part
-        return out
+        return sum(Bb.T @ Y[rows] for rows, Bb in self._solver_blocks())
 
     def solver_matmul(self, X: np.ndarray) -> np.ndarray:
         """``B_s X`` for ``X`` ``(K_u,)`` or ``(K_u, m)``."""
