@@ -91,12 +91,8 @@ def shot(
     Invariant to rigid motions (up to round-off and to neighbours exactly at distance ``R``).
     """
     mesh = check_mesh(mesh)
-    for name, val in (
-        ("n_bins", n_bins),
-        ("n_azimuth", n_azimuth),
-        ("n_elevation", n_elevation),
-        ("n_radial", n_radial),
-    ):
+    for name, val in (("n_bins", n_bins), ("n_azimuth", n_azimuth), ("n_elevation", n_elevation),
+                      ("n_radial", n_radial)):
         if int(val) != val or val < 1:
             raise ValueError(f"{name} must be a positive integer, got {val!r}")
     V = mesh.vertices  # (n, 3)
@@ -137,9 +133,7 @@ def shot(
         ax[(neg > pos) | ((neg == pos) & (wsgn < 0))] *= -1.0
     y_ax = np.cross(z_ax, x_ax)  # (n, 3)
 
-    lx = np.einsum("ij,ij->i", diff, x_ax[I])
-    ly = np.einsum("ij,ij->i", diff, y_ax[I])
-    lz = np.einsum("ij,ij->i", diff, z_ax[I])
+    lx, ly, lz = (np.einsum("ij,ij->i", diff, ax[I]) for ax in (x_ax, y_ax, z_ax))
     cos_t = np.clip(np.einsum("ij,ij->i", N[J], z_ax[I]), -1.0, 1.0)
 
     azim = np.mod(np.arctan2(ly, lx), 2 * np.pi)
@@ -159,12 +153,9 @@ def shot(
         idx = base.copy()
         wt = np.ones_like(D)
         for d_i, (lo, hi, wlo, whi) in enumerate(splits):
-            if (corner >> d_i) & 1:
-                idx += hi * strides[d_i]
-                wt *= whi
-            else:
-                idx += lo * strides[d_i]
-                wt *= wlo
+            up = (corner >> d_i) & 1  # this corner's bin along coordinate d_i: the upper or the lower
+            idx += (hi if up else lo) * strides[d_i]
+            wt *= whi if up else wlo
         desc += np.bincount(idx, weights=wt, minlength=n * dim)
     desc = desc.reshape(n, dim)
     norm = np.linalg.norm(desc, axis=1, keepdims=True)

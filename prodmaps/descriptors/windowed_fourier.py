@@ -22,10 +22,7 @@ __all__ = ["awft"]
 
 
 def _eigenpairs(W, A, k: int, weyl_area: float | None = None):
-    """First ``k`` eigenpairs of ``W φ = λ A φ``, eigenvalues clipped at 0 (signs irrelevant here).
-
-    ``weyl_area``: the area of Weyl's law of the operator (:func:`prodmaps.eigensolver.smallest_eigenpairs`).
-    """
+    """First ``k`` eigenpairs of ``W φ = λ A φ`` (eigenvalues clipped at 0; ``weyl_area`` of the solver)."""
     evals, vecs = smallest_eigenpairs(W, A, k, weyl_area=weyl_area)
     return np.maximum(evals, 0.0), vecs
 
@@ -80,12 +77,8 @@ def awft(
         raise ValueError(f"k must be an integer in [2, {mesh.n_vertices}), got {k!r}")
     taus = as_1d_finite(taus, "taus", positive=True)
     freqs0 = np.atleast_1d(np.asarray(freqs0))
-    if (
-        freqs0.shape != taus.shape
-        or not np.issubdtype(freqs0.dtype, np.integer)
-        or np.any(freqs0 < 0)
-        or np.any(freqs0 >= k)
-    ):
+    if (freqs0.shape != taus.shape or not np.issubdtype(freqs0.dtype, np.integer) or np.any(freqs0 < 0)
+            or np.any(freqs0 >= k)):
         raise ValueError(f"freqs0 must be integers in [0, k) with one entry per tau; got {freqs0!r}")
     angles = as_1d_finite(angles_deg, "angles_deg") if len(np.atleast_1d(angles_deg)) else np.zeros(0)
     functions = tuple(functions)
@@ -115,10 +108,7 @@ def awft(
         elif name == "mean_curvature":
             fvals.append(curv["mean"] * np.sqrt(area))
         else:  # hks from the isotropic eigenpairs
-            if include_isotropic:
-                ev0, vec0 = eig[-1]
-            else:
-                ev0, vec0 = _eigenpairs(W0, A0, int(k))
+            ev0, vec0 = eig[-1] if include_isotropic else _eigenpairs(W0, A0, int(k))
             fvals.append(((vec0**2) @ np.exp(-ev0 * hks_t_rel * area)) * area)
     fmat = np.stack(fvals, axis=1)  # (n, F)
 

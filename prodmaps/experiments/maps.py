@@ -82,8 +82,7 @@ _AUTHORS = NO17Recipe(k_descr=None, n_descr=200, subsample_step=10, n_landmarks=
 #:
 #: * ``pyfm``: pyFM's NO17 demo (WKS 100 energies + 5 landmarks' wave-kernel maps from 128
 #:   eigenpairs, every 5th column; weights 1 / 1e-2 / 1e-1 with pyFM's "canonical" term
-#:   normalisation and the resolvent Laplacian term; L-BFGS; no refinement): the maps before
-#:   this study;
+#:   normalisation and the resolvent Laplacian term; L-BFGS; no refinement);
 #: * ``pyfm_icp``: the same followed by 5 orthogonal ICP iterations;
 #: * ``authors_noicp``: the NO17 authors' basic MATLAB demo (``Commute_Fmap_basic_demo``, also
 #:   ``build_funmap.m`` of the authors' group's OFP code, which calls it for a 30 x 40 FAUST map):
@@ -109,12 +108,8 @@ Which and why: the NO17 authors' MATLAB recipe (the ``authors`` entry of :data:`
 200 energies + wave-kernel maps, every 10th column, source norms, weights 0.1 / 1e-3 / 1 with the
 Frobenius-normalised ``(λ - μ)²`` mask, exact minimiser, 5 orthogonal ICP iterations) with its
 descriptors built from 200 eigenpairs and 10 landmarks, as the authors' group's
-``build_funmap_largedesc.m``. On the eight public FAUST registrations (the tables' 20 pairs,
-``study_no17`` paper profile) it is the recipe closest to Table 2's standard transfer column:
-hk k 0.141, XYZ 0.148, WKS 0.152, Indicator 0.298 (published 0.13, 0.13, 0.14, 0.28: all within
-0.02) and Random 0.582 (0.49; the ground-truth map gives 0.573 there, so that cell is the family,
-not the map); mean geodesic error 0.028 (ground truth 0.020, pyFM's demo unrefined 0.055, the
-authors' map-size descriptors 0.043). Before this study the maps were ``pyfm`` (hk k 0.470).
+``build_funmap_largedesc.m``: of :data:`RECIPES`, the one closest to Table 2's standard transfer
+column on the eight public FAUST registrations (``study_no17``, whose results give the numbers).
 
 What the paper leaves open (and this choice fixes): the WKS energies and their number, the
 landmarks (the authors' NO17 experiments used segment correspondences; here farthest points and

@@ -90,12 +90,11 @@ def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return
         p2p = from_fmap(C, basis_1, basis_2, method="std")
         if bar is not None:
             bar.update(1)
-        if k1 == K1 and k2 == K2:
-            # one last conversion at the final size so the returned C comes from a point map
-            C = basis_2.truncate(K2).project(basis_1.vecs[p2p, :K1])
-            break
+        done = k1 == K1 and k2 == K2  # then one last conversion at the final size: C comes from a point map
         k1, k2 = min(k1 + step, K1), min(k2 + step, K2)
         C = basis_2.truncate(k2).project(basis_1.vecs[p2p, :k1])  # (k2, k1)
+        if done:
+            break
     if bar is not None:
         bar.close()
     return (C, p2p) if return_p2p else C
