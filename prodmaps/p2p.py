@@ -539,22 +539,9 @@ def _source_embedding(b1: Basis, basis_1: Basis, pb1, op1, *, point, t, n_eig, b
     return basis_1.cache.get(key, compute)
 
 
-def extended_embeddings(
-    C_12,
-    basis_1: Basis,
-    basis_2: Basis,
-    *,
-    point: str = "heat",
-    t=None,
-    t_scale: float = 1.0,
-    n_eig=None,
-    rtol: float = 1e-3,
-    normalization: str | None = None,
-    pairs: str = "unique",
-    vertices=None,
-    block_bytes: int = KERNEL_BLOCK_BYTES,
-    dtype: str = "float32",
-):
+def extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, point: str = "heat", t=None, t_scale: float = 1.0,
+                        n_eig=None, rtol: float = 1e-3, normalization: str | None = None, pairs: str = "unique",
+                        vertices=None, block_bytes: int = KERNEL_BLOCK_BYTES, dtype: str = "float32"):
     """Canonical coefficients used by the extended conversion (module doc).
 
     Returns ``(emb_1 (n1, r), emb_2 (n2, r), info)``: the transferred functions of the vertices
@@ -616,10 +603,8 @@ def extended_embeddings(
                           "normalization": op2.params["normalization"], "dim": emb_1.shape[1]}
 
 
-def from_fmap(
-    C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, block: int | None = None, vertices=None,
-    search: str = "auto", **params
-) -> np.ndarray:
+def from_fmap(C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, block: int | None = None, vertices=None,
+              search: str = "auto", **params) -> np.ndarray:
     """Point map ``p2p_21`` ``(n2,)`` (for each vertex of shape 2 a vertex of shape 1) from ``C_12`` ``(k2, k1)``.
 
     Parameters

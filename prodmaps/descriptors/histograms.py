@@ -46,18 +46,9 @@ def _linear_weights(coord: np.ndarray, n_bins: int, circular: bool):
     return lo, hi, 1.0 - frac, frac
 
 
-def shot(
-    mesh: Mesh,
-    radius: float | None = None,
-    n_bins: int = 11,
-    *,
-    radius_frac: float = 0.1,
-    n_azimuth: int = 8,
-    n_elevation: int = 2,
-    n_radial: int = 2,
-    normals: np.ndarray | None = None,
-    chunk_pairs: int = 2_000_000,
-) -> np.ndarray:
+def shot(mesh: Mesh, radius: float | None = None, n_bins: int = 11, *, radius_frac: float = 0.1, n_azimuth: int = 8,
+         n_elevation: int = 2, n_radial: int = 2, normals: np.ndarray | None = None,
+         chunk_pairs: int = 2_000_000) -> np.ndarray:
     """SHOT descriptor [TSDS10] at every vertex, ``(n, n_azimuth·n_elevation·n_radial·n_bins)``.
 
     352 columns with the defaults; rows of unit Euclidean length.

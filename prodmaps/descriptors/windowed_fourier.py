@@ -30,19 +30,9 @@ def _eigenpairs(W, A, k: int, weyl_area: float | None = None):
 _AWFT_FUNCTIONS = ("constant", "mean_curvature", "hks")
 
 
-def awft(
-    mesh: Mesh,
-    *,
-    k: int = 100,
-    angles_deg=(0.0, 45.0, 90.0, 135.0),
-    alpha: float = 10.0,
-    include_isotropic: bool = True,
-    taus=(0.002, 0.005, 0.02),
-    freqs0=(0, 0, 0),
-    functions=("mean_curvature", "hks"),
-    curvature_smooth: int = 1,
-    hks_t_rel: float = 0.01,
-) -> np.ndarray:
+def awft(mesh: Mesh, *, k: int = 100, angles_deg=(0.0, 45.0, 90.0, 135.0), alpha: float = 10.0,
+         include_isotropic: bool = True, taus=(0.002, 0.005, 0.02), freqs0=(0, 0, 0),
+         functions=("mean_curvature", "hks"), curvature_smooth: int = 1, hks_t_rel: float = 0.01) -> np.ndarray:
     """AWFT descriptor [MRCB16] at every vertex, ``(n, len(taus)·n_operators·len(functions))``.
 
     30 columns with the defaults: 3 windows x (4 angles + isotropic) x 2 functions.

@@ -385,18 +385,8 @@ _GENERATORS = {
 }
 
 
-def make_family(
-    name: str,
-    mesh_1: Mesh,
-    basis_1: Basis,
-    *,
-    k_M: int,
-    seed: int,
-    p2p_21=None,
-    m: int | None = None,
-    cache: Cache | None = None,
-    **options,
-) -> tuple[np.ndarray, np.ndarray | None]:
+def make_family(name: str, mesh_1: Mesh, basis_1: Basis, *, k_M: int, seed: int, p2p_21=None, m: int | None = None,
+                cache: Cache | None = None, **options) -> tuple[np.ndarray, np.ndarray | None]:
     """Generate the family ``name`` on the source and its ground truth on the target.
 
     Parameters

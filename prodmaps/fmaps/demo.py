@@ -48,16 +48,8 @@ def _shape_descriptors(basis: Basis, lms: np.ndarray, k: int, n_descr: int, step
     return out
 
 
-def no17_demo_descriptors(
-    basis_1: Basis,
-    basis_2: Basis,
-    landmarks=None,
-    n_descr: int = 100,
-    subsample_step: int = 5,
-    k_descr: int | tuple | None = 128,
-    *,
-    scaled: bool = True,
-):
+def no17_demo_descriptors(basis_1: Basis, basis_2: Basis, landmarks=None, n_descr: int = 100, subsample_step: int = 5,
+                          k_descr: int | tuple | None = 128, *, scaled: bool = True):
     """Descriptors of pyFM's NO17 demo: WKS plus wave-kernel maps at landmarks, subsampled.
 
     Built from the first ``k_descr`` eigenpairs of each basis (all if None; a pair

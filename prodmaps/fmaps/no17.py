@@ -168,21 +168,10 @@ class NO17Terms:
         return (self.D2.shape[0], self.D1.shape[0])
 
 
-def no17_terms(
-    basis_1: Basis,
-    basis_2: Basis,
-    descr_1: np.ndarray,
-    descr_2: np.ndarray,
-    *,
-    w_descr: float = 1.0,
-    w_lap: float = 1e-2,
-    w_dcomm: float = 1e-1,
-    w_orient: float = 0.0,
-    lap: str = "resolvent",
-    resolvent_gamma: float = 0.5,
-    normalize: str | None = "expected",
-    normalize_descr: bool | str = True,
-) -> NO17Terms:
+def no17_terms(basis_1: Basis, basis_2: Basis, descr_1: np.ndarray, descr_2: np.ndarray, *, w_descr: float = 1.0,
+               w_lap: float = 1e-2, w_dcomm: float = 1e-1, w_orient: float = 0.0, lap: str = "resolvent",
+               resolvent_gamma: float = 0.5, normalize: str | None = "expected",
+               normalize_descr: bool | str = True) -> NO17Terms:
     """Precompute the NO17 energy terms for ``C_12`` of shape ``(basis_2.k, basis_1.k)``.
 
     ``descr_1`` ``(n1, p)`` and ``descr_2`` ``(n2, p)`` are paired descriptor columns
@@ -318,27 +307,11 @@ def quadratic_form(terms: NO17Terms) -> tuple[np.ndarray, np.ndarray]:
     return 0.5 * (H + H.T), b
 
 
-def fit_no17(
-    basis_1: Basis,
-    basis_2: Basis,
-    descr_1: np.ndarray,
-    descr_2: np.ndarray,
-    *,
-    w_descr: float = 1.0,
-    w_lap: float = 1e-2,
-    w_dcomm: float = 1e-1,
-    w_orient: float = 0.0,
-    lap: str = "resolvent",
-    resolvent_gamma: float = 0.5,
-    normalize: str | None = "expected",
-    normalize_descr: bool | str = True,
-    init: str = "zeros",
-    factr: float = 1e7,
-    pgtol: float = 1e-5,
-    maxiter: int = 15000,
-    solver: str = "lbfgs",
-    return_info: bool = False,
-):
+def fit_no17(basis_1: Basis, basis_2: Basis, descr_1: np.ndarray, descr_2: np.ndarray, *, w_descr: float = 1.0,
+             w_lap: float = 1e-2, w_dcomm: float = 1e-1, w_orient: float = 0.0, lap: str = "resolvent",
+             resolvent_gamma: float = 0.5, normalize: str | None = "expected", normalize_descr: bool | str = True,
+             init: str = "zeros", factr: float = 1e7, pgtol: float = 1e-5, maxiter: int = 15000, solver: str = "lbfgs",
+             return_info: bool = False):
     """Functional map ``C_12`` ``(basis_2.k, basis_1.k)`` minimising the NO17 energy.
 
     Parameters
