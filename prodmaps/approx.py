@@ -386,9 +386,7 @@ def _scaled_columns(basis, d) -> np.ndarray:
 
 def _rmatmul(basis, Y):
     """``B_sᵀ Y`` for a Basis or ProductBasis."""
-    if is_extended(basis):
-        return basis.solver_rmatmul(Y)
-    return basis.vecs.T @ Y
+    return basis.solver_rmatmul(Y) if is_extended(basis) else basis.vecs.T @ Y
 
 
 def _gram(basis) -> np.ndarray:

@@ -86,10 +86,9 @@ class Basis:
         for name, arr in (("vecs", vecs), ("evals", evals)):
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"basis {name} contain non-finite values")
-        vecs.setflags(write=False)
-        evals.setflags(write=False)
-        object.__setattr__(self, "vecs", vecs)
-        object.__setattr__(self, "evals", evals)
+        for name, arr in (("vecs", vecs), ("evals", evals)):
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
 
     # ------------------------------------------------------------------ basics
     @property

@@ -27,9 +27,8 @@ the constants that decide how eigenpairs are computed exist once:
   takes the Cholesky route from ``CHOLESKY_MIN_N`` unknowns when ``cholespy`` is installed,
   SuperLU otherwise, so every problem below that size (all the paper's meshes) takes SuperLU. The
   two routes give the same eigenpairs up to the Lanczos tolerance (tested: eigenvalues to 1e-10
-  relative, subspaces to 1e-8). The threshold is where the two routes cost the same (the safe
-  shift needs more Lanczos solves, each cheaper; the nested-dissection Cholesky factor has far
-  less fill than SuperLU's at a million vertices; timings: ``docs/benchmarks.md``).
+  relative, subspaces to 1e-8). The threshold is where the two routes cost the same (timings:
+  ``docs/benchmarks.md``).
 """
 
 from __future__ import annotations
@@ -138,12 +137,10 @@ def smallest_eigenpairs(W, M, k: int, *, operator=None, opinv=None, sigma: float
         raise ValueError(f"solver must be one of {SOLVERS}, got {solver!r}")
     Mm = _as_sparse_mass(M)
     dense = operator is None and (n <= DENSE_MAX_N or k > n // DENSE_FRACTION)
-    if solver == "auto":
+    fallback = solver == "auto"  # the route was not asked for: SuperLU when Cholesky fails
+    if fallback:
         solver = "cholesky" if (operator is None and not dense and n >= CHOLESKY_MIN_N and have_cholesky()) \
             else "superlu"
-        fallback = True
-    else:
-        fallback = False
     if dense:
         import scipy.linalg as sla
 

@@ -149,11 +149,9 @@ def _monomial_tables(k: int, order: int):
     monos = [[()]] + [list(itertools.combinations_with_replacement(range(1, k + 1), d))
                       for d in range(1, order + 1)]
     pos = [{m: i for i, m in enumerate(ms)} for ms in monos]
-    mul = []  # mul[d]: (Q_d, k) index in degree d+1 of sorted(m + (l,))
-    for d in range(order):
-        table = np.array([[pos[d + 1][tuple(sorted(m + (l,)))] for l in range(1, k + 1)]
-                          for m in monos[d]], dtype=np.int64)
-        mul.append(table)
+    # mul[d]: (Q_d, k) index in degree d+1 of sorted(m + (l,))
+    mul = [np.array([[pos[d + 1][tuple(sorted(m + (l,)))] for l in range(1, k + 1)] for m in monos[d]],
+                    dtype=np.int64) for d in range(order)]
     return monos, mul
 
 
@@ -170,11 +168,8 @@ def _extend_unique(C: np.ndarray, phi0: float, order: int) -> np.ndarray:
     offsets2 = np.concatenate([[0], np.cumsum(Q)])  # degree-0 monomial <-> column 0
     Ct = np.zeros((offsets2[-1], idx1.shape[0]))
     Ct[: k2 + 1, : k1 + 1] = C
-    scatters = [
-        sp.csr_matrix((np.ones(mul[s].size), (mul[s].ravel(), np.arange(mul[s].size))),
-                      shape=(Q[s + 1], mul[s].size))
-        for s in range(order)
-    ]
+    scatters = [sp.csr_matrix((np.ones(mul[s].size), (mul[s].ravel(), np.arange(mul[s].size))),
+                              shape=(Q[s + 1], mul[s].size)) for s in range(order)]
     for d in range(2, order + 1):
         cols = np.flatnonzero(deg1 == d)
         J = idx1[cols, :d] - 1  # (P, d) 0-based non-constant factors

@@ -348,10 +348,9 @@ class Mesh:
             f = f.reshape(0, 3)
         if self.validate:
             validate(v, f)
-        v.setflags(write=False)
-        f.setflags(write=False)
-        object.__setattr__(self, "vertices", v)
-        object.__setattr__(self, "faces", f)
+        for name, arr in (("vertices", v), ("faces", f)):
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
 
     @property
     def n_vertices(self) -> int:

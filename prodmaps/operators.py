@@ -47,9 +47,7 @@ def cotan_weights(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
         rows += [i, j]
         cols += [j, i]
         vals += [-0.5 * cot, -0.5 * cot]
-    off = sp.coo_matrix(
-        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)
-    ).tocsr()
+    off = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
     diag = -np.asarray(off.sum(axis=1)).ravel()
     return (off + sp.diags(diag)).tocsr()
 

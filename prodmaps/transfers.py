@@ -55,9 +55,7 @@ basis) keeps every singular direction above the threshold, including directions 
 whose products nearly cancel there; a truncated or computed ``C`` does not preserve products
 exactly, the cancellation is lost on the target and such directions are amplified (how many
 the threshold keeps depends on the normalisation of the basis, :mod:`prodmaps.approx`). The
-default needs no threshold and no normalisation. Measurements of it (per family and per single
-function, on FAUST and the embedded humans) are in ``docs/guide/default_transfer.md`` and the
-``study_default_transfer`` notebook.
+default needs no threshold and no normalisation (measurements: ``docs/guide/default_transfer.md``).
 
 The rule (two-stage, gain- and leak-filtered fit; only ``f``, ``C_12`` and the two bases):
 
@@ -145,10 +143,8 @@ _BLOCK_ROWS = 1 << 16
 def _source_parts(basis_1: Basis):
     """``(H (k1, Kp), σ² (r,), V (Kp, r), g_PP (Kp,), ext_u)`` of the residual stage, cached on the source.
 
-    ``g_PP`` holds the squared area norms ``||φ_l φ_m||²_A1`` of the products.
-
-    The Gram matrix is the unique product basis' (:func:`prodmaps.products.unique_solver_gram`,
-    which Approach B builds too).
+    ``g_PP``: the products' squared area norms ``||φ_l φ_m||²_A1``, from the unique product basis'
+    Gram (:func:`prodmaps.products.unique_solver_gram`, which Approach B builds too).
     """
     ext_u = product_basis(basis_1, 2, "unique")
 
@@ -352,10 +348,8 @@ class DefaultTransfer(TransferOperator):
         cut at 1.5 times the area-ratio-corrected norm a point map would give).
     l0 : leak scale (default 0.5; ``None`` switches the leak test off).
     e0 : scale of the truncation test (default 0.4; ``None`` switches it off): the expected relative
-        error of direction ``i``'s image, ``ê_i² = Σ_(l,m) V_(lm),i² (δ_l + δ_m) ||φ_l φ_m||²_A1 / σ_i²``
-        from :func:`isometry_defect` (a first-order model: ``ψ_l ψ_m`` misses
-        ``ψ_l e_m + e_l ψ_m`` when ``ψ_l = φ_l∘T - e_l``), enters as ``1/(1 + (ê_i/e0)²)`` (the
-        Wiener factor of an estimate with relative error ``ê_i/e0``).
+        error ``ê_i`` of direction ``i``'s image (module doc, from :func:`isometry_defect`) enters as
+        ``1/(1 + (ê_i/e0)²)``.
     floor : directions with ``σ_i <= floor · σ_max`` of the residual Gram are ignored (1e-3: never a
         direction the paper's threshold would drop).
     h_min : directions with ``h_i < h_min`` are not stored (cost only).
@@ -492,8 +486,6 @@ class DefaultTransfer(TransferOperator):
     def __repr__(self) -> str:
         return (f"DefaultTransfer(k1={self.basis_1.k}, k2={self.basis_2.k}, kept {self.rank} of "
                 f"{self.sigma.size} product directions, g0={self.params['g0']}, l0={self.params['l0']})")
-
-
 
 
 def _default_key(C: np.ndarray, basis_2: Basis, params: dict) -> tuple:

@@ -32,9 +32,8 @@ Rules offered here (none needs the ground truth):
   ``GCV(r) = n ||(I - H_r) sqrt(A) f||² / (n - r)²`` (each function normalised by ``||sqrt(A) f||²``,
   averaged over the functions).
 
-The paper profile of every notebook keeps ``rtol = 1e-3``; these rules are options.
-:mod:`prodmaps.approx` is unchanged: pass the selected value as
-``rtol`` to :func:`prodmaps.transfer` / :func:`prodmaps.approximate`.
+The paper profile of every notebook keeps ``rtol = 1e-3``; these rules are options: pass the
+selected value as ``rtol`` to :func:`prodmaps.transfer` / :func:`prodmaps.approximate`.
 """
 
 from __future__ import annotations

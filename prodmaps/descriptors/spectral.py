@@ -10,10 +10,6 @@ Conventions
 * An eigenvalue counts as zero (the constant's) when ``|λ| <= ZERO_EIGENVALUE_REL · max |λ|``;
   WKS excludes those eigenpairs (its filter needs ``log λ``).
 
-The WKS exists once: :func:`wks_energies_from_evals` (the automatic sampling) and
-:func:`wks_weights` (the spectral filter, ``(energies, k)``) are pure functions of the
-eigenvalues; :func:`wks` and the NO17 demo descriptors (:mod:`prodmaps.fmaps`) both use them.
-
 Spectral descriptors
 --------------------
 ``hks(basis, times)``: ``h_t(x, x) = Σ_i exp(-λ_i t) φ_i(x)²`` [SOG09], the constant term

@@ -108,14 +108,12 @@ def hks_wks_convergence(dataset: str, pairs, *, source_dim: int, target_dims, hk
         "error_definition": "sqrt(int (f-g)^2)/sqrt(int g^2), area-weighted on the target, mean over pairs",
         "pairs": [f"{a}->{b}" for a, b in pairs],
         "target_dims": dims,
-        "errors": {
-            d: {m: {f"d{dd}": float(mean[d][m][j]) for j, dd in enumerate(dims)} for m in methods} for d in names
-        },
+        "errors": {d: {m: {f"d{dd}": float(mean[d][m][j]) for j, dd in enumerate(dims)} for m in methods}
+                   for d in names},
         "errors_per_pair": {d: {m: err[d][m] for m in methods} for d in names},
         "approximation_on_source": {d: {m: float(np.mean(v)) for m, v in approx_err[d].items()} for d in approx_err},
-        "scale_sensitivity": {
-            d: {m: {f"s{s:.1f}": float(np.mean(sens[d][m][s])) for s in SCALES} for m in methods} for d in names
-        },
+        "scale_sensitivity": {d: {m: {f"s{s:.1f}": float(np.mean(sens[d][m][s])) for s in SCALES} for m in methods}
+                              for d in names},
         "scales_used": scale_values,
         "claims": claims,
     }

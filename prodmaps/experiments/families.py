@@ -89,20 +89,17 @@ class FamilySpec:
     description: str
 
 
-FAMILIES: dict[str, FamilySpec] = {
-    s.name: s
-    for s in [
-        FamilySpec("hk_k", "hk k", 10, True, "heat kernels at random points from k_M+1 eigenpairs"),
-        FamilySpec("hk_K", "hk K", 10, False, "heat kernels at random points from 200 eigenpairs"),
-        FamilySpec("HKS", "HKS", 10, True, "HKS at 10 random times (k_M+1 eigenpairs)"),
-        FamilySpec("WKS", "WKS", 10, True, "WKS at 10 random energies (k_M+1 eigenpairs)"),
-        FamilySpec("Random", "Random", 10, True, "random combinations of the order-2 extended basis"),
-        FamilySpec("XYZ", "XYZ", 3, False, "vertex coordinates x, y, z"),
-        FamilySpec("Indicator", "Indicator", 10, False, "indicators of random geodesic balls"),
-        FamilySpec("SHOT", "SHOT", 10, False, "10 random SHOT dimensions"),
-        FamilySpec("AWFT", "AWFT", 10, False, "10 random AWFT dimensions"),
-    ]
-}
+FAMILIES: dict[str, FamilySpec] = {s.name: s for s in [
+    FamilySpec("hk_k", "hk k", 10, True, "heat kernels at random points from k_M+1 eigenpairs"),
+    FamilySpec("hk_K", "hk K", 10, False, "heat kernels at random points from 200 eigenpairs"),
+    FamilySpec("HKS", "HKS", 10, True, "HKS at 10 random times (k_M+1 eigenpairs)"),
+    FamilySpec("WKS", "WKS", 10, True, "WKS at 10 random energies (k_M+1 eigenpairs)"),
+    FamilySpec("Random", "Random", 10, True, "random combinations of the order-2 extended basis"),
+    FamilySpec("XYZ", "XYZ", 3, False, "vertex coordinates x, y, z"),
+    FamilySpec("Indicator", "Indicator", 10, False, "indicators of random geodesic balls"),
+    FamilySpec("SHOT", "SHOT", 10, False, "10 random SHOT dimensions"),
+    FamilySpec("AWFT", "AWFT", 10, False, "10 random AWFT dimensions"),
+]}
 PAPER_LABELS = {name: spec.paper_label for name, spec in FAMILIES.items()}
 
 RANDOM_COEFFICIENTS = ("normal", "uniform")
@@ -221,9 +218,8 @@ def _gen_hk(ctx, rng, m, *, t_rel: float = 1e-3, n_eig_K: int = 200, big: bool):
 
 
 def _big_basis(ctx, n_eig: int) -> Basis:
-    b1 = ctx["basis"]
-    if b1.k >= n_eig:
-        return b1.truncate(n_eig)
+    if ctx["basis"].k >= n_eig:
+        return ctx["basis"].truncate(n_eig)
     return ctx["cache"].get(("basis", n_eig), lambda: eigenbasis(ctx["mesh"], n_eig))
 
 
@@ -310,11 +306,8 @@ def _gen_random(ctx, rng, m, *, coefficients: str = "normal", pairs: str = "uniq
         B = B / norms[None, :]
     else:
         B = evaluate_products(b.vecs * np.sqrt(ctx["mesh"].area), ext.index)  # (n, K), unit-area eigenfunctions
-    if coefficients == "normal":
-        a = rng.standard_normal((B.shape[1], m))  # (K, m)
-    else:
-        a = rng.uniform(0.0, 1.0, size=(B.shape[1], m))  # (K, m)
-    return B @ a
+    K = B.shape[1]
+    return B @ (rng.standard_normal((K, m)) if coefficients == "normal" else rng.uniform(0.0, 1.0, size=(K, m)))
 
 
 def _gen_indicator(ctx, rng, m, *, min_frac: float = 0.1, max_frac: float = 0.5, method: str = "graph"):
@@ -434,12 +427,8 @@ def make_family(name: str, mesh_1: Mesh, basis_1: Basis, *, k_M: int, seed: int,
     m = spec.m if m is None else m
     if not isinstance(m, (int, np.integer)) or isinstance(m, bool) or m < 1:
         raise ValueError(f"m must be a positive integer, got {m!r}")
-    ctx = {
-        "mesh": mesh_1,
-        "basis": basis_1,
-        "basis_k": basis_1.truncate(k_M + 1),
-        "cache": Cache(max_entries=16) if cache is None else cache,
-    }
+    ctx = {"mesh": mesh_1, "basis": basis_1, "basis_k": basis_1.truncate(k_M + 1),
+           "cache": Cache(max_entries=16) if cache is None else cache}
     rng = np.random.default_rng(seed)
     F_1 = np.ascontiguousarray(_GENERATORS[name](ctx, rng, int(m), **options), dtype=np.float64)
     if F_1.shape != (mesh_1.n_vertices, m) or not np.all(np.isfinite(F_1)):
