@@ -283,8 +283,7 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    if normalization is None:
-        normalization = DEFAULT_NORMALIZATION
+    normalization = DEFAULT_NORMALIZATION if normalization is None else normalization
     _, base, _, _ = _solver_parts(basis)  # (a TypeError for anything but a Basis or ProductBasis)
     if method == "std":
         if is_extended(basis):

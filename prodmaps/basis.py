@@ -252,13 +252,12 @@ def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped", *,
                          "(k counts the constant; the paper's k_M = 9 is k = 10)")
     ncomp, labels = face_components(n, mesh.faces)
     if ncomp > 1:  # a mesh loaded with validate=False: the constant is not the only zero mode
-        sizes = np.bincount(labels)
-        raise MeshError(
-            f"eigenbasis needs a connected mesh: {mesh.name or 'this mesh'} has {ncomp} connected components "
-            f"(vertex counts {sorted(sizes.tolist(), reverse=True)[:5]}); each has its own constant eigenfunction, "
-            "so the conventions (one constant column, A-orthonormal) cannot hold. Keep the largest with "
-            "pm.mesh.largest_component(mesh.vertices, mesh.faces), or load with pm.io.load_mesh_repaired(path)"
-        )
+        sizes = sorted(np.bincount(labels).tolist(), reverse=True)[:5]
+        raise MeshError(f"eigenbasis needs a connected mesh: {mesh.name or 'this mesh'} has {ncomp} connected "
+                        f"components (vertex counts {sizes}); each has its own constant eigenfunction, so the "
+                        "conventions (one constant column, A-orthonormal) cannot hold. Keep the largest with "
+                        "pm.mesh.largest_component(mesh.vertices, mesh.faces), or load with "
+                        "pm.io.load_mesh_repaired(path)")
     W, A = laplacian(mesh, kind=kind, mass=mass)
     evals, vecs = smallest_eigenpairs(W, A, k, solver=solver)  # ascending, A-normalised
     # fix the constant exactly (round-off only) and the signs

@@ -113,9 +113,7 @@ def check_fmap(C_12, basis_1: Basis, basis_2: Basis, allow_truncation: bool = Fa
     """
     check_basis(basis_1, "basis_1")
     check_basis(basis_2, "basis_2")
-    if sp.issparse(C_12):
-        C_12 = C_12.toarray()
-    C = np.asarray(C_12)
+    C = np.asarray(C_12.toarray() if sp.issparse(C_12) else C_12)
     if np.iscomplexobj(C):
         raise ValueError("C_12 is complex; a functional map between real function spaces is real (if the imaginary "
                          "part is round-off, pass C_12.real)")

@@ -494,8 +494,7 @@ def _read_off(fh):
         raise MeshError("not an OFF file (missing 'OFF' magic)")
     if len(head) > 1 and head[1].upper() == "BINARY":
         raise MeshError("binary OFF is not supported; convert it to ASCII OFF or PLY")
-    start = 1
-    counts = head[1:]
+    counts, start = head[1:], 1
     if not counts:
         if len(lines) < 2:
             raise MeshError("truncated file: no vertex/face counts after the 'OFF' line")

@@ -11,9 +11,7 @@ __all__ = ["relative_error", "area_fraction_curve", "pointwise_error"]
 
 
 def _prep(f, g, mass):
-    f = np.asarray(f, dtype=np.float64)
-    g = np.asarray(g, dtype=np.float64)
-    mass = np.asarray(mass, dtype=np.float64)
+    f, g, mass = (np.asarray(x, dtype=np.float64) for x in (f, g, mass))
     if f.shape != g.shape:
         raise ValueError(f"f and g must have the same shape; got {f.shape} and {g.shape}")
     if mass.shape != (f.shape[0],):

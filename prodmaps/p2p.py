@@ -89,6 +89,7 @@ Search at scale (``search=`` of :func:`from_fmap` and :func:`nearest_neighbors`)
 from __future__ import annotations
 
 import time
+import warnings
 
 import numpy as np
 
@@ -552,8 +553,6 @@ def extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, point: str = "h
     those vertices only, ``(m, r)``. ``C_12`` uses the first ``k1``/``k2`` columns of the bases for
     the products; the heat kernel uses up to ``n_eig`` columns of the bases as given.
     """
-    import warnings
-
     if point not in POINTS:
         raise ValueError(f"point must be one of {POINTS}, got {point!r}")
     C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)

@@ -205,10 +205,9 @@ def report_blocks(results: dict, dataset: str, *, main: bool = True) -> list:
                  "ground-truth tables (`study_normalization`; the standard column, which no reading changes, is the "
                  "control). *Within ±0.02*: published cells reproduced at the paper's two decimals.")]
     methods = [("std", "std (control)"), ("our_l2", "A, T1"), ("our_A", "A, T5/T6"), ("our_B", "B")]
-    rows = []
-    for reading, sc in scores.items():
-        rows.append([reading] + [f"{sc[m]['within']}/{sc[m]['cells']} (mean {sc[m]['mean_abs']:.3f}, largest "
-                                 f"{sc[m]['max_abs']:.3f})" if m in sc else "—" for m, _ in methods])
+    rows = [[reading] + [f"{sc[m]['within']}/{sc[m]['cells']} (mean {sc[m]['mean_abs']:.3f}, largest "
+                         f"{sc[m]['max_abs']:.3f})" if m in sc else "—" for m, _ in methods]
+            for reading, sc in scores.items()]
     out.append(("table", ["reading"] + [lab for _, lab in methods], rows))
     best = results.get("best")
     if best:

@@ -68,8 +68,7 @@ def point_map_recovery(store: ShapeStore, pairs, *, target_dim: int | None = Non
     target_dim, source_dim = renamed_keywords(
         "point_map_recovery", {"target_dim": target_dim, "source_dim": source_dim},
         {"k_target": k_target, "k_source": k_source}, "basis columns with the constant")
-    bad = set(maps) - {"gt", "no17"}
-    if bad:
+    if set(maps) - {"gt", "no17"}:
         raise ValueError(f"maps must be a subset of ['gt', 'no17'], got {list(maps)}")
     errs = {m: {c: [] for c in CONVERSIONS} for m in maps}  # per pair: (n_eval,) arrays
     per_pair, timing = [], {**dict.fromkeys(CONVERSIONS, 0.0), "no17": 0.0}

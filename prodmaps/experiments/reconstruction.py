@@ -64,9 +64,8 @@ def coordinate_reconstruction(mesh, ks, ks_curve=(), *, pairs: str = "ordered", 
         ext, op, X_prod = _extended_reconstruction(basis, X, pairs, rtol)
         ext_o, op_o, X_o = _extended_reconstruction(basis, X, other, rtol)
         key = f"k{k}"
-        errors["std"][key] = coordinate_errors(X_std, X, full.mass)
-        errors["prod"][key] = coordinate_errors(X_prod, X, full.mass)
-        errors[f"prod_{other}"][key] = coordinate_errors(X_o, X, full.mass)
+        for name, Xr in (("std", X_std), ("prod", X_prod), (f"prod_{other}", X_o)):
+            errors[name][key] = coordinate_errors(Xr, X, full.mass)
         sizes[key] = {"std": basis.k, "extended": ext.K, f"extended_{other}": ext_o.K,
                       "rank_kept": op.rank, f"rank_kept_{other}": op_o.rank}
         if k in ks:

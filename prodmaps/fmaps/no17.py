@@ -133,12 +133,9 @@ def laplacian_mask(evals_1: np.ndarray, evals_2: np.ndarray, lap: str = "resolve
 
 
 def _effective_p(*coefs: np.ndarray) -> float:
-    vals = []
-    for F in coefs:
-        G = F[1:].T @ F[1:]  # (p, p)
-        den = float(np.sum(G * G))
-        vals.append(float(np.trace(G)) ** 2 / den if den > 0 else 1.0)
-    return float(np.mean(vals))
+    grams = [F[1:].T @ F[1:] for F in coefs]  # (p, p) each
+    return float(np.mean([float(np.trace(G)) ** 2 / float(np.sum(G * G)) if np.sum(G * G) > 0 else 1.0
+                          for G in grams]))
 
 
 @dataclass
