@@ -390,14 +390,16 @@ def _rmatmul(basis, Y):
 
 def _gram(basis) -> np.ndarray:
     """``B_sᵀ A B_s`` (symmetric) for a Basis or ProductBasis (cached and blocked there)."""
-    if is_extended(basis):
-        return basis.solver_gram()
-    B_s, base = basis.vecs, basis
+    return basis.solver_gram() if is_extended(basis) else mass_gram(basis.vecs, basis)
+
+
+def mass_gram(B: np.ndarray, base: Basis) -> np.ndarray:
+    """``Bᵀ A B`` ``(K, K)``, symmetrised, for the columns ``B`` ``(n, K)`` and the mass of ``base``."""
     if base.mass_is_diagonal:
-        X = np.sqrt(base.mass)[:, None] * B_s
+        X = np.sqrt(base.mass)[:, None] * B
         G = X.T @ X
     else:
-        G = B_s.T @ (base.mass @ B_s)
+        G = B.T @ (base.mass @ B)
     return 0.5 * (G + G.T)
 
 

@@ -149,9 +149,8 @@ class Basis:
         """
         if not 1 <= k <= self.k:
             raise ValueError(f"k must be in [1, {self.k}], got {k}")
-        if k == self.k:
-            return self
-        return Basis(self.vecs[:, :k], self.evals[:k], self.mass, name=self.name, cache=self.cache)
+        return self if k == self.k else Basis(self.vecs[:, :k], self.evals[:k], self.mass, name=self.name,
+                                              cache=self.cache)
 
     def __repr__(self) -> str:
         label = f"{self.name!r}, " if self.name else ""

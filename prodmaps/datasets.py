@@ -180,8 +180,7 @@ def _index_at(folder_str: str, name: str) -> _Index:
                                       "set, else ~/.local/share/prodmaps)")
     manifest = folder / "manifest.json"
     if manifest.is_file():
-        meta = json.loads(manifest.read_text())
-        entries = meta["shapes"]
+        entries = json.loads(manifest.read_text())["shapes"]
         ids = [e["id"] for e in entries]
         fmap = {e["id"]: folder / e["file"] for e in entries}
         cls = {e["id"]: str(e["class"]) for e in entries}
@@ -247,8 +246,7 @@ def base_shape(name: str, shape_id: str) -> str:
 
 def shape_class(name: str, shape_id: str) -> str:
     """Subject (FAUST, anny: ``XXX // 10`` as a string) or class (TOSCA) of a shape or variant."""
-    idx = _index(name)
-    return idx.cls[base_shape(name, shape_id)]
+    return _index(name).cls[base_shape(name, shape_id)]
 
 
 @functools.lru_cache(maxsize=256)

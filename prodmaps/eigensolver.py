@@ -96,9 +96,7 @@ def _as_sparse_mass(M) -> sp.csc_matrix:
 
 def shift(W, M) -> float:
     """The shift-invert shift ``-SHIFT_REL · trace(W) / trace(M)`` (see the module doc)."""
-    Mm = _as_sparse_mass(M)
-    scale = float(W.diagonal().sum() / Mm.diagonal().sum())
-    return -SHIFT_REL * scale
+    return -SHIFT_REL * float(W.diagonal().sum() / _as_sparse_mass(M).diagonal().sum())
 
 
 def smallest_eigenpairs(W, M, k: int, *, operator=None, opinv=None, sigma: float | None = None,

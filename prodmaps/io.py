@@ -531,8 +531,7 @@ def _read_obj(fh):
     if b"\x00" in head or (head and sum(c < 9 or 13 < c < 32 for c in head) > 0.05 * len(head)):
         raise MeshError("not a text OBJ file: its first bytes are binary (a different format, or a damaged file)")
     text = raw.decode("utf-8-sig", errors="replace")
-    verts, rows = [], []
-    pending = ""
+    verts, rows, pending = [], [], ""
     for ln in text.splitlines():
         if ln.endswith("\\"):  # line continuation
             pending += ln[:-1] + " "

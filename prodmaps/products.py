@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .approx import approximation_operator
+from .approx import approximation_operator, mass_gram
 from .basis import Basis
 from .cache import Cache
 
@@ -178,9 +178,8 @@ class ProductBasis:
     @property
     def unique_index(self) -> np.ndarray:
         """Multi-indices of the unique (multiset) columns spanning the same space."""
-        if self.pairs == "unique":
-            return self.index
-        return self.cache.get("uindex", lambda: multi_indices(self.n_factors, self.order, "unique"))
+        uindex = lambda: multi_indices(self.n_factors, self.order, "unique")
+        return self.index if self.pairs == "unique" else self.cache.get("uindex", uindex)
 
     def solver_basis(self) -> tuple[np.ndarray, np.ndarray]:
         """``(B_s (n, K_u), scale (K_u,))``: the unique basis the solvers work on.
@@ -217,9 +216,8 @@ class ProductBasis:
 
         ``B @ a == B_unique @ (fold() @ a)``: ordered coefficients of the same multiset are summed.
         """
-        if self.pairs == "unique":
-            return self.cache.get("fold", lambda: sp.identity(self.K, format="csr"))
-        return self.cache.get("fold", lambda: _ordered_to_unique(self.index, self.unique_index))
+        return self.cache.get("fold", lambda: sp.identity(self.K, format="csr") if self.pairs == "unique"
+                              else _ordered_to_unique(self.index, self.unique_index))
 
     # ----------------------------------------------------- blocked products with B_s
     # The solvers only need B_sᵀ A B_s, B_sᵀ Y and B_s X. Unless the matrix was asked for
@@ -233,9 +231,8 @@ class ProductBasis:
 
         ``None`` for ``pairs="unique"``, whose solver basis is the basis itself.
         """
-        if self.pairs == "unique":
-            return None
-        return self.cache.get("scale", lambda: np.sqrt(n_orderings(self.unique_index)))
+        scale = lambda: np.sqrt(n_orderings(self.unique_index))
+        return None if self.pairs == "unique" else self.cache.get("scale", scale)
 
     def _solver_blocks(self):
         """Yield ``(rows slice, B_s[rows])`` blocks of about ``block_bytes``.
@@ -271,21 +268,14 @@ class ProductBasis:
     def solver_gram(self) -> np.ndarray:
         """``G_s = B_sᵀ A B_s`` ``(K_u, K_u)`` (cached), blocked for large meshes."""
         def compute():
-            base = self.base
-            if self._materialize_solver() or not base.mass_is_diagonal:
-                B_s, _ = self.solver_basis()
-                if base.mass_is_diagonal:
-                    X = np.sqrt(base.mass)[:, None] * B_s
-                    G = X.T @ X
-                else:
-                    G = B_s.T @ (base.mass @ B_s)
-            else:
-                K_u = self.unique_index.shape[0]
-                G = np.zeros((K_u, K_u))
-                sq = np.sqrt(base.mass)
-                for rows, Bb in self._solver_blocks():
-                    X = sq[rows, None] * Bb
-                    G += X.T @ X
+            if self._materialize_solver() or not self.base.mass_is_diagonal:
+                return mass_gram(self.solver_basis()[0], self.base)
+            K_u = self.unique_index.shape[0]
+            G = np.zeros((K_u, K_u))
+            sq = np.sqrt(self.base.mass)
+            for rows, Bb in self._solver_blocks():
+                X = sq[rows, None] * Bb
+                G += X.T @ X
             return 0.5 * (G + G.T)
 
         return self.cache.get("gram", compute)

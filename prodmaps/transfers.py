@@ -156,8 +156,7 @@ def _source_parts(basis_1: Basis):
         lam, V = sla.eigh(0.5 * (S + S.T), check_finite=False)  # ascending
         return H, lam[::-1].copy(), np.ascontiguousarray(V[:, ::-1]), np.diag(G)[k1:].copy()
 
-    H, lam, V, gpp = ext_u.cache.get("default_transfer_parts", parts)
-    return H, lam, V, gpp, ext_u
+    return (*ext_u.cache.get("default_transfer_parts", parts), ext_u)
 
 
 def isometry_defect(C_12: np.ndarray, area_ratio: float = 1.0) -> np.ndarray:

@@ -42,9 +42,8 @@ def icp_refine(C_12, basis_1: Basis, basis_2: Basis, n_iter: int = 5, *, orthogo
     for _ in range(int(n_iter)):
         p2p = from_fmap(C, b1, b2, method="std")
         W = b2.project(b1.vecs[p2p])  # (k2, k1)
-        if orthogonal:
+        if orthogonal:  # the closest partial isometry
             U, _, Vt = np.linalg.svd(W, full_matrices=False)  # U (k2, r), Vt (r, k1), r = min(k1, k2)
-            C = U @ Vt
-        else:
-            C = W
+            W = U @ Vt
+        C = W
     return (C, p2p) if return_p2p else C
