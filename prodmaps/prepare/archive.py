@@ -35,13 +35,6 @@ class PrepareError(Exception):
     """A refusal with a message meant for the user (printed by the scripts, exit code 2)."""
 
 
-def default_data_root() -> Path:
-    """Where prepared datasets go by default: :func:`prodmaps.datasets.data_root` (``$PRODMAPS_DATA`` if set)."""
-    from ..datasets import data_root
-
-    return data_root()
-
-
 def check_member_name(name: str, target: Path = Path("/nonexistent/target")) -> None:
     """Raise :class:`PrepareError` if ``name`` would land outside ``target`` when extracted."""
     if "\x00" in name or "\\" in name:

@@ -33,11 +33,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import datasets
 from .archive import (
     Archive,
     PrepareError,
     argument_parser,
-    default_data_root,
     parse_mesh_bytes,
     run_cli,
     sha256_file,
@@ -93,7 +93,7 @@ def prepare_faust(archive, data_root=None, *, force: bool = False, n_shapes: int
 
     say = print if verbose else (lambda *a, **k: None)
     sources = _sources(archive)
-    root = Path(data_root) if data_root is not None else default_data_root()
+    root = Path(data_root) if data_root is not None else datasets.data_root()
     target = root / "faust"
     if target.exists() and not force:
         raise PrepareError(f"{target} already exists; pass --force to replace it")
@@ -149,20 +149,13 @@ def prepare_faust(archive, data_root=None, *, force: bool = False, n_shapes: int
                 manifest_shapes.append(write_shape(tmp, sid, v, f, label, str(i // 10), "0"))
                 if verbose and ((k + 1) % 10 == 0 or k + 1 == len(ids)):
                     say(f"  verified and converted {k + 1}/{len(ids)}")
-            manifest = {
-                "dataset": "faust",
-                "format_version": 1,
-                "prepared_by": "python -m prodmaps.prepare faust",
+            write_manifest_and_sums(tmp, {
+                "dataset": "faust", "format_version": 1, "prepared_by": "python -m prodmaps.prepare faust",
                 "source": [{"archive": src.name, "sha256": sha256_file(src) if src.is_file() else None}
                            for src in sources],
-                "subset": subset,
-                "n_shapes_full": n_shapes,
-                "n_vertices": n_vertices,
-                "n_faces": n_faces,
+                "subset": subset, "n_shapes_full": n_shapes, "n_vertices": n_vertices, "n_faces": n_faces,
                 "ground_truth": "identity within the dataset (one triangulation); class = subject = XXX // 10",
-                "shapes": manifest_shapes,
-            }
-            write_manifest_and_sums(tmp, manifest)
+                "shapes": manifest_shapes})
     finally:
         for arc in arcs:
             arc.close()

@@ -32,11 +32,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .. import datasets
 from .archive import (
     Archive,
     PrepareError,
     argument_parser,
-    default_data_root,
     run_cli,
     sha256_file,
     staged_folder,
@@ -82,7 +82,7 @@ def prepare_tosca(archive, data_root=None, *, force: bool = False, repair: bool 
 
     say = print if verbose else (lambda *a, **k: None)
     expected_vertices = EXPECTED_VERTICES if expected_vertices is None else expected_vertices
-    root = Path(data_root) if data_root is not None else default_data_root()
+    root = Path(data_root) if data_root is not None else datasets.data_root()
     target = root / "tosca"
     if target.exists() and not force:
         raise PrepareError(f"{target} already exists; pass --force to replace it")
@@ -158,16 +158,11 @@ def prepare_tosca(archive, data_root=None, *, force: bool = False, repair: bool 
                                  "repaired": bool(kept.size != nv0 or faces_out.shape[0] != faces0.shape[0])}
                 say(f"  verified and converted {c}: {len(by_class[c])} shapes, {kept.size} vertices")
             src = Path(archive)
-            manifest = {
-                "dataset": "tosca",
-                "format_version": 1,
-                "prepared_by": "python -m prodmaps.prepare tosca",
+            write_manifest_and_sums(tmp, {
+                "dataset": "tosca", "format_version": 1, "prepared_by": "python -m prodmaps.prepare tosca",
                 "source": {"archive": src.name, "sha256": sha256_file(src) if src.is_file() else None},
                 "ground_truth": "identity within a class (shared triangulation); none across classes",
-                "classes": class_info,
-                "shapes": manifest_shapes,
-            }
-            write_manifest_and_sums(tmp, manifest)
+                "classes": class_info, "shapes": manifest_shapes})
     say(f"wrote {len(manifest_shapes)} shapes to {target}")
     return target
 

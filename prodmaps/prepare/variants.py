@@ -27,11 +27,13 @@ import json
 import os
 import sys
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 
+from ..files import atomic_path
 from ..mesh import face_radius_ratio, mean_edge_length
-from .archive import PrepareError, argument_parser, default_data_root, run_cli
+from .archive import PrepareError, argument_parser, run_cli
 
 RECIPES = ("remesh_iso", "remesh_nonuniform", "thin")
 
@@ -129,10 +131,8 @@ def make_variants(dataset: str, shape_ids, recipes=RECIPES, data_root=None, *, s
     import prodmaps as pm
     import prodmaps.datasets as ds
 
-    root = Path(data_root) if data_root is not None else default_data_root()
-    old = os.environ.get("PRODMAPS_DATA")
-    os.environ["PRODMAPS_DATA"] = str(root)
-    try:
+    root = Path(data_root) if data_root is not None else ds.data_root()
+    with mock.patch.dict(os.environ, PRODMAPS_DATA=str(root)):  # restored afterwards
         ids = ds.shape_ids(dataset)
         for sid in shape_ids:
             if sid not in ids:
@@ -151,26 +151,19 @@ def make_variants(dataset: str, shape_ids, recipes=RECIPES, data_root=None, *, s
                     print(f"{dataset}/{sid}: {r} ...", flush=True)
                 var, gt, stats = make_variant(mesh, r, seed=seed, axis=axis, coarse_ratio=coarse_ratio,
                                               scale=iso_scale)
-                tmp = gtf.with_name(gtf.name + ".tmp")
-                np.savetxt(tmp, gt, fmt="%d")
-                pm.save_mesh(ply, var)  # atomic (temporary name + rename)
-                os.replace(tmp, gtf)
+                pm.save_mesh(ply, var)  # atomic (temporary name + rename), as the two below
+                with atomic_path(gtf) as tmp:
+                    np.savetxt(tmp, gt, fmt="%d")
                 meta = {"base": sid, "recipe": r, "seed": seed, "axis": axis, "coarse_ratio": coarse_ratio,
                         "iso_scale": iso_scale, **stats}
-                mtmp = out_dir / f"{stem}.json.tmp"
-                mtmp.write_text(json.dumps(meta, indent=1) + "\n")
-                os.replace(mtmp, out_dir / f"{stem}.json")
+                with atomic_path(out_dir / f"{stem}.json") as tmp:
+                    tmp.write_text(json.dumps(meta, indent=1) + "\n")
                 if verbose:
                     print("   " + ", ".join(f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}"
                                             for k, v in stats.items()), flush=True)
                 written.append(ply)
         ds.clear_cache()
         return written
-    finally:
-        if old is None:
-            os.environ.pop("PRODMAPS_DATA", None)
-        else:
-            os.environ["PRODMAPS_DATA"] = old
 
 
 def main(argv=None) -> None:
