@@ -36,7 +36,7 @@ from pathlib import Path
 from ..experiments import claims as ledger
 from ..experiments import compare
 from ..experiments.published import PUBLISHED_CSV, TABLE_KEYS, load_published, match_entries
-from ..files import read_json
+from ..files import atomic_path, read_json
 from .execute import package_versions
 from .registry import RegistryError, load_registry, project_root
 
@@ -88,8 +88,7 @@ def collect_runs(results_dir, registry=None) -> list[RunInfo]:
             info.seconds = info.manifest.get("seconds")
         elif info.doc:
             info.status = "ok"
-        if folder.is_dir():
-            info.figures = sorted(folder.glob("*.png"))
+        info.figures = sorted(folder.glob("*.png"))
         infos.append(info)
     return infos
 
@@ -111,49 +110,23 @@ class _Doc:
         self.blocks = []
         self.copied = []  # figures copied beside the report (report_figures/...)
 
-    def h(self, level, text):
-        self.blocks.append(("h", level, text))
-
-    def p(self, text):
-        self.blocks.append(("p", text))
-
-    def table(self, header, rows):
-        self.blocks.append(("table", header, rows))
-
-    def img(self, src, alt):
-        self.blocks.append(("img", src, alt))
-
-    def code(self, text):
-        self.blocks.append(("code", text))
-
-    def ul(self, items):
-        self.blocks.append(("ul", items))
+    def __getattr__(self, kind):  # h(level, text), p(text), table(header, rows), img(src, alt), code(text), ul(items)
+        if kind not in ("h", "p", "table", "img", "code", "ul"):
+            raise AttributeError(kind)
+        return lambda *args: self.blocks.append((kind, *args))
 
     def counts(self, label, counts: dict):
         """Verdict counts: a sentence in Markdown, a row of coloured badges in HTML."""
         self.blocks.append(("counts", label, {k: n for k, n in counts.items() if n}))
 
     def markdown(self) -> str:
-        out = []
-        for b in self.blocks:
-            if b[0] == "h":
-                out.append("#" * b[1] + " " + b[2])
-            elif b[0] == "p":
-                out.append(b[1])
-            elif b[0] == "table":
-                out.append("| " + " | ".join(str(c).replace("|", "\\|") for c in b[1]) + " |")
-                out.append("|" + "---|" * len(b[1]))
-                out += ["| " + " | ".join(str(c).replace("|", "\\|") for c in r) + " |" for r in b[2]]
-            elif b[0] == "img":
-                out.append(f"![{b[2]}]({b[1]})")
-            elif b[0] == "code":
-                out.append("```\n" + b[1].rstrip() + "\n```")
-            elif b[0] == "ul":
-                out += [f"- {i}" for i in b[1]]
-            elif b[0] == "counts":
-                out.append(f"{b[1]}: " + ", ".join(f"{n} {k}" for k, n in b[2].items()) + ".")
-            out.append("")
-        return "\n".join(out).rstrip() + "\n"
+        row = lambda r: "| " + " | ".join(str(c).replace("|", "\\|") for c in r) + " |"
+        lines = {"h": lambda level, text: ["#" * level + " " + text], "p": lambda text: [text],
+                 "table": lambda header, rows: [row(header), "|" + "---|" * len(header), *map(row, rows)],
+                 "img": lambda src, alt: [f"![{alt}]({src})"], "code": lambda text: ["```\n" + text.rstrip() + "\n```"],
+                 "ul": lambda items: [f"- {i}" for i in items],
+                 "counts": lambda label, n: [f"{label}: " + ", ".join(f"{c} {k}" for k, c in n.items()) + "."]}
+        return "\n".join(x for kind, *args in self.blocks for x in [*lines[kind](*args), ""]).rstrip() + "\n"
 
     @staticmethod
     def _inline(text: str) -> str:
@@ -207,28 +180,21 @@ class _Doc:
         return f"<td>{cls._inline(t)}</td>"
 
     def html(self, title: str) -> str:
-        out = ["<!DOCTYPE html>", "<html><head><meta charset=\"utf-8\">", f"<title>{html.escape(title)}</title>",
-               f"<style>{self._STYLE}</style></head><body>"]
-        for b in self.blocks:
-            if b[0] == "h":
-                out.append(f"<h{b[1]}>{self._inline(b[2])}</h{b[1]}>")
-            elif b[0] == "p":
-                out.append(f"<p>{self._inline(b[1])}</p>")
-            elif b[0] == "table":
-                out.append("<table><tr>" + "".join(f"<th>{self._inline(c)}</th>" for c in b[1]) + "</tr>")
-                out += ["<tr>" + "".join(self._cell(c, str(h)) for c, h in zip(r, b[1])) + "</tr>" for r in b[2]]
-                out.append("</table>")
-            elif b[0] == "counts":
-                out.append(f'<p class="counts"><b>{self._inline(b[1])}:</b> '
-                           + "".join(self._badge(k, f"{n} {k}") for k, n in b[2].items()) + "</p>")
-            elif b[0] == "img":
-                out.append(f"<p><img src=\"{html.escape(b[1])}\" alt=\"{html.escape(b[2])}\"></p>")
-            elif b[0] == "code":
-                out.append(f"<pre>{html.escape(b[1])}</pre>")
-            elif b[0] == "ul":
-                out.append("<ul>" + "".join(f"<li>{self._inline(i)}</li>" for i in b[1]) + "</ul>")
-        out.append("</body></html>")
-        return "\n".join(out) + "\n"
+        inline, esc = self._inline, html.escape
+        render = {
+            "h": lambda level, text: f"<h{level}>{inline(text)}</h{level}>", "p": lambda text: f"<p>{inline(text)}</p>",
+            "table": lambda header, rows: "\n".join(
+                ["<table><tr>" + "".join(f"<th>{inline(c)}</th>" for c in header) + "</tr>"]
+                + ["<tr>" + "".join(self._cell(c, str(h)) for c, h in zip(r, header)) + "</tr>" for r in rows]
+                + ["</table>"]),
+            "counts": lambda label, n: f'<p class="counts"><b>{inline(label)}:</b> '
+                                       + "".join(self._badge(k, f"{c} {k}") for k, c in n.items()) + "</p>",
+            "img": lambda src, alt: f'<p><img src="{esc(src)}" alt="{esc(alt)}"></p>',
+            "code": lambda text: f"<pre>{esc(text)}</pre>",
+            "ul": lambda items: "<ul>" + "".join(f"<li>{inline(i)}</li>" for i in items) + "</ul>"}
+        return "\n".join(["<!DOCTYPE html>", "<html><head><meta charset=\"utf-8\">", f"<title>{esc(title)}</title>",
+                          f"<style>{self._STYLE}</style></head><body>",
+                          *(render[kind](*args) for kind, *args in self.blocks), "</body></html>"]) + "\n"
 
 
 def _git_commit(registry=None) -> str:
@@ -324,11 +290,8 @@ def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: 
         k: sum(1 for subs in by_claim.values() if subs.get("all", next(iter(subs.values()))).verdict == k)
         for k in ledger.VERDICTS})
     others = others or {}
-    other_verdicts = {}
-    for ds, (_, vs) in others.items():
-        for v in vs:
-            if v.subset == "all" or len(v.claim.subsets) == 1:
-                other_verdicts.setdefault(ds, {})[v.claim.id] = v
+    other_verdicts = {ds: {v.claim.id: v for v in vs if v.subset == "all" or len(v.claim.subsets) == 1}
+                      for ds, (_, vs) in others.items()}
     for ds, vs in other_verdicts.items():
         d.counts(f"On {DATASET_NAMES.get(ds, ds)}", {k: sum(1 for v in vs.values() if v.verdict == k)
                                                     for k in ledger.VERDICTS})
@@ -358,10 +321,8 @@ def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: 
         cells = [f"`{cid}`", c.where, f"“{c.quote[:110]}{'…' if len(c.quote) > 110 else ''}”", _verdict_cell(v),
                  ledger.setting_mark(v, "paper"), ledger.setting_mark(v, "rule"), ledger.setting_mark(v, "default")]
         kinds = "; ".join(f"{k}: {subs[k].verdict}" for k in ("intra", "inter") if k in subs)
-        if len(c.runs) == 1:
-            links = _nb_link(results_dir / c.runs[0], base, c.notebook or c.runs[0], notebooks)
-        else:  # one executed notebook per run the claim is judged on
-            links = ", ".join(_nb_link(results_dir / r, base, r, notebooks) for r in c.runs)
+        links = ", ".join(_nb_link(results_dir / r, base, c.notebook or r if len(c.runs) == 1 else r, notebooks)
+                          for r in c.runs)  # one notebook per run the claim is judged on
         for ds in others:
             ov = other_verdicts.get(ds, {}).get(cid)
             cells.append(_verdict_cell(ov) + f" (paper {ledger.setting_mark(ov, 'paper')}, default "
@@ -395,19 +356,8 @@ def _table_summaries(d: "_Doc", infos, published_rows, matches,
         n_pub = sum(1 for r in published_rows if r["table"] == t)
         diffs = [abs(e["value"] - r["value"]) for r, e in got]
         res = info.doc.get("results", {}) if info else {}
-        beat = []
-        for lab, name in (("our_B", "paper B"), ("our_B_gainrule", "gain rule"), ("our_default", "default")):
-            parts = []
-            for sub in ("", "_intra", "_inter"):
-                errs = res.get(f"errors{sub}", {})
-                n_b = n_f = 0
-                for size in errs.values():
-                    tr = size.get("transfer", {})
-                    if lab in tr and "std" in tr:
-                        n_b += sum(compare.lower(tr[lab][f], tr["std"][f]) for f in tr["std"])
-                        n_f += len(tr["std"])
-                parts.append(f"{n_b}/{n_f}" if n_f else "—")
-            beat.append(" · ".join(parts))
+        beat = [" · ".join(_beats(res.get(f"errors{sub}", {}), lab) for sub in ("", "_intra", "_inter"))
+                for lab in ("our_B", "our_B_gainrule", "our_default")]  # the paper's B, the gain rule, the default
         rows.append([f"Table {t}", f"{len(got)} of {n_pub}",
                      f"{sum(x <= 0.02 for x in diffs)}" if diffs else "—",
                      f"{sum(diffs) / len(diffs):.3f}" if diffs else "—", f"{max(diffs):.3f}" if diffs else "—", *beat])
@@ -416,6 +366,13 @@ def _table_summaries(d: "_Doc", infos, published_rows, matches,
     if differences:
         d.p("Systematic differences (stated once):")
         d.ul(SYSTEMATIC_DIFFERENCES)
+
+
+def _beats(errors: dict, method: str) -> str:
+    """``"wins/families"``: where ``method`` transfers better than ``std``, over the sizes of ``errors``."""
+    trs = [tr for tr in (size.get("transfer", {}) for size in errors.values()) if method in tr and "std" in tr]
+    n_f = sum(len(tr["std"]) for tr in trs)
+    return f"{sum(compare.lower(tr[method][f], tr['std'][f]) for tr in trs for f in tr['std'])}/{n_f}" if n_f else "—"
 
 
 def _study_sections(d: "_Doc", infos, base: Path, copy_figures: bool, dataset: str | None = None) -> set:
@@ -615,10 +572,8 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
                       why] for e, why in unmatched])
 
     for path, text in ((out, d.markdown()), (html_out, d.html("prodmaps reproduction report"))):
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
+        with atomic_path(path) as tmp:
+            tmp.write_text(text, encoding="utf-8")
     if copied is not None:
         copied += d.copied
     return out, html_out
@@ -668,18 +623,15 @@ def _blocks_from_markdown(text: str) -> list:
             level = len(line) - len(line.lstrip("#"))
             blocks.append(("h", level, line[level:].strip()))
             i += 1
-        elif line.startswith("|"):
+        elif line.startswith(("|", "- ")):  # a table or a list: the lines that start alike
             j = i
-            while j < len(lines) and lines[j].startswith("|"):
+            while j < len(lines) and lines[j].startswith("|" if line[0] == "|" else "- "):
                 j += 1
-            rows = [_split_cells(x) for x in lines[i:j] if not re.fullmatch(r"\|(---\|)+", x.strip())]
-            blocks.append(("table", rows[0], rows[1:]))
-            i = j
-        elif line.startswith("- "):
-            j = i
-            while j < len(lines) and lines[j].startswith("- "):
-                j += 1
-            blocks.append(("ul", [x[2:] for x in lines[i:j]]))
+            if line[0] == "|":
+                rows = [_split_cells(x) for x in lines[i:j] if not re.fullmatch(r"\|(---\|)+", x.strip())]
+                blocks.append(("table", rows[0], rows[1:]))
+            else:
+                blocks.append(("ul", [x[2:] for x in lines[i:j]]))
             i = j
         else:
             m = re.fullmatch(r"!\[([^\]]*)\]\(([^)\s]+)\)", line.strip())
@@ -700,17 +652,11 @@ def kept_dataset(report, dataset: str) -> KeptDataset | None:
         sec.splitlines()[0] == f"## On {name}" or sec.splitlines()[0].endswith(f" on {name}"))]
     if not mine:
         return None
-    column = {}
     claims = next((sec for sec in sections if sec.startswith("## Claims of the paper")), "")
     table = [line for line in claims.splitlines() if line.startswith("|")]
-    if table:
-        header = _split_cells(table[0])
-        if name in header:
-            col = header.index(name)
-            for line in table[2:]:
-                cells = _split_cells(line)
-                if len(cells) == len(header):
-                    column[cells[0].strip("`")] = cells[col]
+    header = _split_cells(table[0]) if table else []
+    column = {cells[0].strip("`"): cells[header.index(name)] for cells in map(_split_cells, table[2:])
+              if name in header and len(cells) == len(header)}
     # the commit of the run the section came from: an earlier kept note's, else the report's own
     m = (re.search(rf"{re.escape(name)} was not rerun for this report.*?published at commit `([^`]+)`", text)
          or re.search(r"code at commit `([^`]+)`", text))
@@ -726,23 +672,18 @@ def partial_problems(results_dir, registry=None) -> list[str]:
     results_dir = Path(results_dir)
     runs = load_registry(registry)
     infos = {i.name: i for i in collect_runs(results_dir, registry)}
-    problems = []
     failed = [n for n in runs if infos[n].status == "failed"]
     missing = [n for n in runs if not infos[n].doc and n not in failed]
     failed += [n for n in runs if infos[n].doc and infos[n].status not in ("ok", "failed")]
     profiles = sorted({f"{n} ({infos[n].manifest['profile']})" for n in runs
                        if infos[n].manifest.get("profile") not in (None, "paper")})
-    if missing:
-        problems.append(f"{len(missing)} of {len(runs)} registered runs have no results: " + ", ".join(missing))
-    if failed:
-        problems.append("failed: " + ", ".join(failed))
-    if profiles:
-        problems.append("not the paper profile: " + ", ".join(profiles))
     over = overridden_parameters(infos.values())
-    if over:
-        problems.append("parameters overridden: " + "; ".join(
-            f"{r} " + ", ".join(f"{k}={json.dumps(v)}" for k, v in ov.items()) for r, ov in over.items()))
-    return problems
+    return [p for p in (
+        missing and f"{len(missing)} of {len(runs)} registered runs have no results: " + ", ".join(missing),
+        failed and "failed: " + ", ".join(failed),
+        profiles and "not the paper profile: " + ", ".join(profiles),
+        over and "parameters overridden: " + "; ".join(
+            f"{r} " + ", ".join(f"{k}={json.dumps(v)}" for k, v in ov.items()) for r, ov in over.items())) if p]
 
 
 def publish(results_dir=None, dest=None, *, registry=None, allow_partial: bool = False, published=None):
@@ -768,14 +709,10 @@ def publish(results_dir=None, dest=None, *, registry=None, allow_partial: bool =
                            "(make publish ALLOW_PARTIAL=1): the report then says what is partial.")
     notes = ["**Partial publication:** " + "; ".join(problems) + "."] if problems else []
     fresh = other_datasets(results_dir)
-    kept = {}
-    for ds in DATASET_NAMES:
-        k = None if ds in fresh or ds == "anny_humans" else kept_dataset(dest, ds)
-        if k is not None:
-            kept[ds] = k
-            notes.append(f"{DATASET_NAMES[ds]} was not rerun for this report (no `{results_dir.name}-{ds}` "
-                         f"folder): its verdict column and sections are kept from the report published at "
-                         f"commit `{k.commit}`.")
+    kept = {ds: k for ds in DATASET_NAMES if ds not in fresh and ds != "anny_humans" and (k := kept_dataset(dest, ds))}
+    notes += [f"{DATASET_NAMES[ds]} was not rerun for this report (no `{results_dir.name}-{ds}` folder): its "
+              f"verdict column and sections are kept from the report published at commit `{k.commit}`."
+              for ds, k in kept.items()]
     notebooks = {n: r.notebook for n, r in load_registry(registry).items()}
     copied: list = []
     figures = dest.parent.resolve() / "report_figures"
