@@ -24,10 +24,9 @@ def update_baselines(results: list[RunResult], dest) -> list[str]:
         if r.status not in ("ok", "skipped"):
             continue
         src = Path(r.run_dir)
-        files = [src / "results.json"] + sorted(src.glob("*.png"))
         dest.mkdir(parents=True, exist_ok=True)
         tmp = mkdtemp_beside(dest / r.name, r.name)
-        for f in files:
+        for f in [src / "results.json", *sorted(src.glob("*.png"))]:
             shutil.copy2(f, tmp / f.name)
         swap_into_place(tmp, dest / r.name)
         done.append(r.name)

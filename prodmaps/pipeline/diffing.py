@@ -96,19 +96,15 @@ class DiffReport:
         bad = [f for f in self.failures if f.kind != "image"]
         if bad:
             lines += ["| key | baseline | new | detail |", "|---|---|---|---|"]
-            for f in bad[:max_rows]:
-                lines.append(f"| `{f.key}` | {_fmt(f.baseline)} | {_fmt(f.new)} | {f.detail} |")
+            lines += [f"| `{f.key}` | {_fmt(f.baseline)} | {_fmt(f.new)} | {f.detail} |" for f in bad[:max_rows]]
             if len(bad) > max_rows:
                 lines.append(f"| ... {len(bad) - max_rows} more | | | |")
             lines.append("")
         bad = [f for f in self.failures if f.kind == "image"]
         if bad:
             lines += ["| image | detail | side by side |", "|---|---|---|"]
-            for f in bad:
-                lines.append(f"| `{f.key}` | {f.detail} | {f'`{f.image}`' if f.image else ''} |")
-            lines.append("")
-        for n in self.notes:
-            lines.append(f"- note: {n}")
+            lines += [f"| `{f.key}` | {f.detail} | {f'`{f.image}`' if f.image else ''} |" for f in bad] + [""]
+        lines += [f"- note: {n}" for n in self.notes]
         return "\n".join(lines).rstrip() + "\n"
 
     def __str__(self) -> str:
@@ -132,10 +128,7 @@ def tolerance_for(key: str, tolerances: dict | None) -> dict:
     tol = {"rtol": DEFAULT_RTOL, "atol": DEFAULT_ATOL, "ignore": False}
     globs = {g: {"ignore": True} for g in DEFAULT_IGNORE}
     globs.update(tolerances or {})
-    best = None
-    for g in globs:
-        if fnmatch.fnmatchcase(key, g) and (best is None or len(g) > len(best)):
-            best = g
+    best = max((g for g in globs if fnmatch.fnmatchcase(key, g)), key=len, default=None)
     if best is not None:
         spec = globs[best]
         if not isinstance(spec, dict):
@@ -213,11 +206,9 @@ def diff_images(run_dir, baseline_dir, *, threshold: float = DEFAULT_PNG_THRESHO
     base = {p.name for p in baseline_dir.glob("*.png")}
     findings = []
     for name in sorted(base | new):
-        if name not in new:
-            findings.append(Finding("image", name, False, detail="missing image (in the baseline only)"))
-            continue
-        if name not in base:
-            findings.append(Finding("image", name, False, detail="extra image (not in the baseline)"))
+        if name not in new or name not in base:
+            findings.append(Finding("image", name, False, detail="missing image (in the baseline only)"
+                                    if name not in new else "extra image (not in the baseline)"))
             continue
         a, b = _load(baseline_dir / name), _load(run_dir / name)
         if a.shape != b.shape:
@@ -247,10 +238,9 @@ def diff_runs(run_dir, baseline_dir, tolerances: dict | None = None, *,
               write_report: bool = True) -> DiffReport:
     """Compare ``run_dir`` with ``baseline_dir`` (see the module doc); returns a :class:`DiffReport`.
 
-    ``report.ok`` is False if any number drifted beyond its tolerance, a key or image is missing
-    or extra, or an image's pixel RMS exceeds ``png_threshold``. When there are failures the
-    side-by-side images and ``report.md`` are written into ``diff_dir``
-    (default ``<run_dir>/diff``).
+    ``report.ok`` is False on any failure of the module doc (``png_threshold``: the pixel RMS
+    threshold); the difference images and ``report.md`` then go into ``diff_dir`` (default
+    ``<run_dir>/diff``).
     """
     run_dir, baseline_dir = Path(run_dir), Path(baseline_dir)
     if not baseline_dir.is_dir():
@@ -266,15 +256,11 @@ def diff_runs(run_dir, baseline_dir, tolerances: dict | None = None, *,
         new, base = json.loads(rn.read_text()), json.loads(rb.read_text())
         rep.findings += diff_results(new, base, tolerances)
         vn, vb = flatten(new.get("versions", {})), flatten(base.get("versions", {}))
-        for k in sorted(set(vn) | set(vb)):
-            if vn.get(k) != vb.get(k):
-                rep.notes.append(f"version of {k}: baseline {vb.get(k)}, new {vn.get(k)}")
+        rep.notes += [f"version of {k}: baseline {vb.get(k)}, new {vn.get(k)}" for k in sorted(set(vn) | set(vb))
+                      if vn.get(k) != vb.get(k)]
     else:
-        for p, side in ((rb, "baseline"), (rn, "run")):
-            if not p.is_file():
-                rep.findings.append(
-                    Finding("key", "results.json", False, detail=f"no results.json in the {side} folder")
-                )
+        rep.findings += [Finding("key", "results.json", False, detail=f"no results.json in the {side} folder")
+                         for p, side in ((rb, "baseline"), (rn, "run")) if not p.is_file()]
     rep.findings += diff_images(run_dir, baseline_dir, threshold=png_threshold, diff_dir=diff_dir)
     if write_report and not rep.ok:
         diff_dir.mkdir(parents=True, exist_ok=True)

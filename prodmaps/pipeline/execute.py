@@ -65,13 +65,11 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
     root (``cwd``). Raises papermill's ``PapermillExecutionError`` if a cell fails (the executed
     notebook with the traceback is still written, and rendered as HTML). ``timeout`` is per
     cell, in seconds. With ``html`` the executed notebook is also written as ``executed.html``.
-    Once the last cell has run the kernel is stopped at once with its process group (every
-    output is written by then): a graceful shutdown waits seconds for the children of a kernel
-    whose notebook used worker processes (:mod:`prodmaps.experiments.parallel`), because the
-    kernel signals and awaits multiprocessing's resource tracker, which ignores the signal.
-    ``shown_out_dir`` replaces ``out_dir`` in the executed notebook's injected parameters cell
-    (the batch runner executes into a temporary folder and shows the run's own folder), and in
-    papermill's metadata, whose ``input_path`` becomes ``shown_notebook`` when given.
+    The kernel is stopped at once after the last cell (a graceful shutdown waits seconds for
+    the worker processes of :mod:`prodmaps.experiments.parallel`). ``shown_out_dir`` replaces
+    ``out_dir`` in the executed notebook's injected parameters cell (the batch runner executes
+    into a temporary folder and shows the run's own folder), and in papermill's metadata, whose
+    ``input_path`` becomes ``shown_notebook`` when given.
     """
     import papermill as pm_
 
@@ -98,11 +96,9 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
 
 
 def _show_out_dir(executed: Path, actual: str, shown: str, notebook_shown: str | None = None) -> None:
-    """Write ``shown`` for ``actual`` in the injected parameters cell and papermill's metadata.
+    """Name the run's folder ``shown`` (not the temporary ``actual``) and the notebook ``notebook_shown``.
 
-    The executed notebook is a committed record: it must name the run's folder as the results
-    show it (relative, see :func:`_shown_path`), not the machine's temporary folder, and the
-    source notebook as ``notebook_shown`` (relative to the project root).
+    In the injected parameters cell, the outputs and papermill's metadata of the executed notebook.
     """
     import nbformat
 
@@ -314,16 +310,20 @@ def _check_declared(run, params: dict, where: str) -> None:
             f"run {run.name!r}: {where} {unknown} not declared in the parameters cell of "
             f"{run.notebook.name}; it declares {sorted(declared)}")
     for k, v in params.items():
-        default = literal(declared[k]["default"])
-        if isinstance(v, BareWord) and not isinstance(default, str):
-            raise ParameterError(
-                f"run {run.name!r}: parameter {k}={v!s} is not a literal (number, list, quoted string, ...) and "
-                f"its default in {run.notebook.name} is {declared[k]['default']}: give a literal "
-                f"(e.g. -p '{k}=[4, 8]'), or quote a string (-p '{k}=\"{v!s}\"')")
-        if not _same_kind(v, default):
-            raise ParameterError(
-                f"run {run.name!r}: parameter {k}={v!r} ({type(v).__name__}) does not match the type of its "
-                f"default {declared[k]['default']} ({type(default).__name__}) in {run.notebook.name}")
+        default, text = literal(declared[k]["default"]), declared[k]["default"]
+        _check_value(run.name, k, v, default, f"its default in {run.notebook.name} is {text}",
+                     f"its default {text} ({type(default).__name__}) in {run.notebook.name}")
+
+
+def _check_value(run: str, k: str, v, ref, where: str, ref_kind: str) -> None:
+    """Refuse a bare word where ``ref`` (a default, a registry value) is no string, and a value of another kind."""
+    if isinstance(v, BareWord) and not isinstance(ref, str):
+        raise ParameterError(f"run {run!r}: parameter {k}={v!s} is not a literal (number, list, quoted string, ...) "
+                             f"and {where}: give a literal (e.g. -p '{k}=[4, 8]'), or quote a string "
+                             f"(-p '{k}=\"{v!s}\"')")
+    if not _same_kind(v, ref):
+        raise ParameterError(f"run {run!r}: parameter {k}={v!r} ({type(v).__name__}) does not match the type of "
+                             + ref_kind)
 
 
 def _same_kind(value, default) -> bool:
@@ -376,14 +376,9 @@ def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, ov
             params["dataset"] = dataset
         for k, v in (overrides or {}).items():  # a default of None leaves the kind to the registry's value
             ref = params.get(k)
-            if isinstance(v, BareWord) and ref is not None and not isinstance(ref, str):
-                raise ParameterError(
-                    f"run {n!r}: parameter {k}={v!s} is not a literal (number, list, quoted string, ...) and its value "
-                    f"in params.{profile} is {ref!r}: give a literal (e.g. -p '{k}=[4, 8]'), or quote a string "
-                    f"(-p '{k}=\"{v!s}\"')")
-            if ref is not None and v is not None and not _same_kind(v, ref):
-                raise ParameterError(f"run {n!r}: parameter {k}={v!r} ({type(v).__name__}) does not match the type "
-                                     f"of the registry's params.{profile}.{k} = {ref!r} ({type(ref).__name__})")
+            if ref is not None:
+                _check_value(n, k, v, ref, f"its value in params.{profile} is {ref!r}",
+                             f"the registry's params.{profile}.{k} = {ref!r} ({type(ref).__name__})")
         params.update(overrides or {})
         _check_declared(run, {k: v for k, v in params.items() if k not in run.parameters(profile)},
                         "parameters")
@@ -403,15 +398,12 @@ class _Progress:
     """tqdm progress bar when available, plain lines otherwise."""
 
     def __init__(self, total: int, enabled: bool, stream):
-        self.bar = None
-        self.stream = stream
-        if enabled:
-            try:
+        self.bar, self.stream = None, stream
+        with contextlib.suppress(ModuleNotFoundError):
+            if enabled:
                 from tqdm import tqdm
 
                 self.bar = tqdm(total=total, desc="reproduce", unit="run", file=stream, dynamic_ncols=True)
-            except ModuleNotFoundError:
-                self.bar = None
 
     def done(self, res: dict) -> None:
         line = f"  {res['status']:<8} {res['name']:<28} {res['seconds']:8.1f} s"
@@ -452,19 +444,12 @@ def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None,
     runs = load_registry(registry)
     tasks = plan_runs(runs, only=only, profile=profile, dataset=dataset, overrides=overrides,
                       out=out, kernel_name=kernel_name, timeout=timeout, cwd=project_root(registry))
-    results: dict[str, dict] = {}
-    todo = []
-    for t in tasks:
-        if not force and _is_current(Path(t["run_dir"]), t["hash"]):
-            results[t["name"]] = RunResult(t["name"], "skipped", 0.0, t["run_dir"]).to_dict()
-        else:
-            todo.append(t)
+    skipped = [t for t in tasks if not force and _is_current(Path(t["run_dir"]), t["hash"])]
+    todo = [dict(t, env=thread_env(jobs if scheduler is None else 1)) for t in tasks if t not in skipped]
+    results = {t["name"]: RunResult(t["name"], "skipped", 0.0, t["run_dir"]).to_dict() for t in skipped}
     bar = _Progress(len(tasks), progress, stream)
     for r in results.values():
         bar.done(r)
-    env = thread_env(jobs if scheduler is None else 1)
-    for t in todo:
-        t["env"] = env
     try:
         if scheduler is not None:
             results_iter = run_dask(todo, scheduler, _execute_task, _collect)

@@ -13,8 +13,10 @@ gallery pages and its figures copied beside it.
 
 from __future__ import annotations
 
+import contextlib
 import re
 import shutil
+from collections import Counter
 from pathlib import Path
 
 from .registry import load_registry, project_root
@@ -42,10 +44,7 @@ def write_gallery(dest, runs_dir=None, *, registry=None, baselines=None) -> list
               if runs_dir else "Pages are the committed notebooks (not executed at build time) with the figures "
               "of the committed smoke baselines; `make docs DOCS_RUNS=results/smoke` shows executed notebooks."),
              "", "```{toctree}", ":maxdepth: 1", ""]
-    names = []
-    shared = {}
-    for run in runs.values():
-        shared[run.notebook] = shared.get(run.notebook, 0) + 1
+    shared = Counter(run.notebook for run in runs.values())
     for name, run in runs.items():
         executed = Path(runs_dir) / name / "executed.ipynb" if runs_dir else None
         if executed is not None and executed.is_file():
@@ -70,10 +69,9 @@ def write_gallery(dest, runs_dir=None, *, registry=None, baselines=None) -> list
         nb.metadata.pop("widgets", None)
         nbformat.write(nb, dest / f"{name}.ipynb")
         lines.append(name)
-        names.append(name)
     lines += ["```", ""]
     (dest / "index.md").write_text("\n".join(lines), encoding="utf-8")
-    return names
+    return list(runs)
 
 
 def _after_title(nb) -> int:
@@ -98,11 +96,9 @@ def write_report_page(dest, report=None, gallery_names=()) -> Path:
     names = set(gallery_names)
     text = _RUN_LINK.sub(lambda m: f"](gallery/{m.group(1)}.ipynb)" if m.group(1) in names else "]()", text)
     by_notebook = {}
-    try:
+    with contextlib.suppress(Exception):  # no registry here: the links become plain text
         for name, run in load_registry().items():
             by_notebook.setdefault(run.notebook.stem, name)
-    except Exception:  # no registry here: the links become plain text
-        pass
 
     def _nb(m):
         run = m.group(1) if m.group(1) in names else by_notebook.get(m.group(2))

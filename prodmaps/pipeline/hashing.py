@@ -31,12 +31,8 @@ _SUFFIXES = (".py", ".toml", ".csv", ".json")
 
 def library_files() -> list[Path]:
     """The package files a notebook can import or read (sorted), see the module doc."""
-    files = []
-    for p in sorted(_PACKAGE.rglob("*")):
-        rel = p.relative_to(_PACKAGE)
-        if p.is_file() and p.suffix in _SUFFIXES and rel.parts[0] not in _SKIP and "__pycache__" not in rel.parts:
-            files.append(p)
-    return files
+    return [p for p in sorted(_PACKAGE.rglob("*")) if p.is_file() and p.suffix in _SUFFIXES
+            and (rel := p.relative_to(_PACKAGE)).parts[0] not in _SKIP and "__pycache__" not in rel.parts]
 
 
 def library_hash() -> str:
@@ -71,12 +67,8 @@ def data_hash(dataset: str | None) -> str:
 
 def run_hash(notebook: Path, params: dict, dataset: str | None, kernel_name: str = "python3") -> tuple[str, dict]:
     """``(hash, inputs)`` of one run (see the module doc)."""
-    inputs = {
-        "notebook": sha256_file(notebook) if Path(notebook).is_file() else "missing",
-        "parameters": {k: v for k, v in sorted(params.items()) if k != "out_dir"},
-        "library": library_hash(),
-        "data": data_hash(dataset),
-        "kernel": kernel_name,
-    }
+    inputs = {"notebook": sha256_file(notebook) if Path(notebook).is_file() else "missing",
+              "parameters": {k: v for k, v in sorted(params.items()) if k != "out_dir"},
+              "library": library_hash(), "data": data_hash(dataset), "kernel": kernel_name}
     blob = json.dumps(inputs, sort_keys=True, default=str).encode()
     return sha256_bytes(blob), inputs

@@ -1,15 +1,10 @@
 """Notebook files: declared parameters, output stripping, HTML export of executed notebooks.
 
-* :func:`declared_parameters` reads the ``parameters`` cell with ``papermill.inspect_notebook``
-  (names, defaults as source text, help from the trailing comments), so the runner can refuse a
-  ``-p NAME=VALUE`` the notebook does not declare.
-* :func:`parameters_cell` reads the same cell with :mod:`ast` alone (names and defaults as source
-  text, no papermill): what :func:`prodmaps.pipeline.registry.run_parameters` needs inside a
-  notebook's kernel.
-* :func:`strip` removes outputs, execution counts and volatile metadata with ``nbstripout``
-  (committed notebooks carry no outputs; a test enforces it).
-* :func:`export_html` writes an executed notebook as standalone HTML (``nbconvert``, figures
-  embedded) for reading.
+* :func:`declared_parameters` reads the ``parameters`` cell with papermill, so the runner can
+  refuse a ``-p NAME=VALUE`` the notebook does not declare; :func:`parameters_cell` reads it
+  with :mod:`ast` alone, for :func:`prodmaps.pipeline.registry.run_parameters` in a kernel.
+* :func:`strip` removes outputs (committed notebooks carry none; a test enforces it).
+* :func:`export_html` writes an executed notebook as standalone HTML, figures embedded.
 
 papermill, nbformat, nbstripout and nbconvert are imported inside the functions.
 """
@@ -59,13 +54,8 @@ def parameters_cell(notebook) -> dict:
         if cell.get("cell_type") == "code" and "parameters" in cell.get("metadata", {}).get("tags", []):
             src = cell.get("source", "")
             src = "".join(src) if isinstance(src, list) else src
-            out = {}
-            for node in ast.parse(src, filename=str(path)).body:
-                if isinstance(node, ast.Assign):
-                    for target in node.targets:
-                        if isinstance(target, ast.Name):
-                            out[target.id] = ast.get_source_segment(src, node.value)
-            return out
+            return {t.id: ast.get_source_segment(src, node.value) for node in ast.parse(src, filename=str(path)).body
+                    if isinstance(node, ast.Assign) for t in node.targets if isinstance(t, ast.Name)}
     raise ValueError(f"{path}: no code cell tagged `parameters`")
 
 
@@ -94,7 +84,6 @@ def strip(path) -> None:
     import nbformat
     from nbstripout import strip_output
 
-    path = Path(path)
     nb = nbformat.read(str(path), as_version=4)
     nb = strip_output(nb, keep_output=False, keep_count=False, keep_id=True,
                       extra_keys=["metadata.papermill", "cell.metadata.papermill", "cell.metadata.execution"])

@@ -17,13 +17,9 @@ Every run is an entry of ``paper/runs.toml`` (another file through ``$PRODMAPS_R
     [runs.fig04.tolerances]          # optional, for prodmaps.pipeline.diffing (dotted-key globs)
     "results.errors.*" = { rtol = 1e-6, atol = 1e-9 }
 
-Profiles live here, nowhere else. A notebook's ``parameters`` cell declares each knob once; a
-knob declared ``None`` is decided by the profile: its value is the run's ``params.<profile>``
-entry. The runner passes those tables to papermill as parameters; a notebook run by hand (or by
-papermill) gets the same values with one call, ``P = registry.run_parameters("fig04", profile,
-globals())`` (:func:`run_parameters`). TOML has no null: a knob whose value in a profile is
-``None`` is left out of that table, and the notebook's declared ``None`` stands (its comment there
-says what ``None`` means). A knob declared with a value of its own (``dataset``, ``seed``,
+Profiles live here, nowhere else: a knob a notebook declares ``None`` takes the run's
+``params.<profile>`` value (:func:`run_parameters`; TOML has no null, so a profile leaves out a
+knob that stays ``None``). A knob declared with a value of its own (``dataset``, ``seed``,
 ``table``) is set in a table only to choose among the runs that share a notebook (``table``).
 
 A run with ``report`` has a section of its own in the report: the module's
@@ -41,6 +37,7 @@ for ``paper/runs.toml`` in the working directory and its parents.
 
 from __future__ import annotations
 
+import ast
 import json
 import os
 import re
@@ -117,6 +114,11 @@ def project_root(registry=None) -> Path:
     return (path.parent / doc.get("root", "..")).resolve()
 
 
+def _need(where: str, ok, problem: str) -> None:
+    if not ok:
+        raise RegistryError(f"{where}: {problem}")
+
+
 def load_registry(path=None) -> dict[str, Run]:
     """Read the run registry (see the module doc) into ``{name: Run}`` in file order."""
     path = registry_path(path)
@@ -133,34 +135,26 @@ def load_registry(path=None) -> dict[str, Run]:
     out: dict[str, Run] = {}
     for name, entry in runs.items():
         where = f"{path}: run {name!r}"
-        if not _NAME_RE.match(name):
-            raise RegistryError(f"{where}: run names may use letters, digits, '_', '-', '.'")
-        if not isinstance(entry, dict):
-            raise RegistryError(f"{where}: must be a table")
+        _need(where, _NAME_RE.match(name), "run names may use letters, digits, '_', '-', '.'")
+        _need(where, isinstance(entry, dict), "must be a table")
         unknown = set(entry) - _RUN_KEYS
-        if unknown:
-            raise RegistryError(f"{where}: unknown keys {sorted(unknown)}; allowed {sorted(_RUN_KEYS)}")
-        if "notebook" not in entry:
-            raise RegistryError(f"{where}: missing `notebook = \"notebooks/....ipynb\"`")
+        _need(where, not unknown, f"unknown keys {sorted(unknown)}; allowed {sorted(_RUN_KEYS)}")
+        _need(where, "notebook" in entry, "missing `notebook = \"notebooks/....ipynb\"`")
         params = entry.get("params", {})
-        if not isinstance(params, dict) or not all(isinstance(v, dict) for v in params.values()):
-            raise RegistryError(f"{where}: params must be tables [runs.{name}.params.<profile>]")
+        _need(where, isinstance(params, dict) and all(isinstance(v, dict) for v in params.values()),
+              f"params must be tables [runs.{name}.params.<profile>]")
         for prof, p in params.items():
             reserved = {"profile", "out_dir"} & set(p)
-            if reserved:
-                raise RegistryError(f"{where}: params.{prof} must not set {sorted(reserved)} (added by the runner)")
+            _need(where, not reserved, f"params.{prof} must not set {sorted(reserved)} (added by the runner)")
         tol = entry.get("tolerances", {})
-        if not isinstance(tol, dict):
-            raise RegistryError(f"{where}: tolerances must be a table of key-glob = {{rtol, atol}}")
+        _need(where, isinstance(tol, dict), "tolerances must be a table of key-glob = {rtol, atol}")
         claims = entry.get("claims", [])
-        if not (isinstance(claims, list) and all(isinstance(c, str) for c in claims)):
-            raise RegistryError(f"{where}: claims must be a list of claim ids of the ledger, got {claims!r}")
+        _need(where, isinstance(claims, list) and all(isinstance(c, str) for c in claims),
+              f"claims must be a list of claim ids of the ledger, got {claims!r}")
         report = entry.get("report", "")
-        if not (isinstance(report, str) and (report == "" or _MODULE_RE.match(report))):
-            raise RegistryError(f"{where}: report must name a module (\"prodmaps.experiments.default_study\"), "
-                                f"got {report!r}")
-        if not isinstance(entry.get("dataset_figures", False), bool):
-            raise RegistryError(f"{where}: dataset_figures must be true or false")
+        _need(where, isinstance(report, str) and (report == "" or _MODULE_RE.match(report)),
+              f"report must name a module (\"prodmaps.experiments.default_study\"), got {report!r}")
+        _need(where, isinstance(entry.get("dataset_figures", False), bool), "dataset_figures must be true or false")
         nb = Path(entry["notebook"])
         out[name] = Run(
             name=name, notebook=(nb if nb.is_absolute() else root / nb).resolve(),
@@ -252,20 +246,11 @@ def parse_param(text: str):
     key = key.strip()
     if not key.isidentifier():
         raise ValueError(f"parameter name {key!r} is not a valid Python identifier")
-    try:
-        return key, json.loads(raw)
-    except ValueError:
-        pass
-    try:
-        return key, parse_toml(f"v = {raw}")["v"]
-    except Exception:
-        pass
-    try:
-        import ast
-
-        return key, ast.literal_eval(raw.strip())
-    except (ValueError, SyntaxError, TypeError, MemoryError, RecursionError):
-        pass
+    for parse in (json.loads, lambda s: parse_toml(f"v = {s}")["v"], lambda s: ast.literal_eval(s.strip())):
+        try:
+            return key, parse(raw)
+        except Exception:  # not this syntax: try the next
+            continue
     if raw.strip()[:1] in "[{(\"'" and raw.strip():
         raise ValueError(f"parameter {key}={raw!r} looks like a list, table or quoted string but does not parse "
                          "as JSON or TOML (e.g. -p 'k_values=[4, 8]', -p 'name=\"x\"')")

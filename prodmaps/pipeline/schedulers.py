@@ -88,11 +88,8 @@ def run_dask(tasks: list[dict], scheduler, execute, collect):
     else:
         client = scheduler
     try:
-        futs = {}
-        for t in tasks:
-            f = client.submit(execute, t, key=f"prodmaps-{t['name']}-{t['hash'][:12]}-{time.time_ns()}",
-                              pure=False, retries=0)
-            futs[f] = t
+        futs = {client.submit(execute, t, key=f"prodmaps-{t['name']}-{t['hash'][:12]}-{time.time_ns()}",
+                              pure=False, retries=0): t for t in tasks}
         for f in as_completed(list(futs)):
             yield collect(f, futs[f])
     finally:
