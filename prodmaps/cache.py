@@ -1,8 +1,7 @@
 """Explicit, bounded in-memory caches for values derived from a basis.
 
 A :class:`Cache` is a small least-recently-used memo whose keys are tuples that name what the
-value depends on, e.g. ``("product_basis", k, order, pairs)``. It replaces ad-hoc dicts on the
-(frozen) basis objects:
+value depends on, e.g. ``("product_basis", k, order, pairs)``, held by the (frozen) basis objects:
 
 * A :class:`prodmaps.Basis` owns one cache, **shared with every truncation of it**
   (``basis.truncate(k)`` views the same arrays), so values keyed by the column count ``k``

@@ -172,9 +172,8 @@ def load_ledger(path=None) -> dict[str, Claim]:
     out = {}
     for cid, e in doc.get("claims", {}).items():
         rule = e.get("rule", {})
-        missing = [k for k in ("where", "quote", "runs", "values") if k not in e] + (
-            [] if "holds" in rule else ["rule.holds"]
-        )
+        missing = [k for k in ("where", "quote", "runs", "values") if k not in e]
+        missing += [] if "holds" in rule else ["rule.holds"]
         if missing:
             raise ValueError(f"claims ledger: claim {cid!r} lacks {missing}")
         out[cid] = Claim(

@@ -2,23 +2,18 @@
 
 Two numbers are compared by their **relative** difference ``d = (a - b) / max(|a|, |b|)``:
 
-* ``|d| <= TIE_REL`` — a **tie**: the two are equal up to floating-point rounding. This covers
-  methods that are equal by construction (the default transfer on a function in the source's
-  span *is* the standard transfer, so their errors differ in the 13th digit) and the noise that
-  different BLAS kernels, thread counts or LAPACK builds put into a result.
+* ``|d| <= TIE_REL`` — a **tie**: the two are equal up to floating-point rounding (methods equal
+  by construction, the noise of other BLAS kernels, thread counts or LAPACK builds).
 * otherwise ``a`` is **better** (lower error) when ``a < b`` and **worse** when ``a > b``.
 
 ``TIE_REL = 1e-5`` is ten times the largest drift of a smoke-profile value between OpenBLAS
-kernels (``Prescott`` and ``Haswell``; the measurement: ``docs/benchmarks.md``), so two errors
-that are equal by construction stay a tie on every machine; it is far below anything the paper's
-two-decimal tables resolve.
+kernels (``docs/benchmarks.md``), far below what the paper's two-decimal tables resolve.
 
 :data:`ROUNDING_REL` is the wider band the claims ledger uses to say that a verdict is decided by
 a margin so thin that rounding could flip it (``"holds within rounding"``, see
 :mod:`prodmaps.experiments.claims`): comparisons whose relative difference lies between
 ``TIE_REL`` and ``ROUNDING_REL`` are taken both ways and the verdict says so if it depends on them.
-``ROUNDING_REL = 1e-3`` covers the widest drift between one and two BLAS threads on one machine
-(Approach A with p = 1, a FISTA fit stopped on its optimality conditions; ``docs/benchmarks.md``).
+``ROUNDING_REL = 1e-3`` covers the widest drift between one and two BLAS threads (``docs/benchmarks.md``).
 
 Counts of comparisons (``n_products_better`` in the tables, wins over pairs in the point-map
 study, cells in the default-transfer study) are reported as ``{"better": n, "tie": n, "worse": n}``

@@ -75,8 +75,7 @@ def _slot(i: int):
         _SLOTS[i] = None
         for key in [k for k, v in _SLOT_OF.items() if v == i]:
             del _SLOT_OF[key]
-    while len(_SLOTS) <= i:
-        _SLOTS.append(None)
+    _SLOTS.extend([None] * (i + 1 - len(_SLOTS)))
     if _SLOTS[i] is None:
         _SLOTS[i] = ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn"),
                                         initializer=_init_worker)
@@ -113,11 +112,7 @@ class _Dispatch:
         return s if s is not None and s < self.workers else None
 
     def next(self, slot: int):
-        """The next task for ``slot`` (None when none is left).
-
-        Its own keys' tasks first, then a new task (its key is then held by ``slot``), then the last task
-        of the slot with the most waiting (its key moves to ``slot``).
-        """
+        """The next task for ``slot`` (None when none is left), in the order :func:`map_tasks` describes."""
         if self.own[slot]:
             return self.own[slot].popleft()
         while self.new:

@@ -75,9 +75,7 @@ def normalize_entry(entry: dict) -> dict:
         raise ValueError(f"table entry {entry!r} misses {missing}")
     out = {"table": _table_id(e["table"]), "function": str(e["function"]),
            "stage": str(e["stage"]), "method": str(e["method"]), "value": float(e["value"])}
-    for k in _OPTIONAL:
-        if e.get(k) is not None:
-            out[k] = str(int(e[k])) if k != "fmap" else str(e[k])
+    out.update({k: str(int(e[k])) if k != "fmap" else str(e[k]) for k in _OPTIONAL if e.get(k) is not None})
     return out
 
 

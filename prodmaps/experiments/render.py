@@ -41,16 +41,15 @@ def headless_gl() -> None:
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
 
 
-_PROBE = (
-    "from prodmaps.experiments.render import headless_gl\n"
-    "headless_gl()\n"
-    "import pyvista as pv\n"
-    "pv.OFF_SCREEN = True\n"
-    "p = pv.Plotter(off_screen=True, window_size=(32, 32))\n"
-    "p.add_mesh(pv.Sphere())\n"
-    "img = p.screenshot(return_img=True)\n"
-    "assert img.shape[:2] == (32, 32)\n"
-)
+_PROBE = """from prodmaps.experiments.render import headless_gl
+headless_gl()
+import pyvista as pv
+pv.OFF_SCREEN = True
+p = pv.Plotter(off_screen=True, window_size=(32, 32))
+p.add_mesh(pv.Sphere())
+img = p.screenshot(return_img=True)
+assert img.shape[:2] == (32, 32)
+"""
 
 
 def probe_rendering(timeout: float = 120.0) -> tuple[bool, str]:

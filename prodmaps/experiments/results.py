@@ -8,9 +8,6 @@ Every notebook writes into its ``out_dir``:
 * PNG figures saved by :func:`save_figure` (fixed DPI, no metadata, no anti-aliasing of
   lines), or rendered by :mod:`prodmaps.experiments.render`.
 
-The values a notebook's ``parameters`` are made of do not live here: profiles are tables of
-``paper/runs.toml``, read by :func:`prodmaps.pipeline.registry.run_parameters`.
-
 Matplotlib is imported inside the functions that need it.
 """
 
@@ -50,12 +47,8 @@ def write_results(out_dir, results: dict, parameters: dict) -> Path:
 
     from .. import __version__
 
-    doc = {
-        "parameters": to_jsonable(parameters),
-        "results": to_jsonable(results),
-        "prodmaps_version": __version__,
-        "versions": {"numpy": np.__version__, "scipy": scipy.__version__},
-    }
+    doc = {"parameters": to_jsonable(parameters), "results": to_jsonable(results), "prodmaps_version": __version__,
+           "versions": {"numpy": np.__version__, "scipy": scipy.__version__}}
     path = Path(out_dir) / "results.json"
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(doc, indent=2, sort_keys=True) + "\n")

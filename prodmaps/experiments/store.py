@@ -44,11 +44,8 @@ FAMILY_CODE = tuple(dict.fromkeys(EIGEN_CODE + DESCRIPTOR_CODE["shot"] + DESCRIP
 @functools.lru_cache(maxsize=None)
 def code_fingerprint(*modules: str) -> str:
     """SHA-256 (16 hex digits) of the source bytes of the named modules."""
-    blob = b""
-    for name in modules:
-        path = Path(importlib.import_module(name).__file__)
-        blob += name.encode() + b"\0" + path.read_bytes() + b"\0"
-    return sha256_bytes(blob)[:16]
+    return sha256_bytes(b"".join(name.encode() + b"\0" + Path(importlib.import_module(name).__file__).read_bytes()
+                                 + b"\0" for name in modules))[:16]
 
 
 class DiskCache:
