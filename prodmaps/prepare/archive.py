@@ -59,16 +59,12 @@ class Archive:
             raise PrepareError(f"{self.path}: no such file or folder")
         self._zip = None
         if self.path.is_dir():
-            base = self.path.resolve()
-            names = []
+            base, self.names = self.path.resolve(), []
             for p in sorted(self.path.rglob("*")):
-                if p.is_symlink():
-                    target = p.resolve()
-                    if base not in target.parents:
-                        raise PrepareError(f"refusing folder: {p} is a symbolic link pointing outside {base}")
+                if p.is_symlink() and base not in p.resolve().parents:
+                    raise PrepareError(f"refusing folder: {p} is a symbolic link pointing outside {base}")
                 if p.is_file():
-                    names.append(p.relative_to(self.path).as_posix())
-            self.names = names
+                    self.names.append(p.relative_to(self.path).as_posix())
         else:
             try:
                 self._zip = zipfile.ZipFile(self.path)
@@ -137,10 +133,8 @@ def staged_folder(target: Path, *, force: bool = False):
 def write_manifest_and_sums(folder: Path, manifest: dict) -> None:
     """Write ``manifest.json`` and a ``SHA256SUMS`` (sha256sum format) of every file."""
     (folder / "manifest.json").write_text(json.dumps(manifest, indent=1) + "\n")
-    lines = []
-    for p in sorted(folder.rglob("*")):
-        if p.is_file() and p.name != "SHA256SUMS":
-            lines.append(f"{sha256_file(p)}  ./{p.relative_to(folder).as_posix()}")
+    lines = [f"{sha256_file(p)}  ./{p.relative_to(folder).as_posix()}" for p in sorted(folder.rglob("*"))
+             if p.is_file() and p.name != "SHA256SUMS"]
     (folder / "SHA256SUMS").write_text("\n".join(lines) + "\n")
 
 

@@ -53,15 +53,6 @@ SAME_VERTICES_ATOL = 1e-5  # two copies of a shape (OFF text vs PLY float32) agr
 _MEMBER = re.compile(r"(?:^|/)tr_reg_(\d{3})\.(ply|off)$", re.IGNORECASE)
 
 
-def _sources(archive) -> list[Path]:
-    if isinstance(archive, (str, Path)):
-        return [Path(archive)]
-    out = [Path(a) for a in archive]
-    if not out:
-        raise PrepareError("no source given: pass --archive (a zip or a folder), once or several times")
-    return out
-
-
 def prepare_faust(archive, data_root=None, *, force: bool = False, n_shapes: int = N_SHAPES,
                   n_vertices: int = N_VERTICES, n_faces: int = N_FACES, verbose: bool = True) -> Path:
     """Read, verify and write the FAUST registrations; returns the dataset folder.
@@ -92,7 +83,9 @@ def prepare_faust(archive, data_root=None, *, force: bool = False, n_shapes: int
     import prodmaps as pm
 
     say = print if verbose else (lambda *a, **k: None)
-    sources = _sources(archive)
+    sources = [Path(archive)] if isinstance(archive, (str, Path)) else [Path(a) for a in archive]
+    if not sources:
+        raise PrepareError("no source given: pass --archive (a zip or a folder), once or several times")
     root = Path(data_root) if data_root is not None else datasets.data_root()
     target = root / "faust"
     if target.exists() and not force:

@@ -118,8 +118,7 @@ def prepare_tosca(archive, data_root=None, *, force: bool = False, repair: bool 
         with staged_folder(target, force=force) as tmp:
             (tmp / "shapes").mkdir()
             for c in classes:
-                faces0 = kept = faces_out = None
-                nv0 = None
+                faces0 = kept = faces_out = nv0 = None
                 for i in by_class[c]:
                     sid = f"{c}{i}"
                     vname, tname = members[(c, i)]["vert"], members[(c, i)]["tri"]

@@ -86,9 +86,7 @@ def thin(v, f, *, seed=0, fraction=0.85, **_):
     fs = f[split]
     corner = rng.integers(0, 3, size=fs.shape[0])
     rows = np.arange(fs.shape[0])
-    a = fs[rows, corner]  # near corner
-    b = fs[rows, (corner + 1) % 3]
-    c = fs[rows, (corner + 2) % 3]
+    a, b, c = (fs[rows, (corner + s) % 3] for s in range(3))  # a: the near corner
     wb, wc = rng.uniform(0.01, 0.03, size=(2, fs.shape[0]))
     p = (1 - wb - wc)[:, None] * v[a] + wb[:, None] * v[b] + wc[:, None] * v[c]  # (s, 3)
     new = v.shape[0] + rows
