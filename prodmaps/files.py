@@ -76,12 +76,8 @@ def parse_toml(text: str) -> dict:
     """
     try:
         import tomllib  # Python >= 3.11
-    except ModuleNotFoundError:  # pragma: no cover - Python 3.10
-        try:
-            import tomli as tomllib
-        except ModuleNotFoundError as exc:
-            raise ModuleNotFoundError("reading TOML (paper/runs.toml, the claims ledger) on Python 3.10 needs "
-                                      "`pip install tomli`") from exc
+    except ModuleNotFoundError:  # pragma: no cover - Python 3.10: the `tomli` dependency
+        import tomli as tomllib
     return tomllib.loads(text)
 
 

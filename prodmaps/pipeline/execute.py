@@ -144,11 +144,9 @@ _ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
 
 
 def _shown_path(final: Path, root: Path, outside: str | None = "<out>") -> str:
-    """How the records (manifest, results.json, the executed notebook) name a run folder or notebook.
+    """A run folder or notebook as the records name it: relative to ``root``, else no machine path.
 
-    Relative to the project ``root`` when inside it; otherwise, for a run folder
-    (``outside="<out>"``), ``<out>/<profile folder>/<run>``, its place under the ``--out`` folder,
-    and for a file (``outside=None``) its name: no machine path is recorded.
+    Outside ``root`` a run folder is ``<out>/<profile folder>/<run>``, a file (``outside=None``) its name.
     """
     final, root = Path(final).resolve(), Path(root).resolve()
     try:
@@ -175,10 +173,9 @@ def mkdtemp_beside(target: Path, name: str) -> Path:
 
 @contextlib.contextmanager
 def _stderr_to(path: Path):
-    """Send file descriptor 2 (inherited by the Jupyter kernel) to ``path`` while running.
+    """Send file descriptor 2 (the kernel's stderr: ipykernel/VTK chatter) to ``path`` while running.
 
-    Keeps kernel chatter (ipykernel/VTK warnings) out of the progress display and in the run
-    folder as ``kernel.log``. Only in the main thread (Dask runs tasks in threads: no redirect).
+    Only in the main thread (Dask runs tasks in threads: no redirect).
     """
     if threading.current_thread() is not threading.main_thread():
         yield
@@ -188,12 +185,10 @@ def _stderr_to(path: Path):
     try:
         with open(path, "ab") as fh:
             os.dup2(fh.fileno(), 2)
-            try:
-                yield
-            finally:
-                sys.stderr.flush()
-                os.dup2(saved, 2)
+            yield
     finally:
+        sys.stderr.flush()
+        os.dup2(saved, 2)
         os.close(saved)
 
 
@@ -327,10 +322,9 @@ def _check_value(run: str, k: str, v, ref, where: str, ref_kind: str) -> None:
 
 
 def _same_kind(value, default) -> bool:
-    """Whether a value may replace ``default``: any if the default is None, else one of the same kind.
+    """Whether ``value`` may replace ``default``: of the same kind (bool, number, string, list/tuple, dict).
 
-    Kinds: bool, number, string, list/tuple, dict (if the default is None the profile decides);
-    ``None`` always resets to the profile.
+    Anything replaces a default of None (the profile decides); ``None`` always resets to the profile.
     """
     if default is None or value is None:
         return True

@@ -212,11 +212,7 @@ def _rel(path: Path, start: Path) -> str:
 
 
 def _shown(path: Path, base: Path | None, registry=None) -> str:
-    """A folder as the report names it, never by a machine's absolute path.
-
-    Relative to the project (``results/paper/fig02``) when inside it, else relative to the report's
-    folder ``base`` or, without ``base``, as given.
-    """
+    """A folder relative to the project (``results/paper/fig02``), else to ``base``, else as given."""
     try:
         return Path(path).resolve().relative_to(project_root(registry)).as_posix()
     except ValueError:  # RegistryError is a ValueError: no project found
@@ -269,19 +265,15 @@ def _link(path: Path, base: Path, text: str) -> str:
 
 
 def _nb_link(run_folder: Path, base: Path, text: str, notebooks: dict | None = None) -> str:
-    """Link to a run's executed notebook, or in a published report to the run's committed notebook.
-
-    A published report (``notebooks`` given) links the source notebook: ``results/`` is not committed,
-    the notebooks are.
-    """
+    """Link to a run's executed notebook, or with ``notebooks`` (a published report) to its committed one."""
     if notebooks is None:
         return _link(run_folder / "executed.html", base, text)
     nb = notebooks.get(Path(run_folder).name)
     return _link(nb, base, text) if nb is not None else text
 
 
-def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: dict | None = None,
-                    notebooks: dict | None = None, kept: dict | None = None) -> None:
+def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: dict, notebooks: dict | None,
+                    kept: dict) -> None:
     d.h(2, "Claims of the paper, judged on these results")
     by_claim: dict = {}
     for v in verdicts:
@@ -289,13 +281,11 @@ def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: 
     d.counts(f"Totals over {len(by_claim)} claims", {
         k: sum(1 for subs in by_claim.values() if subs.get("all", next(iter(subs.values()))).verdict == k)
         for k in ledger.VERDICTS})
-    others = others or {}
     other_verdicts = {ds: {v.claim.id: v for v in vs if v.subset == "all" or len(v.claim.subsets) == 1}
                       for ds, (_, vs) in others.items()}
     for ds, vs in other_verdicts.items():
         d.counts(f"On {DATASET_NAMES.get(ds, ds)}", {k: sum(1 for v in vs.values() if v.verdict == k)
                                                     for k in ledger.VERDICTS})
-    kept = kept or {}
     for ds, k in kept.items():
         d.counts(f"On {DATASET_NAMES.get(ds, ds)} (kept from the report published at commit `{k.commit}`)",
                  {v: sum(1 for c in k.column.values() if _verdict_of(c) == v) for v in ledger.VERDICTS})
@@ -376,10 +366,8 @@ def _beats(errors: dict, method: str) -> str:
 
 
 def _study_sections(d: "_Doc", infos, base: Path, copy_figures: bool, dataset: str | None = None) -> set:
-    """The sections the studies own; returns the names of the runs shown.
+    """The sections of the runs with a ``report`` module (``report_blocks``), then their figures; returns their names.
 
-    Every run whose registry entry names a ``report`` module, in registry order, as that module's
-    ``report_blocks(results, dataset name, main=...)`` gives it, followed by the run's figures;
     ``dataset`` for a prepared dataset's section (``main=False``).
     """
     shown = set()
@@ -476,8 +464,7 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
     Returns ``(md_path, html_path)``.
     """
     results_dir = Path(results_dir).resolve()
-    out = Path(out) if out is not None else results_dir / "REPORT.md"
-    out = out.resolve()
+    out = (Path(out) if out is not None else results_dir / "REPORT.md").resolve()
     html_out = Path(html_out).resolve() if html_out is not None else out.with_suffix(".html")
     base = out.parent
     if html_out.parent != base:  # the links are relative to the report's folder, shared by both files
@@ -514,8 +501,7 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
         ds_infos = collect_runs(folder, registry)
         _dataset_section(d, ds, folder, ds_infos, published_rows, base, copy_figures)
         shown_in_dataset |= {(i.name, ds) for i in ds_infos if i.doc}
-    for ds, k in kept.items():
-        d.blocks += k.blocks
+    d.blocks += [b for k in kept.values() for b in k.blocks]
     # a study of the main run that ran on a prepared dataset (FAUST when prepared) is not repeated
     # when that dataset's section already shows the same run
     studies = _study_sections(d, [i for i in infos if (i.name, _run_dataset(i)) not in shown_in_dataset],
@@ -559,10 +545,9 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
             trows = []
             for r in prow:
                 e = by_key.get(tuple(r[k] for k in TABLE_KEYS))
-                trows.append(([r["k_M"], r["k_N"]] if multi else []) + [
-                    r["function"], r["stage"], r["method"], f"{r['value']:.2f}",
-                    _num(e["value"]) if e else "—", _num(e["value"] - r["value"], True) if e else "",
-                    e["run"] if e else ""])
+                ours = [_num(e["value"]), _num(e["value"] - r["value"], True), e["run"]] if e else ["—", "", ""]
+                trows.append(([r["k_M"], r["k_N"]] if multi else [])
+                             + [r["function"], r["stage"], r["method"], f"{r['value']:.2f}", *ours])
             d.table(header, trows)
         if unmatched:
             d.h(3, "Table values that match no published number")

@@ -50,7 +50,7 @@ def check_member_name(name: str, target: Path = Path("/nonexistent/target")) -> 
         raise PrepareError(f"refusing archive: member {name!r} escapes the target folder")
 
 
-class Archive:
+class Archive(contextlib.AbstractContextManager):
     """Read-only view of a ``.zip`` archive or of an already unpacked folder."""
 
     def __init__(self, path):
@@ -101,9 +101,6 @@ class Archive:
         """Close the archive (nothing to do for a folder)."""
         if self._zip is not None:
             self._zip.close()
-
-    def __enter__(self):
-        return self
 
     def __exit__(self, *exc):
         self.close()
