@@ -54,13 +54,16 @@ __all__ = [
 ]
 
 
-def _check_field(z, fr: Frames, name="z") -> np.ndarray:
+def _checked_field(fr, z, N: int, name="z") -> tuple[Frames, np.ndarray, int]:
+    """``(frames of fr, z as complex128, N)``, after checking ``N`` and that ``z`` holds one finite value per face."""
+    N = check_symmetry_order(N)
+    fr = as_frames(fr)
     z = np.asarray(z)
     if z.shape != (fr.n_faces,):
         raise ValueError(f"{name} must be a power field of shape (m,) = ({fr.n_faces},); got {z.shape}")
     if not np.all(np.isfinite(z)):
         raise ValueError(f"{name} contains non-finite values")
-    return z.astype(np.complex128)
+    return fr, z.astype(np.complex128), N
 
 
 # ----------------------------------------------------------------------------- energies
@@ -141,9 +144,7 @@ def aligned_field(fr: Frames, q: np.ndarray, N: int = 4, *, scale: float = 0.05,
     smoothest field. This is [KCPS13]'s ``(L - λM) z = M q`` with ``λ = -1/ℓ²`` (up to the
     scale of ``q``). Returns the unit power field (``normalize``) or the raw solution.
     """
-    fr = as_frames(fr)
-    N = check_symmetry_order(N)
-    q = _check_field(q, fr, "q")
+    fr, q, N = _checked_field(fr, q, N, "q")
     if L is None:
         L, _ = connection_laplacian(fr, N)
     ell2 = (scale ** 2) * fr.area.sum()
@@ -183,9 +184,7 @@ def field_angles(z: np.ndarray, N: int = 4) -> np.ndarray:
 
 def field_vectors(z: np.ndarray, fr: Frames, N: int = 4) -> np.ndarray:
     """The ``N`` unit directions of every face as 3D vectors ``(m, N, 3)``."""
-    fr = as_frames(fr)
-    N = check_symmetry_order(N)
-    z = _check_field(z, fr)
+    fr, z, N = _checked_field(fr, z, N)
     a = field_angles(z, N)[:, None] + 2 * np.pi * np.arange(N)[None, :] / N  # (m, N)
     return np.cos(a)[..., None] * fr.u[:, None, :] + np.sin(a)[..., None] * fr.v[:, None, :]
 
@@ -227,9 +226,7 @@ def singularity_index(fr: Frames, z: np.ndarray, N: int = 4) -> np.ndarray:
 
     Boundary vertices get 0 (their dual cycle is open).
     """
-    fr = as_frames(fr)
-    N = check_symmetry_order(N)
-    z = _check_field(z, fr)
+    fr, z, N = _checked_field(fr, z, N)
     tail, head, face, twin = halfedges(fr.faces)
     ok = twin >= 0
     rho = transport_angles(fr)
@@ -259,9 +256,7 @@ def vertex_power_field(fr: Frames, z: np.ndarray, N: int = 4):
     averaged with weights ``A_f |z_f|``. Returns ``(zv (n,), normal, t, b)`` with the vertex
     frames ``(t, b, normal)`` ``(n, 3)`` each; ``|zv|`` is small near singularities.
     """
-    fr = as_frames(fr)
-    N = check_symmetry_order(N)
-    z = _check_field(z, fr)
+    fr, z, N = _checked_field(fr, z, N)
     V, F = fr.vertices, fr.faces
     nv = vertex_normals(V, F)  # vertex frames (t, b, nv)
     t = np.cross(nv, np.where(np.abs(nv[:, [0]]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]]))
@@ -307,9 +302,8 @@ def pushforward_field(fr1: Frames, z1: np.ndarray, fr2: Frames, p2p_21: np.ndarr
     Returns ``(z2 (m2,) unit, valid (m2,) bool)``; faces whose image triangle is degenerate
     (area below ``min_area_ratio`` times the mean face area) are invalid and get 0.
     """
-    N = check_symmetry_order(N)
-    fr1, fr2 = as_frames(fr1), as_frames(fr2)
-    z1 = _check_field(z1, fr1, "z1")
+    fr1, z1, N = _checked_field(fr1, z1, N, "z1")
+    fr2 = as_frames(fr2)
     p = check_p2p(p2p_21, fr1.n_vertices, fr2.n_vertices)
     tri = p[fr2.faces]  # (m2, 3) vertices of shape 1
     P = fr1.vertices[tri]  # (m2, 3, 3)
@@ -380,9 +374,8 @@ def pushforward_field_barycentric(fr1: Frames, z1: np.ndarray, fr2: Frames, face
     Returns ``(z2 (m2,) unit, valid (m2,) bool)``; faces whose image triangle is degenerate
     (area below ``min_area_ratio`` times the mean face area of shape 1) are invalid and get 0.
     """
-    N = check_symmetry_order(N)
-    fr1, fr2 = as_frames(fr1), as_frames(fr2)
-    z1 = _check_field(z1, fr1, "z1")
+    fr1, z1, N = _checked_field(fr1, z1, N, "z1")
+    fr2 = as_frames(fr2)
     fa = np.asarray(face_21, dtype=np.int64)
     bw = np.asarray(bary_21, dtype=np.float64)
     if fa.shape != (fr2.n_vertices,) or bw.shape != (fr2.n_vertices, 3):

@@ -61,16 +61,8 @@ class Frames:
     u: np.ndarray
     v: np.ndarray
     area: np.ndarray
-
-    @property
-    def n_vertices(self) -> int:
-        """Number of vertices ``n``."""
-        return self.vertices.shape[0]
-
-    @property
-    def n_faces(self) -> int:
-        """Number of faces ``m``."""
-        return self.faces.shape[0]
+    n_vertices = Mesh.n_vertices  # the same properties as a mesh's: vertices.shape[0], faces.shape[0]
+    n_faces = Mesh.n_faces
 
     @property
     def centroids(self) -> np.ndarray:
