@@ -213,10 +213,8 @@ def _index(name: str) -> _Index:
 
 def clear_cache() -> None:
     """Forget cached indexes, meshes and ground-truth maps (e.g. after preparing a dataset)."""
-    _index_at.cache_clear()
-    _load_at.cache_clear()
-    _gt_file.cache_clear()
-    _family_to_variant.cache_clear()
+    for cached in (_index_at, _load_at, _gt_file, _family_to_variant):
+        cached.cache_clear()
 
 
 def shape_ids(name: str, *, include_variants: bool = False) -> list[str]:
@@ -230,17 +228,20 @@ def variants(name: str) -> list[str]:
     return sorted(_index(name).variant_files)
 
 
-def _check_id(idx: _Index, name: str, shape_id: str) -> None:
-    if shape_id not in idx.files and shape_id not in idx.variant_files:
-        close = [i for i in list(idx.files) + list(idx.variant_files) if i.startswith(str(shape_id)[:4])][:5]
-        raise ValueError(f"unknown shape id {shape_id!r} in dataset {name!r}; "
-                         f"use shape_ids({name!r}, include_variants=True) (similar: {close})")
+def _checked_index(name: str, *shape_ids: str) -> _Index:
+    """The index of dataset ``name``, after checking that it holds ``shape_ids``."""
+    idx = _index(name)
+    for shape_id in shape_ids:
+        if shape_id not in idx.files and shape_id not in idx.variant_files:
+            close = [i for i in list(idx.files) + list(idx.variant_files) if i.startswith(str(shape_id)[:4])][:5]
+            raise ValueError(f"unknown shape id {shape_id!r} in dataset {name!r}; "
+                             f"use shape_ids({name!r}, include_variants=True) (similar: {close})")
+    return idx
 
 
 def base_shape(name: str, shape_id: str) -> str:
     """The family shape a variant was made from (a family id maps to itself)."""
-    idx = _index(name)
-    _check_id(idx, name, shape_id)
+    idx = _checked_index(name, shape_id)
     return idx.variant_files[shape_id][2] if shape_id in idx.variant_files else shape_id
 
 
@@ -258,8 +259,7 @@ def _load_at(folder_str: str, name: str, shape_id: str) -> Mesh:
 
 def load_shape(name: str, shape_id: str) -> Mesh:
     """Load (and cache) a family shape or a variant as a validated, read-only :class:`pm.Mesh`."""
-    idx = _index(name)
-    _check_id(idx, name, shape_id)
+    idx = _checked_index(name, shape_id)
     return _load_at(str(idx.root), name, shape_id)
 
 
@@ -284,10 +284,7 @@ def pairs(name: str, kind: str = "all", n: int | None = None, seed: int = 0):
     tri = np.array([idx.tri[i] for i in idx.ids])
     ok = (tri[:, None] == tri[None, :]) & ~np.eye(ids.size, dtype=bool)  # (s, s)
     same = cls[:, None] == cls[None, :]
-    if kind == "intra":
-        ok &= same
-    elif kind == "inter":
-        ok &= ~same
+    ok &= {"intra": same, "inter": ~same, "all": True}[kind]
     i1, i2 = np.nonzero(ok)
     total = i1.size
     if n is not None:
@@ -336,9 +333,7 @@ def ground_truth(name: str, id_1: str, id_2: str) -> np.ndarray:
 
     Raises ``ValueError`` for shapes without a common triangulation (e.g. two TOSCA classes).
     """
-    idx = _index(name)
-    _check_id(idx, name, id_1)
-    _check_id(idx, name, id_2)
+    idx = _checked_index(name, id_1, id_2)
     root = str(idx.root)
     b1, b2 = base_shape(name, id_1), base_shape(name, id_2)
     if idx.tri[b1] != idx.tri[b2]:

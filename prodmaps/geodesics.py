@@ -31,13 +31,13 @@ curve (fraction of vertices with error ``<= threshold``).
 
 from __future__ import annotations
 
-import hashlib
 import os
 from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 
+from .files import atomic_path, sha256_bytes
 from .mesh import Mesh, check_vertex_indices, edges
 
 __all__ = ["distances", "DistanceRows", "all_pairs", "map_error", "error_curve", "cache_dir", "mesh_key", "edge_graph"]
@@ -53,10 +53,8 @@ def cache_dir() -> Path:
 
 def mesh_key(mesh: Mesh) -> str:
     """SHA-256 (hex) of the mesh's float64 vertex bytes and int64 face bytes."""
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(mesh.vertices, dtype="<f8").tobytes())
-    h.update(np.ascontiguousarray(mesh.faces, dtype="<i8").tobytes())
-    return h.hexdigest()
+    return sha256_bytes(np.ascontiguousarray(mesh.vertices, dtype="<f8").tobytes()
+                        + np.ascontiguousarray(mesh.faces, dtype="<i8").tobytes())
 
 
 def _check_sources(mesh: Mesh, sources) -> np.ndarray:
@@ -213,10 +211,8 @@ def all_pairs(mesh: Mesh, *, cache: bool = True, method: str = "heat", verbose: 
     d *= 0.5
     np.fill_diagonal(d, 0.0)
     if cache:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f"{path.stem}.{os.getpid()}.tmp.npy")
-        np.save(tmp, d, allow_pickle=False)
-        os.replace(tmp, path)
+        with atomic_path(path) as tmp:
+            np.save(tmp, d, allow_pickle=False)
     return d
 
 
