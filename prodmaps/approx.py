@@ -240,9 +240,7 @@ class ApproximationOperator:
     def reconstruct(self, F) -> np.ndarray:
         """The approximation ``B a`` of ``F`` in the basis."""
         a = self.coefficients(F)
-        if is_extended(self.basis):
-            return self.basis.evaluate(a)
-        return self.basis.vecs @ a
+        return self.basis.evaluate(a) if is_extended(self.basis) else self.basis.vecs @ a
 
 
 def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, eps: float = 1e-4,
@@ -305,28 +303,26 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
                 raise ValueError("route='svd' needs a lumped (diagonal) mass; use route='gram'")
             U, s, Vt = sla.svd(_scaled_columns(basis, d), full_matrices=False, lapack_driver="gesdd")
             r = int(np.sum(s > rtol * s[0]))
-            P, sV = Vt[:r].T / s[:r], s[:r, None] * Vt[:r]  # (K_u, r), (r, K_u) in the scaled columns
-            if d is not None:
-                P, sV = d[:, None] * P, sV / d
-            return ApproximationOperator(basis, method, params | {"route": "svd"},
-                                         _P=P, _U=np.ascontiguousarray(U[:, :r]), _sV=sV)
-        if route != "gram":
+            P, sV, U = Vt[:r].T / s[:r], s[:r, None] * Vt[:r], U[:, :r]  # (K_u, r), (r, K_u) in the scaled columns
+            route_info = {"route": "svd"}
+        elif route == "gram":
+            w, V, side = gram_eigenpairs(basis, normalization)
+            s = np.sqrt(np.maximum(w, 0.0))
+            r = int(np.sum(s > rtol * s[0]))
+            Vr = V[:, :r]
+            if side == "primal":  # V: right singular vectors (K_u, K_u) of sqrt(A) B_s D
+                M, sV = (Vr / s[:r] ** 2) @ Vr.T, s[:r, None] * Vr.T
+                if d is not None:
+                    M, sV = d[:, None] * M * d, sV / d
+                return ApproximationOperator(basis, method, params | {"route": "gram"}, _M=M, _sV=sV)
+            XtU = _scaled_columns(basis, d).T @ Vr  # (K_u, r) = V_r Σ_r; V: left vectors (n, n)
+            P, sV, U = XtU / s[:r] ** 2, XtU.T.copy(), Vr
+            route_info = {"route": "gram", "side": "dual"}
+        else:
             raise ValueError(f"route must be 'auto', 'svd' or 'gram', got {route!r}")
-        w, V, side = gram_eigenpairs(basis, normalization)
-        s = np.sqrt(np.maximum(w, 0.0))
-        r = int(np.sum(s > rtol * s[0]))
-        Vr = V[:, :r]
-        if side == "primal":  # V: right singular vectors (K_u, K_u) of sqrt(A) B_s D
-            M, sV = (Vr / s[:r] ** 2) @ Vr.T, s[:r, None] * Vr.T
-            if d is not None:
-                M, sV = d[:, None] * M * d, sV / d
-            return ApproximationOperator(basis, method, params | {"route": "gram"}, _M=M, _sV=sV)
-        XtU = _scaled_columns(basis, d).T @ Vr  # (K_u, r) = V_r Σ_r; V: left vectors (n, n)
-        P, sV = XtU / s[:r] ** 2, XtU.T.copy()
         if d is not None:
             P, sV = d[:, None] * P, sV / d
-        return ApproximationOperator(basis, method, params | {"route": "gram", "side": "dual"},
-                                     _P=P, _U=np.ascontiguousarray(Vr), _sV=sV)
+        return ApproximationOperator(basis, method, params | route_info, _P=P, _U=np.ascontiguousarray(U), _sV=sV)
     G = _gram(basis)
     if d is not None:
         G = d[:, None] * G * d  # Gram of the scaled columns

@@ -86,7 +86,6 @@ class Basis:
         for name, arr in (("vecs", vecs), ("evals", evals)):
             if not np.all(np.isfinite(arr)):
                 raise ValueError(f"basis {name} contain non-finite values")
-        for name, arr in (("vecs", vecs), ("evals", evals)):
             arr.setflags(write=False)
             object.__setattr__(self, name, arr)
 
@@ -353,18 +352,12 @@ def fourier_basis(n: int, k: int, period: float = 2 * np.pi) -> Basis:
     if not 1 <= k <= n // 2:
         raise ValueError(f"k must be in [1, n//2] = [1, {n // 2}] for n={n} samples, got {k}")
     x = np.arange(n) * (period / n)
-    w = np.full(n, period / n)
-    omega = 2 * np.pi / period
-    cols = [np.full(n, 1.0 / np.sqrt(period))]
-    evals = [0.0]
-    j = 1
-    while len(cols) < k:
-        for trig in (np.cos, np.sin):
-            if len(cols) < k:
-                cols.append(trig(j * omega * x) * np.sqrt(2.0 / period))
-                evals.append((j * omega) ** 2)
-        j += 1
-    return Basis(np.stack(cols, axis=1), np.array(evals), w, name="fourier")
+    c = np.arange(1, k)  # the non-constant columns: cos, sin of frequency j = 1, 1, 2, 2, ...
+    freq = (c + 1) // 2 * (2 * np.pi / period)  # (k - 1,) j ω
+    phase = np.outer(x, freq)  # (n, k - 1)
+    trig = np.where(c % 2 == 1, np.cos(phase), np.sin(phase)) * np.sqrt(2.0 / period)
+    vecs = np.column_stack([np.full(n, 1.0 / np.sqrt(period)), trig])
+    return Basis(vecs, np.concatenate([[0.0], freq ** 2]), np.full(n, period / n), name="fourier")
 
 
 def from_arrays(vecs, evals, mass, *, name: str = "", atol: float = 1e-6) -> Basis:
