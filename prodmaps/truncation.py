@@ -42,7 +42,7 @@ import numpy as np
 
 from .approx import DEFAULT_NORMALIZATION, column_weights, gram_eigenpairs
 from .basis import Basis
-from .checks import check_fmap
+from .checks import check_basis, check_fmap
 from .mapping import extend_fmap
 from .products import product_basis
 
@@ -100,13 +100,6 @@ def transfer_gains(C_12, basis_1: Basis, basis_2: Basis, order: int = 2, pairs: 
     return {"sigma": sigma, "rel": sigma / sigma[0], "image_norm": norms, "gain": gain}
 
 
-def _check_candidates(candidates) -> np.ndarray:
-    c = np.sort(np.asarray(candidates, dtype=np.float64))
-    if c.ndim != 1 or c.size == 0 or np.any(c <= 0) or np.any(c >= 1):
-        raise ValueError(f"candidates must be a non-empty list of thresholds in (0, 1); got {candidates!r}")
-    return c
-
-
 def select_rtol(basis_1: Basis, F=None, *, method: str = "gain", C_12=None, basis_2: Basis | None = None,
                 candidates=DEFAULT_CANDIDATES, max_gain: float = 2.0, holdout: float = 0.2, seed: int = 0,
                 order: int = 2, pairs: str = "ordered", normalization: str | None = None,
@@ -125,9 +118,10 @@ def select_rtol(basis_1: Basis, F=None, *, method: str = "gain", C_12=None, basi
 
     Returns the selected ``rtol`` (and a dict with the per-candidate scores if ``return_info``).
     """
-    cand = _check_candidates(candidates)
-    if not isinstance(basis_1, Basis):
-        raise TypeError(f"basis_1 must be a prodmaps.Basis, got {type(basis_1).__name__}")
+    cand = np.sort(np.asarray(candidates, dtype=np.float64))
+    if cand.ndim != 1 or cand.size == 0 or np.any(cand <= 0) or np.any(cand >= 1):
+        raise ValueError(f"candidates must be a non-empty list of thresholds in (0, 1); got {candidates!r}")
+    check_basis(basis_1, "basis_1")
     if method == "gain":
         if C_12 is None or basis_2 is None:
             raise ValueError("method='gain' needs the functional map C_12 and basis_2")

@@ -109,9 +109,7 @@ def shot(mesh: Mesh, radius: float | None = None, n_bins: int = 11, *, radius_fr
     cov = np.zeros((n, 3, 3))
     for a in range(3):
         for b in range(a, 3):
-            c = np.bincount(I, weights=w * diff[:, a] * diff[:, b], minlength=n)
-            cov[:, a, b] = c
-            cov[:, b, a] = c
+            cov[:, a, b] = cov[:, b, a] = np.bincount(I, weights=w * diff[:, a] * diff[:, b], minlength=n)
     cov /= np.where(wsum > 0, wsum, 1.0)[:, None, None]
     _, evecs = np.linalg.eigh(cov)  # ascending eigenvalues
     x_ax = evecs[:, :, 2].copy()  # (n, 3)

@@ -525,8 +525,7 @@ def _cells(U: np.ndarray, ok: np.ndarray, grid, eps: float):
     lo[~ok], hi[~ok] = 0, -1
     cf, cij = _enumerate_boxes(lo, hi)
     Uc = U[cf]  # (c, 3, 2)
-    keep = (Uc[:, :, 0].max(1) > cij[:, 0] + eps) & (Uc[:, :, 0].min(1) < cij[:, 0] + 1 - eps) & \
-           (Uc[:, :, 1].max(1) > cij[:, 1] + eps) & (Uc[:, :, 1].min(1) < cij[:, 1] + 1 - eps)
+    keep = np.all((Uc.max(1) > cij + eps) & (Uc.min(1) < cij + 1 - eps), axis=1)  # bounding boxes overlap
     sq = cij[:, None, :] + _CORNERS[None]  # (c, 4, 2)
     for k in range(3):
         a, b = Uc[:, k], Uc[:, (k + 1) % 3]
@@ -555,8 +554,7 @@ def _cell_links(U: np.ndarray, ok: np.ndarray, TT: np.ndarray, rot, trans, cells
     hi_e = np.ceil(np.maximum(A, B)).astype(np.int64) - 1
     sf, sij = _enumerate_boxes(lo_e, hi_e)
     a, b = A[sf], B[sf]
-    cross = (np.maximum(a[:, 0], b[:, 0]) > sij[:, 0] + eps) & (np.minimum(a[:, 0], b[:, 0]) < sij[:, 0] + 1 - eps) & \
-            (np.maximum(a[:, 1], b[:, 1]) > sij[:, 1] + eps) & (np.minimum(a[:, 1], b[:, 1]) < sij[:, 1] + 1 - eps)
+    cross = np.all((np.maximum(a, b) > sij + eps) & (np.minimum(a, b) < sij + 1 - eps), axis=1)
     nrm = np.stack([b[:, 1] - a[:, 1], a[:, 0] - b[:, 0]], axis=1)
     nrm /= np.linalg.norm(nrm, axis=1, keepdims=True) + 1e-300
     ps = np.einsum("cvd,cd->cv", sij[:, None, :] + _CORNERS[None], nrm)
