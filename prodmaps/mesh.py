@@ -113,10 +113,8 @@ def face_radius_ratio(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     >>> print(f"{face_radius_ratio(*right)[0]:.4f} (2r/R) vs {face_mean_ratio(*right)[0]:.4f} (mean ratio)")
     0.8284 (2r/R) vs 0.8660 (mean ratio)
     """
-    vertices, faces = np.asarray(vertices), np.asarray(faces)
-    a = np.linalg.norm(vertices[faces[:, 1]] - vertices[faces[:, 2]], axis=1)
-    b = np.linalg.norm(vertices[faces[:, 2]] - vertices[faces[:, 0]], axis=1)
-    c = np.linalg.norm(vertices[faces[:, 0]] - vertices[faces[:, 1]], axis=1)
+    V, F = np.asarray(vertices), np.asarray(faces)
+    a, b, c = (np.linalg.norm(V[F[:, (k + 1) % 3]] - V[F[:, (k + 2) % 3]], axis=1) for k in range(3))  # opposite k
     s = 0.5 * (a + b + c)
     area2 = np.maximum(s * (s - a) * (s - b) * (s - c), 0.0)  # Heron, squared area
     return 8.0 * area2 / np.maximum(s * a * b * c, np.finfo(float).tiny)

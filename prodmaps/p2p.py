@@ -234,9 +234,7 @@ def _nn_probe(Q, P, block):
     """``"auto"`` between the kd-tree and the products when neither clearly wins, by timing both.
 
     The first ``PROBE_QUERIES`` queries by the kd-tree, the next as many by the products, and the rest
-    by the one that was faster per query. A kd-tree's cost depends on how far the queries lie from the
-    points, not only on the dimension (``docs/benchmarks.md``). Every query gets the exact answer
-    either way, so the choice never changes the result.
+    by the one that was faster per query (exact either way: the choice never changes the result).
     """
     from scipy.spatial import cKDTree
 
@@ -362,12 +360,9 @@ def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None
             method = "probe"
     if Q.shape[0] == 0:
         idx = np.zeros(0, dtype=np.int64)
-    elif search == "approximate":
-        idx = _nn_approximate(Q, P, block)
-    elif method == "probe":
-        idx = _nn_probe(Q, P, block)
     else:
-        idx = _nn_kdtree(Q, P, block) if method == "kdtree" else _nn_gemm(Q, P, block)
+        nn = {"probe": _nn_probe, "kdtree": _nn_kdtree, "gemm": _nn_gemm}[method]
+        idx = (_nn_approximate if search == "approximate" else nn)(Q, P, block)
     if not return_distance:
         return idx
     diff = Q - P[idx]
