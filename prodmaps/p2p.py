@@ -181,8 +181,7 @@ def _nn_gemm(Q, P, block):
     r = d if d <= PRUNE_MIN_DIM else int(min(d, max(PRUNE_MIN_DIM, np.searchsorted(share, PRUNE_SHARE) + 1)))
     lead = order[:r]
     Qr, Pr = np.ascontiguousarray(Q[:, lead]), np.ascontiguousarray(P[:, lead])
-    u = _U32
-    gamma = 2.0 * (r + 8) * u  # |G − D'_r| ≤ γ (‖q_r‖² + 2‖p_r‖²) for the float32 product G
+    gamma = 2.0 * (r + 8) * _U32  # |G − D'_r| ≤ γ (‖q_r‖² + 2‖p_r‖²) for the float32 product G
     pr_sq = np.einsum("ij,ij->i", Pr, Pr)
     qr_sq = np.einsum("ij,ij->i", Qr, Qr)
     Pa = np.empty((P.shape[0], r + 1), dtype=np.float32)  # (n_p, r + 1): [−2p_r, (1 − 2γ)‖p_r‖²]

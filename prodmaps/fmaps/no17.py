@@ -180,10 +180,8 @@ def no17_terms(basis_1: Basis, basis_2: Basis, descr_1: np.ndarray, descr_2: np.
     check_basis(basis_2, "basis_2")
     if w_orient != 0:
         raise NotImplementedError("w_orient != 0: the orientation-preserving term is not implemented; use w_orient=0")
-    d1 = np.asarray(descr_1, dtype=np.float64)
-    d2 = np.asarray(descr_2, dtype=np.float64)
-    d1 = d1[:, None] if d1.ndim == 1 else d1
-    d2 = d2[:, None] if d2.ndim == 1 else d2
+    d1, d2 = (np.asarray(d, dtype=np.float64) for d in (descr_1, descr_2))
+    d1, d2 = (d[:, None] if d.ndim == 1 else d for d in (d1, d2))
     if d1.shape[0] != basis_1.n or d2.shape[0] != basis_2.n:
         raise ValueError(f"descr_1 must have {basis_1.n} rows (shape 1) and descr_2 {basis_2.n} rows (shape 2); "
                          f"got {d1.shape} and {d2.shape}")
@@ -225,13 +223,9 @@ def no17_terms(basis_1: Basis, basis_2: Basis, descr_1: np.ndarray, descr_2: np.
             tot = pos - 2.0 * float(np.sum(np.trace(M1, axis1=1, axis2=2) * np.trace(M2, axis1=1, axis2=2)))
             t_dcomm = tot * m / (k1 * k2) / p_eff if tot > 1e-12 * pos else 1.0
         taus = tuple(t if t > 0 else 1.0 for t in (t_descr, t_lap, t_dcomm))
-    elif normalize == "sum":
-        taus = (1.0, float(L.sum()) if L.sum() > 0 else 1.0, 1.0)
-    elif normalize == "frobenius":
-        fro2 = float(np.sum(L * L))
-        taus = (1.0, fro2 if fro2 > 0 else 1.0, 1.0)
-    else:
-        taus = (1.0, 1.0, 1.0)
+    else:  # only the Laplacian term is normalised: by the sum or the squared Frobenius norm of its mask
+        t_lap = {"sum": float(L.sum()), "frobenius": float(np.sum(L * L)), None: 1.0}[normalize]
+        taus = (1.0, t_lap if t_lap > 0 else 1.0, 1.0)
     mus = ws / np.array(taus)
     return NO17Terms(D1, D2, M1, M2, L, float(mus[0]), float(mus[1]), float(mus[2]), first_column(basis_1, basis_2),
                      taus)
@@ -379,8 +373,7 @@ def fit_no17(basis_1: Basis, basis_2: Basis, descr_1: np.ndarray, descr_2: np.nd
                     "success": bool(res.success)}
         else:
             info = {"energy": energy_and_gradient(C, terms)[0], "nit": 0, "message": "nothing to fit", "success": True}
-    info["time"] = time.perf_counter() - t0
-    info["taus"] = terms.taus
+    info.update(time=time.perf_counter() - t0, taus=terms.taus)
     C = area_ratio * C
     return (C, info) if return_info else C
 
