@@ -142,9 +142,8 @@ def _spec(name: str) -> _Spec:
 def dataset_dir(name: str) -> Path:
     """Folder of dataset ``name`` (see the module doc for the search order; may not exist)."""
     _spec(name)
-    env = os.environ.get("PRODMAPS_DATA")
-    if env and (Path(env).expanduser().resolve() / name).is_dir():
-        return Path(env).expanduser().resolve() / name
+    if os.environ.get("PRODMAPS_DATA") and (data_root() / name).is_dir():
+        return data_root() / name
     if name in EMBEDDED and (embedded_root() / name).is_dir():
         return embedded_root() / name
     return data_root() / name

@@ -145,8 +145,7 @@ def _exact(mesh: Mesh, sources: np.ndarray) -> np.ndarray:
         import igl
     except ImportError as exc:  # pragma: no cover
         raise ImportError("method='exact' needs libigl's Python bindings (pip install libigl)") from exc
-    v = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
-    f = np.ascontiguousarray(mesh.faces, dtype=np.int64)
+    v, f = mesh.vertices, mesh.faces  # contiguous float64 and int64 (Mesh)
     vt = np.arange(mesh.n_vertices, dtype=np.int64)
     empty = np.zeros(0, dtype=np.int64)
     return np.stack([igl.exact_geodesic(v, f, np.array([s], dtype=np.int64), empty, vt, empty)

@@ -353,16 +353,6 @@ def _ply_all_triangles(buf, fmt, elements, start, face, index) -> bool:
     return bool(np.all(rec[f"{index}.n"] == 3))
 
 
-def _ply_record_dtype(el, fmt, lengths):
-    fields = []
-    for p in el.props:
-        if p.count is None:
-            fields.append((p.name, fmt + p.type))
-        else:
-            fields += [(f"{p.name}.n", fmt + p.count), (p.name, fmt + p.type, (lengths[p.name],))]
-    return np.dtype(fields)
-
-
 def _ply_fixed_records(buf, pos, el, fmt):
     """A binary element as a structured view, or None if its lists vary in length.
 
@@ -386,7 +376,8 @@ def _ply_fixed_records(buf, pos, el, fmt):
             off += np.dtype(p.type).itemsize
         if off > len(buf):
             return None
-    dt = _ply_record_dtype(el, fmt, lengths)
+    dt = np.dtype([field for p in el.props for field in ([(p.name, fmt + p.type)] if p.count is None else
+                   [(f"{p.name}.n", fmt + p.count), (p.name, fmt + p.type, (lengths[p.name],))])])
     if pos + el.count * dt.itemsize > len(buf):
         return None
     rec = np.frombuffer(buf, dt, el.count, pos)
@@ -478,15 +469,9 @@ def _ply_ascii_rows(buf, start, elements, fmt, wanted):
 _OFF_MAGIC = re.compile(r"(?:ST|C|N)*OFF")  # [ST][C][N]OFF in any order (MeshLab: NCSTOFF)
 
 
-def _text_lines(fh) -> list[str]:
-    """Decoded lines (any line ending), comments and surrounding blanks stripped, empty lines kept out."""
-    text = fh.read().decode("utf-8-sig", errors="replace")  # names/comments may be latin-1
-    lines = (ln.partition("#")[0].strip() for ln in text.splitlines())
-    return [ln for ln in lines if ln]
-
-
 def _read_off(fh):
-    lines = _text_lines(fh)
+    text = fh.read().decode("utf-8-sig", errors="replace")  # names/comments may be latin-1
+    lines = [ln for ln in (raw.partition("#")[0].strip() for raw in text.splitlines()) if ln]  # no comments, blanks
     head = lines[0].split() if lines else []
     if not head or not _OFF_MAGIC.fullmatch(head[0]):
         if head and head[0].endswith("OFF"):
