@@ -428,8 +428,7 @@ def _fista(op: ApproximationOperator, F: np.ndarray) -> np.ndarray:
     lam = op.params["eps"] * np.max(np.abs(b), axis=0)  # (m,)
     lam = np.where(lam > 0, lam, 1.0)
     tol, max_iter = op.params["tol"], op.params["max_iter"]
-    x = np.zeros_like(b)
-    Gx = np.zeros_like(b)
+    x, Gx = np.zeros_like(b), np.zeros_like(b)
     y, Gy = x, Gx
     t = 1.0
     for it in range(max_iter):

@@ -232,8 +232,7 @@ def singularity_index(fr: Frames, z: np.ndarray, N: int = 4) -> np.ndarray:
     rho = transport_angles(fr)
     g = face[np.maximum(twin, 0)]
     jump = wrap_angle(np.angle(z[g]) - np.angle(z[face]) - N * np.nan_to_num(rho))  # (3m,)
-    n = fr.n_vertices
-    s = np.bincount(head[ok], weights=jump[ok], minlength=n)
+    s = np.bincount(head[ok], weights=jump[ok], minlength=fr.n_vertices)
     K = angle_defect(fr.vertices, fr.faces)
     idx = np.round((s + N * K) / (2 * np.pi)) / N
     idx[tail[~ok]] = 0.0  # boundary vertices
@@ -403,8 +402,7 @@ def closest_point_correspondence(V_query: np.ndarray, V: np.ndarray, F: np.ndarr
     """
     import igl
 
-    V_query = np.ascontiguousarray(V_query, dtype=np.float64)
-    V = np.ascontiguousarray(V, dtype=np.float64)
+    V_query, V = (np.ascontiguousarray(x, dtype=np.float64) for x in (V_query, V))
     F = np.ascontiguousarray(F, dtype=np.int64)
     _, face, C = igl.point_mesh_squared_distance(V_query, V, F)
     face = np.asarray(face, dtype=np.int64).ravel()

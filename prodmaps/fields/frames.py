@@ -160,8 +160,7 @@ def transport_angles(fr: Frames) -> np.ndarray:
     ok = twin >= 0
     e = fr.vertices[head] - fr.vertices[tail]  # (3m, 3)
     g = np.where(ok, face[np.maximum(twin, 0)], 0)
-    th_f = np.arctan2(np.einsum("ij,ij->i", e, fr.v[face]), np.einsum("ij,ij->i", e, fr.u[face]))
-    th_g = np.arctan2(np.einsum("ij,ij->i", e, fr.v[g]), np.einsum("ij,ij->i", e, fr.u[g]))
+    th_f, th_g = (np.arctan2(np.einsum("ij,ij->i", e, fr.v[h]), np.einsum("ij,ij->i", e, fr.u[h])) for h in (face, g))
     return np.where(ok, wrap_angle(th_g - th_f), np.nan)
 
 

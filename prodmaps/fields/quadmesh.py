@@ -291,9 +291,8 @@ def comb_and_cut(mesh: Mesh, z: np.ndarray) -> dict:
     """
     import igl
 
-    V = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
-    F = np.ascontiguousarray(mesh.faces, dtype=np.int64)
-    fr = mesh_frames(mesh)
+    fr = mesh_frames(mesh)  # (checks the mesh)
+    V, F = mesh.vertices, mesh.faces  # contiguous float64 and int64 (Mesh)
     d = field_vectors(z, fr, 4)
     P1, P2 = igl.comb_cross_field(V, F, np.ascontiguousarray(d[:, 0]), np.ascontiguousarray(d[:, 1]))
     mm = igl.cross_field_mismatch(V, F, P1, P2, True)
@@ -315,19 +314,13 @@ def _transition_rows(rot, a_f, a_g, b_f, b_g, nc: int) -> sp.csr_matrix:
     """
     ne = rot.size
     R = _ROT[rot]
-    rr, cc, vv = [], [], []
+    blocks = []  # (rows, cols, values) of row i: the g copies' coordinate i, then R's row i on the f copies
     for i in range(2):
         row = np.arange(ne) + i * ne
-        for cp, sgn in ((a_g, 1.0), (b_g, -1.0)):
-            rr.append(row)
-            cc.append(cp + i * nc)
-            vv.append(np.full(ne, sgn))
-        for j in range(2):
-            for cp, sgn in ((a_f, -1.0), (b_f, 1.0)):
-                rr.append(row)
-                cc.append(cp + j * nc)
-                vv.append(sgn * R[:, i, j])
-    return sp.csr_matrix((np.concatenate(vv), (np.concatenate(rr), np.concatenate(cc))), shape=(2 * ne, 2 * nc))
+        blocks += [(row, cp + i * nc, np.full(ne, sgn)) for cp, sgn in ((a_g, 1.0), (b_g, -1.0))]
+        blocks += [(row, cp + j * nc, sgn * R[:, i, j]) for j in range(2) for cp, sgn in ((a_f, -1.0), (b_f, 1.0))]
+    rr, cc, vv = (np.concatenate(x) for x in zip(*blocks))
+    return sp.csr_matrix((vv, (rr, cc)), shape=(2 * ne, 2 * nc))
 
 
 def continuous_system(A, b, seams, nc: int, weight: float):
@@ -357,9 +350,7 @@ def _resolve(fixed: dict, rels, t, *, seams, A0, b0, nc: int, weight: float) -> 
     cp, st, kk, tau = _concat_relations(rels, seams.chain_relations(t, np.isfinite(t[:, 0])))
     nf_, nr = fc.size, cp.size
     Rk = _ROT[kk]  # (nr, 2, 2)
-    rows = [np.arange(2 * nf_)]
-    cols = [np.concatenate([fc, fc + nc])]
-    vals = [np.ones(2 * nf_)]
+    rows, cols, vals = [np.arange(2 * nf_)], [np.concatenate([fc, fc + nc])], [np.ones(2 * nf_)]  # the fixed copies
     for i in range(2):  # p(cp) - R^k p(st) = tau, coordinate i
         r0 = 2 * nf_ + i * nr + np.arange(nr)
         rows += [r0, r0, r0]
