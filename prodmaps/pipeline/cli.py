@@ -99,14 +99,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _version() -> str:
-    from importlib import metadata
+    from .. import __version__
+    from .execute import package_versions
 
-    try:
-        return metadata.version("prodmaps")
-    except metadata.PackageNotFoundError:  # a source tree that is not installed
-        from .. import __version__
-
-        return __version__
+    return package_versions(["prodmaps"]).get("prodmaps", __version__)  # a source tree: not installed
 
 
 def _positive_seconds(text: str) -> float:

@@ -96,10 +96,7 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
 
 
 def _show_out_dir(executed: Path, actual: str, shown: str, notebook_shown: str | None = None) -> None:
-    """Name the run's folder ``shown`` (not the temporary ``actual``) and the notebook ``notebook_shown``.
-
-    In the injected parameters cell, the outputs and papermill's metadata of the executed notebook.
-    """
+    """``actual`` -> ``shown`` in the executed notebook's parameters cell, outputs, metadata (+ ``notebook_shown``)."""
     import nbformat
 
     nb = nbformat.read(executed, as_version=4)
@@ -173,10 +170,7 @@ def mkdtemp_beside(target: Path, name: str) -> Path:
 
 @contextlib.contextmanager
 def _stderr_to(path: Path):
-    """Send file descriptor 2 (the kernel's stderr: ipykernel/VTK chatter) to ``path`` while running.
-
-    Only in the main thread (Dask runs tasks in threads: no redirect).
-    """
+    """Send fd 2 (the kernel's ipykernel/VTK chatter) to ``path``; in the main thread only (Dask uses threads)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -322,10 +316,7 @@ def _check_value(run: str, k: str, v, ref, where: str, ref_kind: str) -> None:
 
 
 def _same_kind(value, default) -> bool:
-    """Whether ``value`` may replace ``default``: of the same kind (bool, number, string, list/tuple, dict).
-
-    Anything replaces a default of None (the profile decides); ``None`` always resets to the profile.
-    """
+    """Whether ``value`` may replace ``default``: either is None, or both are bool, number, str, list/tuple, dict."""
     if default is None or value is None:
         return True
     if isinstance(default, bool) or isinstance(value, bool):

@@ -29,7 +29,6 @@ import os
 import platform
 import re
 import shutil
-import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -37,7 +36,7 @@ from ..experiments import claims as ledger
 from ..experiments import compare
 from ..experiments.published import PUBLISHED_CSV, TABLE_KEYS, load_published, match_entries
 from ..files import atomic_path, read_json
-from .execute import package_versions
+from .execute import git_commit, package_versions
 from .registry import RegistryError, load_registry, project_root
 
 __all__ = ["collect_runs", "build_report", "publish", "PublishError", "partial_problems", "kept_dataset"]
@@ -198,12 +197,10 @@ class _Doc:
 
 
 def _git_commit(registry=None) -> str:
-    """Short commit of the registry's project (``"unknown"`` outside a git checkout)."""
+    """The registry's project's :func:`.execute.git_commit` (``"unknown"`` outside a project)."""
     try:
-        r = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=project_root(registry), capture_output=True,
-                           text=True, timeout=10)
-        return r.stdout.strip() if r.returncode == 0 else "unknown"
-    except (OSError, subprocess.TimeoutExpired, RegistryError):
+        return git_commit(project_root(registry))
+    except RegistryError:
         return "unknown"
 
 
@@ -366,10 +363,7 @@ def _beats(errors: dict, method: str) -> str:
 
 
 def _study_sections(d: "_Doc", infos, base: Path, copy_figures: bool, dataset: str | None = None) -> set:
-    """The sections of the runs with a ``report`` module (``report_blocks``), then their figures; returns their names.
-
-    ``dataset`` for a prepared dataset's section (``main=False``).
-    """
+    """The ``report_blocks`` sections (``main=False`` with ``dataset``) and figures of the runs; returns their names."""
     shown = set()
     for info in infos:
         if not (info.report and info.doc):
