@@ -195,11 +195,7 @@ def _per_subset(cid: str, v) -> dict:
 
 
 def _gate(claim: Claim, results: dict, subset: str) -> dict:
-    """The entry's ``rule.demonstrable`` on the results: whether the setting can show the claim.
-
-    Evaluated on the values that do not name ``{method}`` (typically an oracle and ``C``), with
-    the exact tie rule. ``{"holds": bool | None, "margin": ..., "evidence": str}``.
-    """
+    """``rule.demonstrable`` (can the setting show the claim?) on the values not naming ``{method}``, exact ties."""
     try:
         env = {**_FUNCS, **_values(claim, results, subset)}
     except _Missing as exc:
