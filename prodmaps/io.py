@@ -1,18 +1,16 @@
 """Reading and writing triangle meshes: PLY (ASCII and binary), OFF, OBJ; positions only.
 
-* PLY is read with `trimesh <https://github.com/mikedh/trimesh>`_ (MIT, pinned in
-  pyproject.toml; imported on the first PLY read, so ``import prodmaps`` does not load it),
-  through :func:`trimesh.exchange.ply.load_ply` with ``fix_texture=False`` (no vertex
-  splitting: vertices stay in file order); prodmaps is MIT and imports no GPL package for
-  reading (the choice of reader: ``docs/benchmarks.md``). Every format (ASCII, binary little/big-
-  endian), every property type name (``uchar``/``uint8``, ``int``/``int32``, ``uint``/
-  ``uint32``, ...), any extra vertex or face property (normals, colours, texture coordinates,
+* PLY: the header is parsed here (strictly). Binary triangle meshes of fixed-size records are
+  read as numpy structured views of the file; ASCII triangle meshes with
+  `trimesh <https://github.com/mikedh/trimesh>`_ (MIT, pinned in pyproject.toml, imported on the
+  first such read) through :func:`trimesh.exchange.ply.load_ply` with ``fix_texture=False``
+  (vertices stay in file order), trusted only once every face list is known to hold 3 indices (it
+  silently triangulates polygons); everything else goes to the small numpy/struct reader here,
+  which keeps polygons as written and names what is wrong with a broken file. Every format
+  (ASCII, binary little/big-endian), every property type name (``uchar``/``uint8``, ``int``/
+  ``int32``, ...), any extra vertex or face property (normals, colours, texture coordinates,
   quality, flags, before or after the index list), face lists named ``vertex_indices`` or
-  ``vertex_index``, extra elements (edges, materials) and CRLF headers are read. The header is
-  parsed here (strictly), and trimesh is trusted only once every face list is known to hold 3
-  indices (it silently triangulates ASCII polygons); files with polygons and files trimesh
-  cannot read go to the small numpy/struct reader here, which keeps polygons as written and
-  names what is wrong with a broken file.
+  ``vertex_index``, extra elements (edges, materials) and CRLF headers are read.
 * OFF and OBJ are plain line-based text formats, read here (mesh libraries' OBJ readers
   split or merge vertices because of texture coordinates and normals, and some triangulate
   polygons; see tests/data/variants/README.md). OFF: ``OFF`` with any of the ``ST``/``C``/
@@ -263,10 +261,9 @@ def _read_ply(fh):
     buf = fh.read()
     fmt, elements, start = _ply_header(buf)
     vert, face, index = _ply_mesh_elements(elements)
-    out = _ply_binary_triangles(buf, fmt, elements, start, vert, face, index) if fmt else None
-    if out is None:
-        out = _ply_trimesh(buf, fmt, elements, start, vert, face, index)
-    if out is None:  # polygons, or a layout trimesh does not read: our reader (names the problem)
+    # binary: structured views (every file trimesh could read); ASCII triangles: trimesh
+    out = (_ply_binary_triangles if fmt else _ply_trimesh)(buf, fmt, elements, start, vert, face, index)
+    if out is None:  # polygons, or a layout neither reads: our reader (names the problem)
         read = _ply_ascii_rows if fmt == "" else _ply_binary_rows
         data = read(buf, start, elements, fmt, wanted={"vertex": ("x", "y", "z"), "face": (index,)})
         types = {p.name: p.type for p in vert.props}  # ASCII: round to the declared type (float)
@@ -280,7 +277,7 @@ def _ply_binary_triangles(buf, fmt, elements, start, vert, face, index):
     """``(vertices, faces)`` of a binary all-triangle PLY of fixed-size records, read as structured views.
 
     Elements up to the mesh's must be fixed-size records; no per-record work, no trimesh import. None
-    otherwise (then trimesh or the record-by-record reader).
+    otherwise (then the record-by-record reader).
     """
     recs, pos = {}, start
     for el in elements:
@@ -298,12 +295,12 @@ def _ply_binary_triangles(buf, fmt, elements, start, vert, face, index):
 
 
 def _ply_trimesh(buf, fmt, elements, start, vert, face, index):
-    """``(vertices, faces)`` read by trimesh, or None if the file has polygons or trimesh fails.
+    """``(vertices, faces)`` of an ASCII PLY read by trimesh, or None if it has polygons or trimesh fails.
 
-    trimesh silently triangulates ASCII polygons and its binary reader assumes every list as
-    long as the first one, so the list lengths are checked first (``_ply_all_triangles``).
+    trimesh silently triangulates ASCII polygons, so the list lengths are checked first
+    (``_ply_all_triangles``).
     """
-    if vert.count == 0 or face.count == 0 or not _ply_all_triangles(buf, fmt, elements, start, face, index):
+    if vert.count == 0 or face.count == 0 or not _ply_all_triangles(buf, elements, start, face, index):
         return None
     from trimesh.exchange.ply import load_ply  # imported here: `import prodmaps` stays light
 
@@ -320,37 +317,27 @@ def _ply_trimesh(buf, fmt, elements, start, vert, face, index):
     return vertices, faces
 
 
-def _ply_all_triangles(buf, fmt, elements, start, face, index) -> bool:
-    """Whether every face list has 3 indices, read cheaply (ASCII: one token per face line; binary: a view).
+def _ply_all_triangles(buf, elements, start, face, index) -> bool:
+    """Whether every face list of an ASCII PLY has 3 indices, read cheaply (one token per face line).
 
     False also when only a full parse can tell (truncated file, blank lines, lists before the index
-    list, variable-length lists before the faces), and for ASCII non-integers in integer face
-    properties (trimesh would truncate '2.5' to 2).
+    list), and for non-integers in integer face properties (trimesh would truncate '2.5' to 2).
     """
-    before = elements[:elements.index(face)]
     k = [p.name for p in face.props].index(index)
-    if fmt == "":  # ASCII: one element per line; the count follows the scalars before the list
-        if any(p.count is not None for p in face.props[:k]):
+    if any(p.count is not None for p in face.props[:k]):  # the count follows the scalars before the list
+        return False
+    skip = sum(el.count for el in elements[:elements.index(face)])
+    lines = buf[start:].splitlines()
+    if not all(map(bytes.strip, lines[:skip + face.count])):  # a blank line shifts trimesh's rows
+        return False
+    rows = lines[skip:skip + face.count]
+    try:
+        if len(rows) != face.count or {r.split(None, k + 1)[k] for r in rows} != {b"3"}:
             return False
-        skip = sum(el.count for el in before)
-        lines = buf[start:].splitlines()
-        if not all(map(bytes.strip, lines[:skip + face.count])):  # a blank line shifts trimesh's rows
-            return False
-        rows = lines[skip:skip + face.count]
-        try:
-            if len(rows) != face.count or {r.split(None, k + 1)[k] for r in rows} != {b"3"}:
-                return False
-        except IndexError:
-            return False
-        ints = all(np.dtype(t).kind in "iu" for p in face.props for t in (p.type, p.count) if t)
-        return not (ints and _NOT_INTEGER.search(b" ".join(rows)))
-    pos = start
-    for el in before + [face]:  # fixed-size records (every list as long as the first one)
-        rec = _ply_fixed_records(buf, pos, el, fmt)
-        if rec is None:
-            return False
-        pos += rec.nbytes
-    return bool(np.all(rec[f"{index}.n"] == 3))
+    except IndexError:
+        return False
+    ints = all(np.dtype(t).kind in "iu" for p in face.props for t in (p.type, p.count) if t)
+    return not (ints and _NOT_INTEGER.search(b" ".join(rows)))
 
 
 def _ply_fixed_records(buf, pos, el, fmt):

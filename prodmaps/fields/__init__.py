@@ -18,19 +18,13 @@ subpackage implements the pieces on plain arrays:
   mesh: the cells of the integer iso-lines, one polygon closing each hole next to a singularity
   cluster (watertight on a closed input).
 
-What follows [ACBCO17] and what is this package's own is listed in the Figure 14 notebook
-(``notebooks/fig14_quad_transfer.ipynb``) and in :mod:`.consistency`'s module doc.
+What follows [ACBCO17] and what is this package's own: the Figure 14 notebook and
+:mod:`.consistency`'s module doc; the experiment and its figures:
+:mod:`prodmaps.experiments.crossfields` and :mod:`prodmaps.experiments.crossfield_plots`.
 
-The Figure 14 experiment (a dataset pair, the ground-truth reference, the measures) and its
-figures are in the experiments layer: :mod:`prodmaps.experiments.crossfields` and
-:mod:`prodmaps.experiments.crossfield_plots`.
-
-Conventions: faces frames ``(u, v, n)`` with ``u`` the unit edge ``F[:,0] -> F[:,1]``; fields
-are complex per face in those frames; a cross field is stored as its 4th power; ``C_12`` is
-``(k2, k1)`` and maps coefficients on shape 1 to shape 2; ``p2p_21`` is ``(n2,)``; bases are
-A-orthonormal (lumped area inner product) with the constant first; in this subpackage's
-experiment ``k`` is the paper's k (non-constant functions), in :func:`prodmaps.eigenbasis` it
-counts the constant.
+Conventions (the maps' and bases': :mod:`prodmaps.conventions`): face frames ``(u, v, n)`` with
+``u`` the unit edge ``F[:,0] -> F[:,1]``; fields are complex per face in those frames; a cross
+field is stored as its 4th power; the experiment's ``k`` is the paper's (non-constant functions).
 """
 
 from .consistency import ConsistencyProblem, consistency_problem, design_consistent_field, design_joint

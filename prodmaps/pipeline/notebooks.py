@@ -17,8 +17,7 @@ from pathlib import Path
 
 from ..files import atomic_path
 
-__all__ = ["declared_parameters", "parameters_cell", "parameter_default", "strip", "has_outputs", "export_html",
-           "code_lines"]
+__all__ = ["declared_parameters", "parameters_cell", "parameter_default", "strip", "export_html", "code_lines"]
 
 
 def declared_parameters(notebook) -> dict:
@@ -70,13 +69,6 @@ def literal(text):
         return ast.literal_eval(text) if text is not None else None
     except (ValueError, SyntaxError):
         return None
-
-
-def has_outputs(path) -> bool:
-    """True if a notebook file carries outputs or execution counts in any code cell."""
-    nb = json.loads(Path(path).read_text(encoding="utf-8"))
-    return any(c.get("outputs") or c.get("execution_count") is not None
-               for c in nb.get("cells", []) if c.get("cell_type") == "code")
 
 
 def strip(path) -> None:
