@@ -45,7 +45,7 @@ from pathlib import Path
 from ..files import read_json, sha256_file, swap_into_place
 from .hashing import run_hash
 from .notebooks import declared_parameters, export_html, literal, parameter_default
-from .registry import PROFILES, BareWord, load_registry, project_root
+from .registry import PROFILES, RUNS_ENV, BareWord, load_registry, project_root, registry_path
 
 __all__ = ["RunResult", "run_notebook", "plan_runs", "reproduce", "summary", "ParameterError", "profile_folder"]
 
@@ -169,6 +169,21 @@ def mkdtemp_beside(target: Path, name: str) -> Path:
 
 
 @contextlib.contextmanager
+def _registry_env(registry: str | None):
+    """``$PRODMAPS_RUNS`` set to the run's registry during the run: the kernel's ``run_parameters`` reads it."""
+    old = os.environ.get(RUNS_ENV)
+    if registry:
+        os.environ[RUNS_ENV] = registry
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop(RUNS_ENV, None)
+        else:
+            os.environ[RUNS_ENV] = old
+
+
+@contextlib.contextmanager
 def _stderr_to(path: Path):
     """Send fd 2 (the kernel's ipykernel/VTK chatter) to ``path``; in the main thread only (Dask uses threads)."""
     if threading.current_thread() is not threading.main_thread():
@@ -200,7 +215,7 @@ def _execute_task(task: dict) -> dict:
     t0 = time.perf_counter()
     error = ""
     try:
-        with _stderr_to(tmp / "kernel.log"):
+        with _stderr_to(tmp / "kernel.log"), _registry_env(task.get("registry")):
             run_notebook(task["notebook"], tmp, task["params"], task.get("kernel_name", "python3"),
                          timeout=task.get("timeout"), cwd=task.get("cwd"),
                          shown_out_dir=_shown_path(target, root), shown_notebook=shown_notebook)
@@ -430,7 +445,8 @@ def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None,
     tasks = plan_runs(runs, only=only, profile=profile, dataset=dataset, overrides=overrides,
                       out=out, kernel_name=kernel_name, timeout=timeout, cwd=project_root(registry))
     skipped = [t for t in tasks if not force and _is_current(Path(t["run_dir"]), t["hash"])]
-    todo = [dict(t, env=thread_env(jobs if scheduler is None else 1)) for t in tasks if t not in skipped]
+    todo = [dict(t, env=thread_env(jobs if scheduler is None else 1), registry=str(registry_path(registry)))
+            for t in tasks if t not in skipped]
     results = {t["name"]: RunResult(t["name"], "skipped", 0.0, t["run_dir"]).to_dict() for t in skipped}
     bar = _Progress(len(tasks), progress, stream)
     for r in results.values():

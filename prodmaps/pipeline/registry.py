@@ -47,11 +47,12 @@ from pathlib import Path
 from ..files import parse_toml
 from .notebooks import parameters_cell
 
-__all__ = ["PROFILES", "REGISTRY", "Run", "RegistryError", "find_project_root", "registry_path",
+__all__ = ["PROFILES", "REGISTRY", "RUNS_ENV", "Run", "RegistryError", "find_project_root", "registry_path",
            "project_root", "load_registry", "run_parameters", "parse_param", "parse_params", "BareWord"]
 
 PROFILES = ("smoke", "paper")
 REGISTRY = Path("paper") / "runs.toml"
+RUNS_ENV = "PRODMAPS_RUNS"  # another registry file than the project's paper/runs.toml
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _RUN_KEYS = {"notebook", "reproduces", "title", "params", "tolerances", "description", "claims", "report",
              "dataset_figures"}
@@ -98,7 +99,7 @@ def registry_path(path=None) -> Path:
     """``path`` if given, else ``$PRODMAPS_RUNS``, else ``paper/runs.toml`` of :func:`find_project_root`."""
     if path is not None:
         return Path(path).expanduser().resolve()
-    env = os.environ.get("PRODMAPS_RUNS")
+    env = os.environ.get(RUNS_ENV)
     if env:
         return Path(env).expanduser().resolve()
     return find_project_root() / REGISTRY

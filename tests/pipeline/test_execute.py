@@ -4,6 +4,7 @@ outputs, declared parameters, run hashes, baselines, Dask. Uses tiny throwaway n
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path  # noqa: F401  (fixture paths)
@@ -205,6 +206,33 @@ def test_cli_runs_resumes_forces_and_reruns_only_changed(project, capsys):
     rc, text = _main(args + ["--only", "tiny_a", "--force", "-p", "value=4"], capsys)
     b = json.loads((out / "smoke" / "tiny_a" / "results.json").read_text())
     assert b == a  # reruns give identical numbers
+
+
+def test_registry_outside_the_project_reaches_the_kernels_run_parameters(tmp_path, monkeypatch, capsys):
+    # a run only a registry of the user's own holds (no paper/runs.toml anywhere); its notebook reads its
+    # knobs with run_parameters, which must read the registry given on the command line
+    nb = nbformat.v4.new_notebook()
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    nb.cells = [
+        nbformat.v4.new_code_cell('profile = "smoke"\nout_dir = "results/own"\nknob = None\n',
+                                  metadata={"tags": ["parameters"]}),
+        nbformat.v4.new_code_cell("from prodmaps.experiments import results as nbr\n"
+                                  "from prodmaps.pipeline import registry\n"
+                                  'P = registry.run_parameters("own_run", profile, globals())\n'
+                                  'nbr.write_results(out_dir, {"knob_twice": 2 * P["knob"]}, P)\n'),
+    ]
+    nbformat.write(nb, str(tmp_path / "own.ipynb"))
+    reg = tmp_path / "elsewhere" / "my_runs.toml"
+    reg.parent.mkdir()
+    reg.write_text('root = ".."\n[runs.own_run]\nnotebook = "own.ipynb"\n[runs.own_run.params.smoke]\nknob = 21\n')
+    monkeypatch.delenv("PRODMAPS_RUNS", raising=False)
+    monkeypatch.chdir(tmp_path)
+    args = ["reproduce", "--registry", str(reg), "--profile", "smoke", "--out", str(tmp_path / "res")]
+    rc, text = _main(args, capsys)
+    assert rc == 0, text
+    assert json.loads((tmp_path / "res" / "smoke" / "own_run" / "results.json").read_text())["results"] == {
+        "knob_twice": 42}
+    assert "PRODMAPS_RUNS" not in os.environ  # the runner's setting is undone after the run
 
 
 @pytest.mark.slow
