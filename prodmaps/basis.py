@@ -1,16 +1,9 @@
 """Functional bases: Laplace–Beltrami eigenbases of meshes and the 1D periodic Fourier basis.
 
-Conventions
------------
-* A :class:`Basis` holds ``vecs`` ``(n, k)`` whose columns are functions on the ``n`` points,
-  ``evals`` ``(k,)`` ascending, and the mass (``(n,)`` lumped diagonal, or a sparse ``(n, n)``
-  FEM mass).
-* Columns are orthonormal in the **area inner product**: ``vecs.T @ A @ vecs = I``.
-* Column 0 is the constant function ``φ0 = 1/sqrt(total area)`` and is positive.
-* ``k`` counts **all** columns, the constant included. The paper's ``k_M`` counts the
-  non-constant ones: the paper's ``k_M = 9`` is ``eigenbasis(mesh, 10)``.
-* Signs are deterministic: every non-constant column has its entry of largest magnitude
-  positive (the first such entry if several tie), so reruns give identical bases.
+A :class:`Basis` holds ``vecs`` ``(n, k)`` whose columns are functions on the ``n`` points,
+``evals`` ``(k,)`` ascending, and the mass (``(n,)`` lumped diagonal, or a sparse ``(n, n)`` FEM
+mass). Orthonormality, the constant column 0, what ``k`` counts and the deterministic signs:
+:mod:`prodmaps.conventions`.
 """
 
 from __future__ import annotations

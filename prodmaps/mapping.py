@@ -3,17 +3,9 @@
 Function transfer with these maps is :mod:`prodmaps.transfers` (:func:`prodmaps.transfer_operator`,
 :func:`prodmaps.transfer`).
 
-Conventions
------------
-* ``C_12`` has shape ``(k2, k1)`` (columns of ``basis_2`` by columns of ``basis_1``, constants
-  included) and maps coefficients on shape 1 to shape 2: ``T f ≈ Φ2 C_12 Φ1ᵀ A1 f``.
-* A point map ``p2p_21`` has shape ``(n2,)``: for each vertex of shape 2, a vertex of shape 1
-  (the pull-back direction: ``(T f)(y) = f(p2p_21[y])``).
-* Ground truth: ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]``.
-* ``C~`` (:func:`extend_fmap`) has shape ``(K2, K1)`` between the extended bases of
-  :func:`prodmaps.product_basis` with the same ``order`` and ``pairs``; by Lemma 2,
-  ``B2 C~ a`` is the function whose value is the exact pointwise product of the transferred
-  basis functions, for *any* ``C`` (not only ground-truth maps).
+Conventions (``C_12``, ``p2p_21``, the ground truth, ``C~``): :mod:`prodmaps.conventions`. By Lemma 2,
+``B2 C~ a`` is the function whose value is the exact pointwise product of the transferred basis
+functions, for *any* ``C`` (not only ground-truth maps).
 """
 
 from __future__ import annotations

@@ -1,11 +1,7 @@
 """Point-map recovery from a functional map: standard [OBCS*12] and extended (paper Sections 4.4, 5.3).
 
-Conventions
------------
-* ``C_12`` ``(k2, k1)`` maps coefficients on shape 1 to shape 2 (``T f ≈ Φ2 C_12 Φ1ᵀ A1 f``);
-  bases are A-orthonormal with the constant in column 0; ``k`` counts all columns.
-* The result ``p2p_21`` ``(n2,)`` gives for every vertex ``y`` of shape 2 a vertex of shape 1
-  (pull-back direction), the convention of :func:`prodmaps.fmap_from_p2p`.
+Conventions (``C_12`` ``(k2, k1)``, bases, the result ``p2p_21`` ``(n2,)`` pulling back):
+:mod:`prodmaps.conventions`.
 
 Standard conversion (``method="std"``)
     The delta function at ``x`` on shape 1 has coefficients ``Φ1[x]`` (times ``A1[x]``, a

@@ -7,16 +7,8 @@ the target's extended basis, or the default rule's filtered directions); ``T(F)`
 ``(n1, m)``, to shape 2. ``pm.transfer(F, C_12, basis_1, basis_2, method=...)`` is that
 operator applied once.
 
-Conventions (:mod:`prodmaps.conventions`)
------------------------------------------
-* Bases are A-orthonormal (``Φᵀ A Φ = I``, area inner product) with the constant first; ``k``
-  (``Basis.k``) counts the constant: the paper's ``k_M = 9`` is a basis of 10 columns.
-* ``C_12`` has shape ``(k2, k1)`` = ``(basis_2.k, basis_1.k)`` and maps coefficients on shape 1
-  to shape 2: ``T f ≈ Φ2 C_12 Φ1ᵀ A1 f``. A point map ``p2p_21`` ``(n2,)`` gives its ground truth
-  ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` (:func:`prodmaps.fmap_from_p2p`).
-* ``C~`` (:func:`prodmaps.extend_fmap`) is ``(K2, K1)`` between the extended bases
-  (:func:`prodmaps.product_basis`); by Lemma 2, ``B2 C~ a`` is the exact pointwise product of the
-  transferred basis functions for *any* ``C``.
+Conventions (bases, ``k``, ``C_12`` ``(k2, k1)``, ``C~``): :mod:`prodmaps.conventions`; by Lemma 2,
+``B2 C~ a`` is the exact pointwise product of the transferred basis functions for *any* ``C``.
 
 Methods, each with its own keyword parameters (:data:`PARAMETERS`)
 -------------------------------------------------------------------
@@ -496,9 +488,7 @@ def _default_key(C: np.ndarray, basis_2: Basis, params: dict) -> tuple:
 def transfer_operator(C_12, basis_1: Basis, basis_2: Basis, method: str = "std", **params) -> TransferOperator:
     """The transfer operator of ``method`` for ``(C_12, basis_1, basis_2)``, built once (module doc).
 
-    ``C_12`` is ``(basis_2.k, basis_1.k)`` and maps coefficients on shape 1 to shape 2; bases are
-    A-orthonormal with the constant first and ``k`` counts the constant
-    (:mod:`prodmaps.conventions`).
+    Conventions: :mod:`prodmaps.conventions`.
 
     Parameters
     ----------
@@ -511,10 +501,7 @@ def transfer_operator(C_12, basis_1: Basis, basis_2: Basis, method: str = "std",
         The standard transfer; the library's default extended transfer; the paper's Approach B;
         Approach A (p = 2, p = 1).
     **params
-        The method's own parameters, :data:`PARAMETERS` (``"std"`` takes none; ``"default"``
-        the rule's :data:`DEFAULT_RULE`; ``"svd"`` ``order``, ``pairs``, ``rtol``, ``route``,
-        ``normalization``; ``"ridge"`` ``order``, ``pairs``, ``eps``, ``normalization``;
-        ``"lasso"`` those and ``tol``, ``max_iter``).
+        The method's own parameters, :data:`PARAMETERS` (``"default"``: the rule's :data:`DEFAULT_RULE`).
 
     Returns
     -------
@@ -572,10 +559,7 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", **par
 
     ``transfer_operator(C_12, basis_1, basis_2, method, **params)(F)``: the operator applied
     once. To transfer many functions with one map, build the operator once
-    (:func:`transfer_operator`) or pass them as the columns of ``F``.
-
-    ``C_12`` is ``(basis_2.k, basis_1.k)`` and maps coefficients on shape 1 to shape 2; bases are
-    A-orthonormal with the constant first (:mod:`prodmaps.conventions`).
+    (:func:`transfer_operator`) or pass them as the columns of ``F``. Conventions: :mod:`prodmaps.conventions`.
 
     Parameters
     ----------

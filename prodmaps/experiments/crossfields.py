@@ -5,16 +5,9 @@ notebook (layer 2: it reads datasets and compares with a ground truth).
 
 Main experiment, the paper's setting ([ACBCO17] design both fields jointly):
 :func:`figure14_joint_pair` / :func:`figure14_joint_study` design the two cross fields of a pair
-at once (:func:`~prodmaps.fields.consistency.design_joint`: smoothness and curvature alignment on
-both shapes plus their consistency through the map) with the consistency through ``C``
-(``"std"``), through ``C~`` at the paper's Approach-B threshold (``"ext"``), through the
-library's default extended transfer (``"default"``) and through the exact point-map transfer of
-functions (``"p2p"``, an oracle), all with the **same** test functions; beside them the baselines
-``"independent"`` (no map), ``"copy"`` (face by face, one triangulation only) and
-``"pushforward"`` (ground truth). :func:`pair_measures` holds the measures (angle to the
-ground-truth push-forward of the source field on every face and on regular faces, alignment to
-each shape's curvature, singularities at low-curvature vertices matched through the ground truth);
-:func:`surface_ground_truth` gives remeshed targets a surface (barycentric) ground truth.
+at once, with the consistency through ``C``, ``C~``, the default transfer and a point-map oracle,
+beside baselines (the kinds and baselines: :func:`figure14_joint_pair`); :func:`pair_measures`
+holds the measures; :func:`surface_ground_truth` gives remeshed targets a surface ground truth.
 
 Second setting, this package's own (``params["map_only"]``, on by default): **map only**. The
 source keeps its no-map field (the ``"independent"`` baseline's, smooth and curvature-aligned) and
@@ -245,9 +238,7 @@ def quad_meshes_pair(mesh_1: Mesh, mesh_2: Mesh, z1, z2, gt: dict, size: float, 
     the correspondence is through the ground truth.
 
     ``size`` is the quad edge over ``sqrt(area)`` (of each shape). Returns ``{"stats": {"source",
-    "target": quad_mesh_stats without the vertex list, plus the parametrisation's flipped faces,
-    the field's singularities and ``polygons_near_singularities`` (non-quad faces with a corner
-    within 2 quad sizes of a field singularity)}, "irregular_matched": irregular vertices of the
+    "target": :func:`quad_mesh_of`'s stats}, "irregular_matched": irregular vertices of the
     two meshes paired one to one (same valence, optimal assignment) with the source's ground-truth
     image within 2 quad sizes of the target's, "irregular_matched_of": the source's irregular
     count, "irregular_target": the target's, "irregular_match_fraction": matched over the mean of

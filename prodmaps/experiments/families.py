@@ -2,9 +2,8 @@
 
 Every family produces a matrix ``F_1`` ``(n1, m)`` of ``m`` functions on the source shape
 (one function per column). The ground truth of a transfer to a target shape is the
-**pull-back through the ground-truth point map**: ``G_2_true = F_1[p2p_21]`` ``(n2, m)``, where
-``p2p_21`` ``(n2,)`` gives for each vertex of the target (shape 2) its vertex on the source
-(shape 1) -- the package-wide point-map direction. No family is recomputed on the target.
+**pull-back through the ground-truth point map** ``p2p_21`` (:mod:`prodmaps.conventions`):
+``G_2_true = F_1[p2p_21]`` ``(n2, m)``. No family is recomputed on the target.
 
 Families (``FAMILIES``; ``m`` is the default number of columns; "k_M" marks the families that
 depend on the source basis size, computed from ``basis_1.truncate(k_M + 1)``; the paper's

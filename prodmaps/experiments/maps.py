@@ -1,8 +1,6 @@
 """The functional maps of the experiments: ground truth and the computed NO17 maps (disk-cached).
 
-Conventions (:mod:`prodmaps.conventions`): ``C_12`` is ``(k2, k1)`` and maps coefficients on the
-source (shape 1) to the target (shape 2); ``p2p_21`` ``(n2,)`` gives for each target vertex its
-source vertex; ``k1``, ``k2`` count basis columns including the constant.
+Conventions (``C_12`` ``(k2, k1)`` from the source, shape 1, to the target; ``p2p_21``): :mod:`prodmaps.conventions`.
 
 A computed map follows a :class:`NO17Recipe` (descriptors, energy, solver, refinement);
 :data:`RECIPES` names the ones the study ``study_no17`` compares and :data:`DEFAULT_RECIPE` is the

@@ -194,13 +194,14 @@ def _case_key(s, mk) -> str:
 
 
 # ----------------------------------------------------------------------------- figures
-def _setting_colors(summary: dict):
+def _figure_setup(summary: dict):
+    """``(plt, {size: colour}, family labels)`` of the study's figures."""
     from .results import setup_matplotlib
 
     plt = setup_matplotlib()
     sizes = sorted({key.split("/")[0] for key in summary}, key=lambda s: [int(v) for v in s[1:].split("_")])
     cc = plt.cm.tab10(np.arange(len(sizes)))
-    return plt, {s: cc[i] for i, s in enumerate(sizes)}
+    return plt, {s: cc[i] for i, s in enumerate(sizes)}, list(next(iter(summary.values())))
 
 
 _LS = {"gt": "-", "computed": "--"}
@@ -210,8 +211,7 @@ def figure_error_vs_threshold(results: dict, axis_name: str, xlabel: str, mark: 
     """Transfer error vs ``rtol`` or ridge ``ε`` (``axis_name``) per family; lines: std; stars: the gain rule."""
     summary = results["summary"]
     xs = results["rtols"] if axis_name == "rtol" else results["eps"]
-    plt, color = _setting_colors(summary)
-    labels = list(next(iter(summary.values())))
+    plt, color, labels = _figure_setup(summary)
     nc = min(3, len(labels))
     nr = int(np.ceil(len(labels) / nc))
     fig, axes = plt.subplots(nr, nc, figsize=(3.6 * nc, 2.7 * nr), squeeze=False)
@@ -245,8 +245,7 @@ def figure_why(results: dict, gains: dict, families=("XYZ", "Indicator", "WKS"))
     The split is into its approximation and map parts vs ``rtol``, for two families.
     """
     summary, RT, paper_rtol = results["summary"], results["rtols"], results["paper_rtol"]
-    plt, color = _setting_colors(summary)
-    labels = list(next(iter(summary.values())))
+    plt, color, labels = _figure_setup(summary)
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
     ax = axes[0]
     for key in summary:

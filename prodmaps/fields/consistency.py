@@ -276,8 +276,7 @@ def comparison_span(kind: str, C, Ct, b1: Basis, b2: Basis, *, rtol: float, norm
     proj2: SpanProjector = span_projector(ext2 if ext2 else b2, rtol, normalization)
     Q2 = proj2.Q  # (n2, r)
     if kind == "ext":
-        Tr, info = _ext_transfer(C, Ct, b1, b2, ext2, proj2, rtol, normalization)
-        return Q2, Tr, info
+        return (Q2, *_ext_transfer(C, Ct, b1, b2, ext2, proj2, rtol, normalization))
     if kind == "default":
         Tr, info = _default_transfer(C, b1, b2, Q2)
         return Q2, Tr, {"rank_2": proj2.rank, **info}

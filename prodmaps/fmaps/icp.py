@@ -1,7 +1,6 @@
 """Spectral ICP refinement of a functional map (Ovsjanikov et al. 2012, Section 6.1), see :func:`icp_refine`.
 
-Conventions: ``C_12`` ``(k2, k1)`` maps coefficients on shape 1 to shape 2; point maps
-``p2p_21`` ``(n2,)`` pull back (see :mod:`prodmaps.conventions`).
+Conventions (``C_12`` ``(k2, k1)``, ``p2p_21`` ``(n2,)``): :mod:`prodmaps.conventions`.
 """
 
 from __future__ import annotations

@@ -1,8 +1,6 @@
 """The NO17 functional-map energy, its explicit quadratic form and two solvers (L-BFGS, direct).
 
-Conventions (:mod:`prodmaps.conventions`): bases ``(n, k)`` are A-orthonormal with the constant
-``φ0 = 1/sqrt(area)`` first and ``k`` counting it; ``C_12`` ``(k2, k1)`` maps coefficients on
-shape 1 to shape 2; ``p2p_21`` ``(n2,)`` pulls back, ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]``.
+Conventions (bases, ``k``, ``C_12`` ``(k2, k1)``, ``p2p_21`` ``(n2,)``): :mod:`prodmaps.conventions`.
 
 The NO17 energy (Nogneng & Ovsjanikov 2017, "Informative descriptor preservation via
 commutativity for shape matching")
