@@ -170,10 +170,19 @@ def mkdtemp_beside(target: Path, name: str) -> Path:
 
 @contextlib.contextmanager
 def _registry_env(registry: str | None):
-    """``$PRODMAPS_RUNS`` set to the run's registry during the run: the kernel's ``run_parameters`` reads it."""
+    """``$PRODMAPS_RUNS`` set to the run's registry: the kernel's ``run_parameters`` reads it.
+
+    Restored after the run in a main thread (this process, a pool worker). A Dask worker's threads share
+    one environment and run the tasks of one invocation, hence one registry: there it stays set, as
+    restoring it could take it away from a kernel another thread is starting.
+    """
+    if not registry or threading.current_thread() is not threading.main_thread():
+        if registry:
+            os.environ[RUNS_ENV] = registry
+        yield
+        return
     old = os.environ.get(RUNS_ENV)
-    if registry:
-        os.environ[RUNS_ENV] = registry
+    os.environ[RUNS_ENV] = registry
     try:
         yield
     finally:
