@@ -169,27 +169,24 @@ def mkdtemp_beside(target: Path, name: str) -> Path:
 
 
 @contextlib.contextmanager
-def _registry_env(registry: str | None):
-    """``$PRODMAPS_RUNS`` set to the run's registry: the kernel's ``run_parameters`` reads it.
+def _environment(env: dict):
+    """A run's environment variables (its registry, thread caps) set while its kernel runs.
 
     Restored after the run in a main thread (this process, a pool worker). A Dask worker's threads share
-    one environment and run the tasks of one invocation, hence one registry: there it stays set, as
-    restoring it could take it away from a kernel another thread is starting.
+    one environment and run the tasks of one invocation, hence the same values: there they stay set, as
+    restoring them could take them away from a kernel another thread is starting.
     """
-    if not registry or threading.current_thread() is not threading.main_thread():
-        if registry:
-            os.environ[RUNS_ENV] = registry
-        yield
-        return
-    old = os.environ.get(RUNS_ENV)
-    os.environ[RUNS_ENV] = registry
+    old = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
     try:
         yield
     finally:
-        if old is None:
-            os.environ.pop(RUNS_ENV, None)
-        else:
-            os.environ[RUNS_ENV] = old
+        if threading.current_thread() is threading.main_thread():
+            for k, v in old.items():
+                if v is None:
+                    os.environ.pop(k, None)
+                else:
+                    os.environ[k] = v
 
 
 @contextlib.contextmanager
@@ -214,8 +211,6 @@ def _execute_task(task: dict) -> dict:
     """Execute one planned run (in this process, a pool worker or a Dask worker)."""
     name, target = task["name"], Path(task["run_dir"])
     target.parent.mkdir(parents=True, exist_ok=True)
-    for env, val in (task.get("env") or {}).items():
-        os.environ.setdefault(env, val)
     for stale in target.parent.glob(f".{name}.tmp-*"):  # left by an interrupted invocation
         shutil.rmtree(stale, ignore_errors=True)
     tmp = mkdtemp_beside(target, name)
@@ -224,7 +219,7 @@ def _execute_task(task: dict) -> dict:
     t0 = time.perf_counter()
     error = ""
     try:
-        with _stderr_to(tmp / "kernel.log"), _registry_env(task.get("registry")):
+        with _stderr_to(tmp / "kernel.log"), _environment(task.get("env") or {}):
             run_notebook(task["notebook"], tmp, task["params"], task.get("kernel_name", "python3"),
                          timeout=task.get("timeout"), cwd=task.get("cwd"),
                          shown_out_dir=_shown_path(target, root), shown_notebook=shown_notebook)
@@ -454,8 +449,9 @@ def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None,
     tasks = plan_runs(runs, only=only, profile=profile, dataset=dataset, overrides=overrides,
                       out=out, kernel_name=kernel_name, timeout=timeout, cwd=project_root(registry))
     skipped = [t for t in tasks if not force and _is_current(Path(t["run_dir"]), t["hash"])]
-    todo = [dict(t, env=thread_env(jobs if scheduler is None else 1), registry=str(registry_path(registry)))
-            for t in tasks if t not in skipped]
+    # the kernels' run_parameters read the registry the runs came from (--registry too)
+    env = {**thread_env(jobs if scheduler is None else 1), RUNS_ENV: str(registry_path(registry))}
+    todo = [dict(t, env=env) for t in tasks if t not in skipped]
     results = {t["name"]: RunResult(t["name"], "skipped", 0.0, t["run_dir"]).to_dict() for t in skipped}
     bar = _Progress(len(tasks), progress, stream)
     for r in results.values():

@@ -45,18 +45,16 @@ def _check_reachable(address: str, timeout: float = 5.0) -> None:
 def thread_env(jobs: int) -> dict:
     """With several notebooks at once, cap BLAS threads and worker processes so they do not oversubscribe.
 
-    The workers are the experiments' (``PRODMAPS_WORKERS``, :mod:`prodmaps.experiments.parallel`),
-    capped unless the user set it.
+    The workers are the experiments' (``PRODMAPS_WORKERS``, :mod:`prodmaps.experiments.parallel`).
+    A variable the user set is left out: their choice stays.
     """
     if jobs <= 1:
         return {}
-    n = str(max(1, (os.cpu_count() or 1) // jobs))
-    env = {k: n for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
     from ..experiments.parallel import WORKERS_ENV
 
-    if not os.environ.get(WORKERS_ENV):
-        env[WORKERS_ENV] = n
-    return env
+    n = str(max(1, (os.cpu_count() or 1) // jobs))
+    names = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", WORKERS_ENV)
+    return {k: n for k in names if not os.environ.get(k)}
 
 
 def run_pool(tasks: list[dict], jobs: int, execute, collect):
