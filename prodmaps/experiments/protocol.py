@@ -8,6 +8,7 @@ the source and transferred to the target with a functional map ``C_12`` (ground 
 
 ``std``        A-orthogonal projection ``Φ1ᵀ A1 F``, transfer ``Φ2 C Φ1ᵀ A1 F``;
 ``l1``, ``l2`` Approach A (lasso by FISTA, ridge) in the extended basis, transfer ``B2 C~ a``;
+               ``l2@<e>`` Approach A (ridge) at ``eps = e`` (relative to ``σ_max²``);
 ``B``          Approach B at the paper's ``rtol``; ``B@<r>`` Approach B at ``rtol = r``;
 ``B_gain``     Approach B with ``rtol`` from the map-based gain rule
                (:func:`prodmaps.truncation.select_rtol`, no ground truth);
@@ -41,7 +42,8 @@ from .store import ShapeStore
 __all__ = ["ProtocolSettings", "ProtocolResult", "run_protocol", "method_label", "family_means", "area_curves",
            "AreaCurves", "perturbed_map", "AREA_CRITERIA", "METHODS", "STAGES"]
 
-METHODS = ("std", "l1", "l2", "B", "B_gain", "default", "p2p")  # plus "B@<rtol>"
+METHODS = ("std", "l1", "l2", "B", "B_gain", "default", "p2p")  # plus "B@<rtol>" and "l2@<eps>"
+_AT_METHODS = ("B@", "l2@")  # a method at another threshold (B) or weight (ridge)
 STAGES = ("approx", "transfer")
 
 
@@ -68,9 +70,10 @@ class ProtocolSettings:
 
     def __post_init__(self):
         self.sizes = [(int(a), int(b)) for a, b in self.sizes]
-        bad = [m for m in self.methods if m not in METHODS and not str(m).startswith("B@")]
+        bad = [m for m in self.methods if m not in METHODS and not _at_value(m)]
         if bad or "std" not in self.methods:
-            raise ValueError(f"methods must contain 'std' and be among {METHODS} or 'B@<rtol>'; got {self.methods}")
+            raise ValueError(f"methods must contain 'std' and be among {METHODS}, 'B@<rtol>' or 'l2@<eps>' "
+                             f"(a positive number); got {self.methods}")
         self.families = pfam.sort_entries(self.families)  # paper order; "name:reading" entries allowed
         if self.family_reading not in pfam.READING_SETS:
             raise ValueError(f"family_reading must be one of {pfam.READING_SETS}, got {self.family_reading!r}")
@@ -98,14 +101,26 @@ class ProtocolResult:
     seconds: list
 
 
+def _at_value(method) -> float | None:
+    """The number of a ``"B@<rtol>"`` / ``"l2@<eps>"`` method (a positive float), else None."""
+    m = str(method)
+    if not m.startswith(_AT_METHODS):
+        return None
+    try:
+        v = float(m.partition("@")[2])
+    except ValueError:
+        return None
+    return v if np.isfinite(v) and v > 0 else None
+
+
 def _operator(ext1, method: str, s: ProtocolSettings, rtol: float | None = None):
     norm = {} if s.normalization is None else {"normalization": s.normalization}
-    if method == "l2":
-        return ext1.operator("ridge", eps=s.eps_ridge, **norm)
+    if method == "l2" or method.startswith("l2@"):
+        return ext1.operator("ridge", eps=s.eps_ridge if method == "l2" else _at_value(method), **norm)
     if method == "l1":
         return ext1.operator("lasso", eps=s.eps_lasso, max_iter=s.lasso_max_iter, **norm)
     if rtol is None:  # "B", "B@<rtol>"; "B_gain" passes the gain rule's
-        rtol = s.rtol if method == "B" else float(method[2:])
+        rtol = s.rtol if method == "B" else _at_value(method)
     return ext1.operator("svd", rtol=rtol, **norm)
 
 
@@ -239,9 +254,14 @@ def perturbed_map(C_gt: np.ndarray, noise: float, seed) -> np.ndarray:
 
 
 def method_label(method: str, table: str | None = None) -> str:
-    """Column name of a method in the paper's tables (``our_l2`` is ``our_A`` after Table 1)."""
+    """Column name of a method in the paper's tables (``our_l2`` is ``our_A`` after Table 1).
+
+    ``"B@<r>"`` is ``our_B_rtol<r>``; ``"l2@<e>"`` is ``our_l2_eps<e>`` (``our_A_eps<e>`` after Table 1).
+    """
     if method.startswith("B@"):
         return f"our_B_rtol{method[2:]}"
+    if method.startswith("l2@"):
+        return f"{method_label('l2', table)}_eps{method[3:]}"
     names = {"std": "std", "l1": "our_l1", "l2": "our_l2" if table in (None, "T1") else "our_A",
              "B": "our_B", "B_gain": "our_B_gainrule", "default": "our_default", "p2p": "p2p_transfer"}
     return names[method]

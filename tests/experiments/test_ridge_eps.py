@@ -1,0 +1,78 @@
+"""Approach A at several weights: ``l2@<eps>`` methods of the protocol and the study of the published A column."""
+
+import numpy as np
+import pytest
+
+from prodmaps.experiments import normalization_study as ns
+from prodmaps.experiments.protocol import ProtocolSettings, method_label, run_protocol
+from prodmaps.experiments.store import ShapeStore
+
+DS = "anny_humans"
+PAIRS = [("anny_000", "anny_003"), ("anny_003", "anny_011")]
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    return ShapeStore(DS, 40, cache_folder=tmp_path_factory.mktemp("cache"))
+
+
+def test_l2_at_eps_is_the_ridge_at_that_eps(store):
+    """``l2@<e>`` gives the numbers of ``l2`` with ``eps_ridge = e``, and a larger ε shrinks more."""
+    fams = ["XYZ", "HKS", "Random"]
+    at = run_protocol(store, PAIRS, ProtocolSettings(sizes=[(9, 9)], families=fams,
+                                                     methods=["std", "l2@1e-05", "l2@0.001"]), progress=False)
+    ref = run_protocol(store, PAIRS, ProtocolSettings(sizes=[(9, 9)], families=fams, methods=["std", "l2"],
+                                                      eps_ridge=1e-5), progress=False)
+    for st in ("approx", "transfer"):
+        for a, b in zip(at.errors[(9, 9)][st]["l2@1e-05"], ref.errors[(9, 9)][st]["l2"]):
+            assert np.array_equal(a, b)
+    small = np.concatenate(at.errors[(9, 9)]["approx"]["l2@1e-05"])
+    large = np.concatenate(at.errors[(9, 9)]["approx"]["l2@0.001"])
+    assert small.mean() < large.mean()  # the weight 100x larger fits worse on the source
+
+
+@pytest.mark.parametrize("bad", ["l2@", "l2@x", "l2@-1e-5", "l2@0", "B@0", "B@nan", "l3"])
+def test_methods_at_a_value_must_name_a_positive_number(bad):
+    with pytest.raises(ValueError, match="l2@<eps>"):
+        ProtocolSettings(sizes=[(9, 9)], methods=["std", bad])
+
+
+def test_method_labels_at_a_weight():
+    assert method_label("l2@3e-05", "T1") == "our_l2_eps3e-05"
+    assert method_label("l2@3e-05", "T6") == "our_A_eps3e-05"
+    assert method_label("B@0.01") == "our_B_rtol0.01"
+
+
+def test_ridge_eps_scores_the_published_a_cells_and_both_hks_readings(store):
+    r = ns.ridge_eps(store, PAIRS, eps_values=[1e-6, 1e-3], tables={"T1": [(9, 9)], "T3": [(6, 7)], "T6": [(29, 39)]},
+                     families=["HKS", "XYZ"], progress=False)
+    assert list(r["tables"]) == ["T1", "T6"]  # Table 3 has no Approach A column
+    assert set(r["scores"]) == {"1e-06", "0.001"} and r["best"] in r["scores"]
+    for sc in r["scores"].values():
+        # published A cells: T1 transfer (our_l2) 2 families; T6 approx and transfer (our_A) 2 families
+        assert sc["cells"] == 2 + 4 and 0 <= sc["within"] <= sc["cells"] and sc["max_abs"] >= sc["mean_abs"] >= 0
+    h = r["hks"]["0.001"]
+    assert set(h) == {"published reading", "textbook", "published"}
+    assert h["published"]["T6 29/39 approx"] == 0.14
+    # the textbook HKS is smooth: the ridge barely touches it; the published reading loses more at a larger ε
+    assert h["textbook"]["T6 29/39 approx"] < 0.05
+    assert r["hks"]["1e-06"]["published reading"]["T6 29/39 approx"] < h["published reading"]["T6 29/39 approx"]
+    with pytest.raises(ValueError, match="positive"):
+        ns.ridge_eps(store, PAIRS, eps_values=[0.0])
+
+
+def test_ridge_eps_report_orders_eps_by_value_and_computes_its_conclusion():
+    r = {"tables_eps": 1e-6, "best": "3e-05",
+         "scores": {"0.0001": {"cells": 30, "within": 16, "mean_abs": 0.039, "max_abs": 0.2},
+                    "1e-06": {"cells": 30, "within": 14, "mean_abs": 0.037, "max_abs": 0.2},
+                    "3e-05": {"cells": 30, "within": 21, "mean_abs": 0.024, "max_abs": 0.09}},
+         "hks": {e: {"published": {"T6 29/39 approx": 0.14}, "published reading": {"T6 29/39 approx": v},
+                     "textbook": {"T6 29/39 approx": w}}
+                 for e, v, w in (("0.0001", 0.22, 0.002), ("1e-06", 0.014, 0.0004), ("3e-05", 0.123, 0.001))}}
+    blocks = ns._ridge_eps_blocks(r)
+    table = next(b for b in blocks if b[0] == "table")
+    assert [row[0] for row in table[2]] == ["1e-06 (the tables')", "3e-05", "0.0001"]
+    text = blocks[-1][1]
+    assert "ε = 3e-05 (21 of 30" in text and "against 14 at the tables' 1e-06" in text
+    assert "between 0.000 and 0.002" in text and "0.014 to 0.220" in text
+    assert ns._ridge_eps_blocks(None) == [] and ns._ridge_eps_blocks({"scores": {}}) == []
