@@ -7,10 +7,10 @@ Datasets
                  plus variants with different connectivity (see below).
 ``faust``        MPI-FAUST training registrations, ids ``tr_reg_000 .. tr_reg_099`` (6890 V,
                  one triangulation; subject = XXX // 10). Not redistributable: prepare it from
-                 your own download with ``python data_scripts/prepare_faust.py --archive MPI-FAUST.zip``.
+                 your own download with ``python -m prodmaps.prepare faust --archive MPI-FAUST.zip``.
 ``tosca``        TOSCA high-resolution, ids ``<class><i>`` (``cat0``, ``david3``, ...), one
                  triangulation per class. Prepare with
-                 ``python data_scripts/prepare_tosca.py --archive toscahires-asci.zip``.
+                 ``python -m prodmaps.prepare tosca --archive toscahires-asci.zip``.
 
 Where datasets are found (:func:`dataset_dir`): ``$PRODMAPS_DATA/<name>`` if ``PRODMAPS_DATA``
 is set and holds the dataset, else, for the embedded ``anny_humans``, the copy shipped inside
@@ -90,7 +90,7 @@ _REGISTRY = {s.name: s for s in (
           "wolf), one triangulation per class",
           "Download toscahires-asci.zip from the TOSCA page (http://tosca.cs.technion.ac.il/book/resources_data.html; "
           "if it is down, an archived copy is on web.archive.org), then run: "
-          "python data_scripts/prepare_tosca.py --archive toscahires-asci.zip [--data-root DIR]",
+          "python -m prodmaps.prepare tosca --archive toscahires-asci.zip [--data-root DIR]",
           "prefix", False),
 )}
 

@@ -32,7 +32,8 @@ _AWFT_FUNCTIONS = ("constant", "mean_curvature", "hks")
 
 def awft(mesh: Mesh, *, k: int = 100, angles_deg=(0.0, 45.0, 90.0, 135.0), alpha: float = 10.0,
          include_isotropic: bool = True, taus=(0.002, 0.005, 0.02), freqs0=(0, 0, 0),
-         functions=("mean_curvature", "hks"), curvature_smooth: int = 1, hks_t_rel: float = 0.01) -> np.ndarray:
+         functions=("mean_curvature", "hks"), curvature_smooth: int = 1, hks_t_rel: float = 0.01,
+         cache=None) -> np.ndarray:
     """AWFT descriptor [MRCB16] at every vertex, ``(n, len(taus)·n_operators·len(functions))``.
 
     30 columns with the defaults: 3 windows x (4 angles + isotropic) x 2 functions.
@@ -61,6 +62,11 @@ def awft(mesh: Mesh, *, k: int = 100, angles_deg=(0.0, 45.0, 90.0, 135.0), alpha
     isotropic HKS at ``t = hks_t_rel · area``), ``"constant"`` (``f = 1``). ``Sf`` depends on the
     sign of ``φ_j`` only through ``Sf²``, so the descriptor is sign-independent; it is invariant to
     rigid motions and to uniform scaling. Costs ``n_operators`` sparse eigensolves of size ``k``.
+
+    ``cache`` (optional, a :class:`prodmaps.cache.Cache` of **this mesh**, owned by the caller):
+    keeps the operators' eigenpairs, which depend only on ``k``, ``alpha``, the angle and
+    ``curvature_smooth``; descriptors with other windows or functions on the same mesh then reuse
+    them (the same numbers: they are what would be computed again).
     """
     mesh = check_mesh(mesh)
     if int(k) != k or not 2 <= k < mesh.n_vertices:
@@ -79,17 +85,26 @@ def awft(mesh: Mesh, *, k: int = 100, angles_deg=(0.0, 45.0, 90.0, 135.0), alpha
         raise ValueError("no operator: give angles_deg or include_isotropic=True")
 
     area = mesh.area
-    curv = principal_curvatures(mesh, smooth=curvature_smooth)
-    ops = [anisotropic_laplacian(mesh, np.deg2rad(a), alpha, curvature=curv) for a in angles]
-    # Weyl's law of -div(D ∇·) counts with ∫ det(D)^(-1/2) dA: D has eigenvalues 1 and 1/(1+α)
-    weyl = [float(np.sum(op[1])) * np.sqrt(1.0 + alpha) for op in ops]
+    k = int(k)
+
+    def cached(key, compute):
+        return compute() if cache is None else cache.get(("awft", *key), compute)
+
+    curv = cached(("curvature", int(curvature_smooth)), lambda: principal_curvatures(mesh, smooth=curvature_smooth))
+
+    def anisotropic(a):  # (evals (k,), vecs (n, k)) of the operator at angle a (degrees)
+        W, A_ = anisotropic_laplacian(mesh, np.deg2rad(a), alpha, curvature=curv)
+        # Weyl's law of -div(D ∇·) counts with ∫ det(D)^(-1/2) dA: D has eigenvalues 1 and 1/(1+α)
+        return _eigenpairs(W, A_, k, float(np.sum(A_)) * np.sqrt(1.0 + alpha))
+
+    W0, A0 = laplacian(mesh)  # A0 is the lumped mass of every operator
+    eig = [cached(("eig", float(a), float(alpha), k, int(curvature_smooth)), lambda a=a: anisotropic(a))
+           for a in angles]
     if include_isotropic or "hks" in functions:
-        W0, A0 = laplacian(mesh)
+        iso = cached(("eig", "isotropic", k), lambda: _eigenpairs(W0, A0, k))
         if include_isotropic:
-            ops.append((W0, A0))
-            weyl.append(None)
-    A = ops[0][1] if ops else A0
-    eig = [_eigenpairs(W, A, int(k), w) for (W, _), w in zip(ops, weyl)]
+            eig.append(iso)
+    A = A0
 
     fvals = []
     for name in functions:
@@ -98,7 +113,7 @@ def awft(mesh: Mesh, *, k: int = 100, angles_deg=(0.0, 45.0, 90.0, 135.0), alpha
         elif name == "mean_curvature":
             fvals.append(curv["mean"] * np.sqrt(area))
         else:  # hks from the isotropic eigenpairs
-            ev0, vec0 = eig[-1] if include_isotropic else _eigenpairs(W0, A0, int(k))
+            ev0, vec0 = iso
             fvals.append(((vec0**2) @ np.exp(-ev0 * hks_t_rel * area)) * area)
     fmat = np.stack(fvals, axis=1)  # (n, F)
 

@@ -358,7 +358,8 @@ def _pick_columns(rng, D: np.ndarray, m: int, name: str, min_support: float = 0.
 def _gen_descriptor(name: str):
     """The generator of ``m`` random dimensions of the descriptor ``name`` (``"shot"``, ``"awft"``)."""
     def gen(ctx, rng, m, **opts):
-        D = ctx["cache"].get(descriptor_key(name, **opts), lambda: getattr(_d, name)(ctx["mesh"], **opts))
+        kw = {"cache": ctx["cache"]} if name == "awft" else {}  # AWFT's eigenpairs serve every reading
+        D = ctx["cache"].get(descriptor_key(name, **opts), lambda: getattr(_d, name)(ctx["mesh"], **opts, **kw))
         return _pick_columns(rng, D, m, name.upper())
 
     return gen

@@ -17,12 +17,13 @@ target vertex a source vertex) by :func:`prodmaps.p2p.from_fmap`, three conversi
 Maps: ground truth (Figure 12) or NO17 (Figure 13,
 :mod:`prodmaps.experiments.maps`). Error (Kim et al. 2011): heat-method geodesic distance on the
 source between ``p2p_21[y]`` and the true image, divided by ``sqrt(area)``, on ``n_eval`` seeded
-random target vertices per pair.
+random target vertices per pair (one draw per source shape, :func:`evaluation_vertices`).
 """
 
 from __future__ import annotations
 
 import time
+import zlib
 
 import numpy as np
 
@@ -35,7 +36,7 @@ from .maps import no17_demo_map
 from .parallel import map_by_source
 from .store import ShapeStore
 
-__all__ = ["subject_pairs", "point_map_recovery", "point_map_sweep", "CONVERSIONS"]
+__all__ = ["subject_pairs", "point_map_recovery", "point_map_sweep", "evaluation_vertices", "CONVERSIONS"]
 
 CONVERSIONS = ("std", "extended", "extended_closed_form")
 
@@ -63,7 +64,8 @@ def point_map_recovery(store: ShapeStore, pairs, *, target_dim: int | None = Non
     ``k_source``: their old names (deprecated: they warn and give the same numbers).
     ``workers``: processes computing the pairs (:func:`prodmaps.experiments.parallel.map_tasks`;
     the pairs of one source shape go to one worker, which keeps its geodesic rows); the evaluated
-    vertices are drawn here in the pairs' order, so the numbers do not depend on ``workers``.
+    vertices are drawn here, one seeded draw per source shape (:func:`evaluation_vertices`), so the
+    numbers depend neither on ``workers`` nor on the pairs' order.
     """
     target_dim, source_dim = renamed_keywords(
         "point_map_recovery", {"target_dim": target_dim, "source_dim": source_dim},
@@ -117,15 +119,31 @@ def point_map_recovery(store: ShapeStore, pairs, *, target_dim: int | None = Non
 def _evaluated(store: ShapeStore, pairs, n_eval, seed: int) -> list:
     """``[(source id, (target id, evaluated target vertices))]`` per pair.
 
-    The vertices are drawn here in the pairs' order (all of them when ``n_eval`` is None).
+    ``n_eval`` target vertices drawn uniformly without replacement (all of them when ``n_eval`` is
+    None), one seeded draw per source shape and target size (:func:`evaluation_vertices`): the
+    pairs of one source evaluate the same vertex indices. Where the shapes correspond by vertex
+    index (the ground truth of FAUST's registrations and of the embedded humans is the identity),
+    their true images, the sources of the geodesic rows, are then the same ``n_eval`` vertices of
+    the source shape, solved once for all its pairs (:class:`prodmaps.geodesics.DistanceRows`).
     """
-    rng = np.random.default_rng(seed)
     items = []
     for s1, s2 in pairs:
         n2 = store.mesh(s2).n_vertices
-        ev = np.arange(n2) if n_eval is None else np.sort(rng.choice(n2, int(n_eval), replace=False))
+        ev = np.arange(n2) if n_eval is None else evaluation_vertices(n2, n_eval, seed, s1)
         items.append((s1, (s2, ev)))
     return items
+
+
+def evaluation_vertices(n: int, n_eval: int, seed: int, source: str) -> np.ndarray:
+    """``n_eval`` sorted distinct vertex indices of ``range(n)``, a seeded draw keyed by ``source`` (its name).
+
+    The same ``(n, n_eval, seed, source)`` give the same vertices in any process and pair order
+    (the key is the CRC-32 of the name, not Python's salted ``hash``).
+    """
+    if not 0 < int(n_eval) <= n:
+        raise ValueError(f"n_eval must be in [1, {n}] (the target's vertices), got {n_eval}")
+    rng = np.random.default_rng([int(seed), zlib.crc32(str(source).encode()), int(n)])
+    return np.sort(rng.choice(n, int(n_eval), replace=False))
 
 
 def _recovery_pair(store: ShapeStore, ip: int, s1: str, item, target_dim: int, source_dim: int, maps,
@@ -177,23 +195,28 @@ def point_map_sweep(store: ShapeStore, pairs, *, sizes=((40, 30),), t_scales=(1.
     settings = [("std", "std", {})]
     settings += [(f"extended t x{ts:g}", "extended", {"t_scale": float(ts)}) for ts in t_scales]
     settings += [(f"extended rtol {r:g}", "extended", {"rtol": float(r)}) for r in rtols if float(r) != 1e-3]
-    rows = []
-    for dim_t, dim_s in sizes:
-        per = {name: [] for name, _, _ in settings}
-        for _, means in map_by_source(_sweep_pair, store, items, int(dim_t), int(dim_s), settings, workers=workers):
-            for name, v in means.items():
-                per[name].append(v)
-        for name, _, _ in settings:
-            rows.append({"size": [int(dim_t), int(dim_s)], "setting": name, "mean_error": float(np.mean(per[name])),
-                         "better_than_std": count_outcomes(zip(per[name], per["std"]))})
+    sizes = [(int(dim_t), int(dim_s)) for dim_t, dim_s in sizes]
+    per = {z: {name: [] for name, _, _ in settings} for z in sizes}
+    # one pass over the pairs, every size in it: a source's geodesic rows serve all its sizes
+    for _, means in map_by_source(_sweep_pair, store, items, sizes, settings, workers=workers):
+        for z in sizes:
+            for name, v in means[z].items():
+                per[z][name].append(v)
+    rows = [{"size": list(z), "setting": name, "mean_error": float(np.mean(per[z][name])),
+             "better_than_std": count_outcomes(zip(per[z][name], per[z]["std"]))}
+            for z in sizes for name, _, _ in settings]
     return {"rows": rows, "pairs": [f"{a}->{b}" for a, b in pairs]}
 
 
-def _sweep_pair(store: ShapeStore, ip: int, s1: str, item, target_dim: int, source_dim: int, settings) -> dict:
+def _sweep_pair(store: ShapeStore, ip: int, s1: str, item, sizes, settings) -> dict:
+    """One pair of :func:`point_map_sweep`: ``{(target_dim, source_dim): {setting: mean error}}``."""
     s2, ev = item
     B1, B2 = store.basis(s1), store.basis(s2)
     gt = datasets.ground_truth(store.dataset, s1, s2)
-    C = fmap_from_p2p(gt, B1.truncate(source_dim), B2.truncate(target_dim))  # (target_dim, source_dim)
-    P = np.stack([from_fmap(C, B1, B2, method, vertices=ev, **kw) for _, method, kw in settings])
-    E = geodesics.map_error(store.mesh(s1), P, gt[ev], rows=store.distance_rows(s1))  # (settings, n_eval)
-    return {name: float(e.mean()) for (name, _, _), e in zip(settings, E)}
+    out = {}
+    for target_dim, source_dim in sizes:
+        C = fmap_from_p2p(gt, B1.truncate(source_dim), B2.truncate(target_dim))  # (target_dim, source_dim)
+        P = np.stack([from_fmap(C, B1, B2, method, vertices=ev, **kw) for _, method, kw in settings])
+        E = geodesics.map_error(store.mesh(s1), P, gt[ev], rows=store.distance_rows(s1))  # (settings, n_eval)
+        out[(target_dim, source_dim)] = {name: float(e.mean()) for (name, _, _), e in zip(settings, E)}
+    return out

@@ -155,8 +155,10 @@ class ShapeStore:
         key = {"mesh": self.mesh_key(sid), "code": code_fingerprint(*DESCRIPTOR_CODE[name])}
         if options:  # the defaults keep the key they always had
             key["options"] = repr(pfam.descriptor_key(name, **options))
+        # AWFT: the operators' eigenpairs of this shape, kept per process for its other readings
+        kw = {"cache": self.memo.get(("awft spectra", sid), lambda: Cache(max_entries=16))} if name == "awft" else {}
         return self.memo.get(("descriptor", sid, name, pfam.descriptor_key(name, **options)),
-                             lambda: self.disk.get(name, key, lambda: {"D": fn(self.mesh(sid), **options)})["D"])
+                             lambda: self.disk.get(name, key, lambda: {"D": fn(self.mesh(sid), **options, **kw)})["D"])
 
     def family_cache(self, sid: str, families=(), options: dict | None = None) -> Cache:
         """The :class:`Cache` for :func:`prodmaps.experiments.families.make_family` on source ``sid``.

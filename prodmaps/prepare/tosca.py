@@ -3,9 +3,9 @@
 Get the archive: ``toscahires-asci.zip`` from the TOSCA page
 (http://tosca.cs.technion.ac.il/book/resources_data.html; when the site is down an archived
 copy exists on web.archive.org). It is not redistributable, so the project does not ship it.
-Then, from the repository:
+Then (from an install or a checkout; ``python data_scripts/prepare_tosca.py`` in a checkout is the same):
 
-    python data_scripts/prepare_tosca.py --archive toscahires-asci.zip [--data-root DIR] [--force]
+    python -m prodmaps.prepare tosca --archive toscahires-asci.zip [--data-root DIR] [--force]
 
 ``--archive`` may also be the unpacked folder. Reads the flat ``<class><i>.vert`` (one
 ``x y z`` per line) / ``<class><i>.tri`` (one 1-based triangle per line) pairs of the classes

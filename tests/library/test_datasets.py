@@ -127,7 +127,7 @@ def test_unprepared_datasets_name_the_script(monkeypatch, tmp_path):
     msg = str(e.value)
     assert "prodmaps.prepare faust --archive MPI-FAUST.zip" in msg and "faust.is.tue.mpg.de" in msg
     assert "any subset works" in msg and "--archive FundCG-s1-2018 --archive Laplacian-Mesh" in msg
-    with pytest.raises(ds.DatasetNotPreparedError, match="prepare_tosca.py --archive toscahires-asci.zip"):
+    with pytest.raises(ds.DatasetNotPreparedError, match="-m prodmaps.prepare tosca --archive toscahires-asci.zip"):
         ds.load_shape("tosca", "cat0")
     monkeypatch.setattr(ds, "embedded_root", lambda: tmp_path / "no_package_data")
     ds.clear_cache()

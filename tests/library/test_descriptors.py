@@ -279,6 +279,29 @@ def test_awft_options_and_errors(anny):
         pm.operators.anisotropic_laplacian(anny, 0.0, -1.0)
 
 
+def test_awft_cache_shares_the_eigenpairs_between_readings_with_the_same_numbers(anny, monkeypatch):
+    """With a cache of the mesh, a second reading (other windows, other functions) solves no eigenproblem."""
+    from prodmaps.cache import Cache
+    from prodmaps.descriptors import windowed_fourier
+
+    calls = []
+    solve = windowed_fourier.smallest_eigenpairs
+    monkeypatch.setattr(windowed_fourier, "smallest_eigenpairs", lambda *a, **k: calls.append(1) or solve(*a, **k))
+    readings = [{}, {"functions": ("mean_curvature",)}, {"taus": (0.001, 0.002, 0.005)},
+                {"include_isotropic": False, "functions": ("hks", "constant")}]
+    plain = [D.awft(anny, **AWFT_KW, **r) for r in readings]
+    assert len(calls) == 4 * 5  # four angles and the isotropic operator (the HKS needs it) per call
+    calls.clear()
+    cache = Cache(max_entries=16)
+    shared = [D.awft(anny, **AWFT_KW, **r, cache=cache) for r in readings]
+    assert len(calls) == 5  # once for all four readings
+    for a, b in zip(plain, shared):
+        assert np.array_equal(a, b)
+    calls.clear()
+    D.awft(anny, k=30, cache=cache)  # another k: its own eigenpairs
+    assert len(calls) == 5
+
+
 def test_anisotropic_eigenpairs_first_shift_from_weyls_law_with_the_conductivity(anny, monkeypatch):
     """AWFT's anisotropic operators have Weyl area sqrt(1 + α)·area: the shift placed with it is
     accepted at once (one Lanczos run, not two) and gives the eigenpairs of the safe shift."""
