@@ -58,7 +58,8 @@ change any reported number.
 Caching: SHOT, AWFT and the 200-eigenpair basis cost seconds per shape; pass the same
 ``cache`` (a :class:`prodmaps.cache.Cache`, one per source mesh, owned by the caller, e.g.
 :meth:`prodmaps.experiments.store.ShapeStore.family_cache`) to reuse them across calls. The keys
-are :func:`descriptor_key` (SHOT/AWFT) and ``("basis", n_eig)``.
+are :func:`descriptor_key` (SHOT/AWFT), ``("basis", n_eig)`` and AWFT's own (its operators'
+eigenpairs, shared by every AWFT reading of the mesh: :func:`prodmaps.descriptors.awft`).
 """
 
 from __future__ import annotations

@@ -195,7 +195,7 @@ def point_map_sweep(store: ShapeStore, pairs, *, sizes=((40, 30),), t_scales=(1.
     settings = [("std", "std", {})]
     settings += [(f"extended t x{ts:g}", "extended", {"t_scale": float(ts)}) for ts in t_scales]
     settings += [(f"extended rtol {r:g}", "extended", {"rtol": float(r)}) for r in rtols if float(r) != 1e-3]
-    sizes = [(int(dim_t), int(dim_s)) for dim_t, dim_s in sizes]
+    sizes = list(dict.fromkeys((int(dim_t), int(dim_s)) for dim_t, dim_s in sizes))  # each size once
     per = {z: {name: [] for name, _, _ in settings} for z in sizes}
     # one pass over the pairs, every size in it: a source's geodesic rows serve all its sizes
     for _, means in map_by_source(_sweep_pair, store, items, sizes, settings, workers=workers):

@@ -102,6 +102,7 @@ class ShapeStore:
         self._basis: dict[str, Basis] = {}
         self._family_cache: dict[str, Cache] = {}
         self._rows = Cache(max_entries=2)  # sid -> DistanceRows of the two most recently used shapes
+        self._awft_spectra = Cache(max_entries=2)  # sid -> Cache of AWFT's eigenpairs (about 20 MB a 5k shape)
         self.memo = Cache(max_entries=512)  # per-process values of the experiments (maps, descriptors)
 
     # ---------------------------------------------------------------- per shape
@@ -155,10 +156,13 @@ class ShapeStore:
         key = {"mesh": self.mesh_key(sid), "code": code_fingerprint(*DESCRIPTOR_CODE[name])}
         if options:  # the defaults keep the key they always had
             key["options"] = repr(pfam.descriptor_key(name, **options))
-        # AWFT: the operators' eigenpairs of this shape, kept per process for its other readings
-        kw = {"cache": self.memo.get(("awft spectra", sid), lambda: Cache(max_entries=16))} if name == "awft" else {}
+        def compute():
+            # AWFT: the operators' eigenpairs of this shape, kept for its other readings (two shapes at most)
+            kw = {"cache": self._awft_spectra.get(sid, lambda: Cache(max_entries=8))} if name == "awft" else {}
+            return {"D": fn(self.mesh(sid), **options, **kw)}
+
         return self.memo.get(("descriptor", sid, name, pfam.descriptor_key(name, **options)),
-                             lambda: self.disk.get(name, key, lambda: {"D": fn(self.mesh(sid), **options, **kw)})["D"])
+                             lambda: self.disk.get(name, key, compute)["D"])
 
     def family_cache(self, sid: str, families=(), options: dict | None = None) -> Cache:
         """The :class:`Cache` for :func:`prodmaps.experiments.families.make_family` on source ``sid``.

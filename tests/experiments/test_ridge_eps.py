@@ -74,5 +74,19 @@ def test_ridge_eps_report_orders_eps_by_value_and_computes_its_conclusion():
     assert [row[0] for row in table[2]] == ["1e-06 (the tables')", "3e-05", "0.0001"]
     text = blocks[-1][1]
     assert "ε = 3e-05 (21 of 30" in text and "against 14 at the tables' 1e-06" in text
-    assert "between 0.000 and 0.002" in text and "0.014 to 0.220" in text
+    assert "gives 0.000 to 0.002 over the ε tried, none within ±0.02" in text and "0.014 to 0.220" in text
     assert ns._ridge_eps_blocks(None) == [] and ns._ridge_eps_blocks({"scores": {}}) == []
+    # other data: the textbook HKS near the published value is said so, with its ε; the tables' ε the best
+    r["hks"]["0.0001"]["textbook"]["T6 29/39 approx"] = 0.135
+    r["tables"], r["best"] = {"T1": [[9, 9]], "T6": [[29, 39]]}, "1e-06"
+    r["scores"]["1e-06"]["within"] = 25
+    blocks = ns._ridge_eps_blocks(r)
+    text = blocks[-1][1]
+    assert "within ±0.02 of it at ε = 0.0001 (0.135)" in text and "none within" not in text
+    assert "ε = 1e-06 (the tables' ε) (25 of 30" in text and "against" not in text
+    assert "Tables 1 and 6 in the study" in blocks[1][1] and "share their approximation" not in blocks[1][1]
+
+
+def test_ridge_eps_rejects_values_that_share_a_key(store):
+    with pytest.raises(ValueError, match="6 significant digits"):
+        ns.ridge_eps(store, PAIRS, eps_values=[1e-5, 1.0000001e-5])

@@ -300,6 +300,9 @@ def test_awft_cache_shares_the_eigenpairs_between_readings_with_the_same_numbers
     calls.clear()
     D.awft(anny, k=30, cache=cache)  # another k: its own eigenpairs
     assert len(calls) == 5
+    # every parameter the operators depend on is in the key: the cached result equals a fresh one
+    for other in ({"alpha": 3.0}, {"curvature_smooth": 2}, {"angles_deg": (0.0, 30.0)}):
+        assert np.array_equal(D.awft(anny, **AWFT_KW, **other, cache=cache), D.awft(anny, **AWFT_KW, **other))
 
 
 def test_anisotropic_eigenpairs_first_shift_from_weyls_law_with_the_conductivity(anny, monkeypatch):
