@@ -97,14 +97,13 @@ def awft(mesh: Mesh, *, k: int = 100, angles_deg=(0.0, 45.0, 90.0, 135.0), alpha
         # Weyl's law of -div(D ∇·) counts with ∫ det(D)^(-1/2) dA: D has eigenvalues 1 and 1/(1+α)
         return _eigenpairs(W, A_, k, float(np.sum(A_)) * np.sqrt(1.0 + alpha))
 
-    W0, A0 = laplacian(mesh)  # A0 is the lumped mass of every operator
+    W0, A = laplacian(mesh)  # A: the lumped mass of every operator
     eig = [cached(("eig", float(a), float(alpha), k, int(curvature_smooth)), lambda a=a: anisotropic(a))
            for a in angles]
     if include_isotropic or "hks" in functions:
-        iso = cached(("eig", "isotropic", k), lambda: _eigenpairs(W0, A0, k))
+        iso = cached(("eig", "isotropic", k), lambda: _eigenpairs(W0, A, k))
         if include_isotropic:
             eig.append(iso)
-    A = A0
 
     fvals = []
     for name in functions:

@@ -156,6 +156,7 @@ class ShapeStore:
         key = {"mesh": self.mesh_key(sid), "code": code_fingerprint(*DESCRIPTOR_CODE[name])}
         if options:  # the defaults keep the key they always had
             key["options"] = repr(pfam.descriptor_key(name, **options))
+
         def compute():
             # AWFT: the operators' eigenpairs of this shape, kept for its other readings (two shapes at most)
             kw = {"cache": self._awft_spectra.get(sid, lambda: Cache(max_entries=8))} if name == "awft" else {}
