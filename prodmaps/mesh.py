@@ -442,7 +442,14 @@ def repair(vertices, faces, *, name: str = "") -> tuple[Mesh, np.ndarray]:
     unreferenced vertices. Non-manifold edges are *not* repaired (no canonical fix).
 
     Returns ``(mesh, kept)`` where ``kept[i]`` is the input index of output vertex ``i``.
+
+    Raises :class:`MeshError` for what no repair fixes: arrays of the wrong shape or kind, face
+    indices outside ``[0, n)``, non-manifold edges, non-triangular faces.
     """
+    v, f = np.asarray(vertices), np.asarray(faces)
+    if (v.ndim == 2 and v.shape[1] == 3 and f.ndim == 2 and f.size and np.issubdtype(f.dtype, np.integer)
+            and (f.min() < 0 or f.max() >= v.shape[0])):
+        validate(v, f)  # the repairs index vertices by the faces: name the bad indices (MeshError) first
     v, f, _ = remove_degenerate_faces(vertices, faces)
     v, f, _ = remove_duplicate_faces(v, f)
     v, f, kept = largest_component(v, f)

@@ -78,6 +78,17 @@ def test_repairs_fix_the_common_cases():
         np.testing.assert_array_equal(mesh.vertices, v[kept])
 
 
+@pytest.mark.parametrize("name, message", [("index_out_of_range.off", "out of range"),
+                                           ("negative_index.off", "negative face indices")])
+def test_repair_names_bad_face_indices(name, message):
+    """Indices outside [0, n) cannot be repaired: a MeshError naming them, not numpy's IndexError."""
+    v, f = pm.io.read_mesh_arrays(BROKEN / name)
+    with pytest.raises(pm.MeshError, match=message):
+        pmesh.repair(v, f)
+    with pytest.raises(pm.MeshError, match="cannot be repaired automatically: .*" + message):
+        pm.io.load_mesh_repaired(BROKEN / name, verbose=False)
+
+
 def test_largest_component_keeps_bigger_area():
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
     f = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
