@@ -370,8 +370,9 @@ def from_arrays(vecs, evals, mass, *, name: str = "", atol: float = 1e-6) -> Bas
     column constant (``|φ0 - mean| <= atol·|mean|``); A-orthonormality ``|ΦᵀAΦ - I| <= atol``
     (the inner product every projection here uses); eigenvalues ascending with ``λ0 ≈ 0``.
     """
-    V = np.asarray(vecs, dtype=np.float64)
-    ev = np.asarray(evals, dtype=np.float64).ravel()
+    # copies: the Basis makes its arrays read-only, the caller's (e.g. pyFM's TriMesh.eigenvectors) stay writeable
+    V = np.array(vecs, dtype=np.float64, copy=True)
+    ev = np.array(evals, dtype=np.float64, copy=True).ravel()
     if V.ndim != 2:
         raise ValueError(f"vecs must be (n, k) with the eigenvectors as columns; got shape {V.shape}")
     if ev.shape != (V.shape[1],):

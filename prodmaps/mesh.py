@@ -336,7 +336,8 @@ class Mesh:
     validate: bool = field(default=True, repr=False)
 
     def __post_init__(self):
-        v = np.ascontiguousarray(np.asarray(self.vertices, dtype=np.float64))
+        # a copy: the arrays are made read-only below, and the caller's own array must stay writeable
+        v = np.array(self.vertices, dtype=np.float64, order="C", copy=True)
         f_in = np.asarray(self.faces)
         if (f_in.size and not np.issubdtype(f_in.dtype, np.integer) and np.all(np.isfinite(f_in))
                 and np.all(f_in == np.round(f_in))):  # whole numbers stored as floats

@@ -27,6 +27,16 @@ def test_eigenbasis_conventions(basis_0, human_0):
     assert np.all(b.vecs[idx, np.arange(1, 40)] > 0)  # deterministic signs
 
 
+def test_from_arrays_leaves_the_callers_arrays_writeable():
+    """``from_arrays`` keeps a frozen copy: pyFM's ``TriMesh.eigenvectors`` (passed whole) stay writeable."""
+    b = pm.eigenbasis(pm.mesh.ellipsoid(2), 6)
+    vecs, evals, mass = np.array(b.vecs), np.array(b.evals), np.array(b.mass)
+    out = pm.basis.from_arrays(vecs, evals, mass)
+    assert vecs.flags.writeable and evals.flags.writeable
+    vecs[:, 1] *= -1.0
+    np.testing.assert_array_equal(out.vecs, b.vecs)
+
+
 def test_eigenbasis_is_deterministic(human_0, basis_0):
     again = pm.eigenbasis(human_0, 40)
     np.testing.assert_array_equal(again.vecs[:, :30], basis_0.vecs[:, :30])

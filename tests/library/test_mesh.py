@@ -103,6 +103,16 @@ def test_mesh_arrays_are_read_only(human_0):
         human_0.vertices[0, 0] = 1.0
 
 
+def test_mesh_leaves_the_callers_arrays_writeable():
+    """The Mesh freezes its own copy, not the caller's array (``V -= V.mean(0)`` after ``pm.Mesh(V, F)``)."""
+    s = pmesh.ellipsoid(1)
+    V, F = np.array(s.vertices), np.array(s.faces)
+    mesh = pm.Mesh(V, F)
+    assert V.flags.writeable and F.flags.writeable
+    V -= 1.0  # the caller's array is theirs to change ...
+    np.testing.assert_array_equal(mesh.vertices, s.vertices)  # ... and the mesh does not change with it
+
+
 def test_vertices_shape_error():
     with pytest.raises(pm.MeshError, match=r"shape \(n, 3\)"):
         pm.Mesh(np.zeros((4, 2)), np.array([[0, 1, 2]]))
