@@ -1,17 +1,36 @@
 """Errors of approximation and transfer, as the paper measures them (Section 5.1).
 
-All integrals use the lumped area weights ``mass`` ``(n,)`` of the shape the functions live on.
+All integrals use the lumped area weights ``mass`` ``(n,)`` of the shape the functions live on;
+:func:`relative_error` also takes the sparse mass matrix of a basis built with ``mass="full"``.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 __all__ = ["relative_error", "area_fraction_curve", "pointwise_error"]
 
 
-def _prep(f, g, mass):
-    f, g, mass = (np.asarray(x, dtype=np.float64) for x in (f, g, mass))
+def _prep(f, g, mass, full_ok: bool = False):
+    """``f, g`` as float64 and ``mass`` as ``(n,)`` weights, or a sparse ``(n, n)`` matrix when ``full_ok``."""
+    f, g = (np.asarray(x, dtype=np.float64) for x in (f, g))
+    if sp.issparse(mass):  # basis.mass of a basis built with mass="full" (or a pyFM-style sparse A)
+        M = sp.csr_matrix(mass)
+        if (M - sp.diags(M.diagonal())).count_nonzero() == 0:
+            mass = M.diagonal()
+        elif full_ok:
+            if M.shape != (f.shape[0],) * 2 or f.shape != g.shape:
+                raise ValueError(f"mass must be ({f.shape[0]}, {f.shape[0]}) and f, g the same shape; got {M.shape}, "
+                                 f"{f.shape} and {g.shape}")
+            if not (np.all(np.isfinite(f)) and np.all(np.isfinite(g))):
+                raise ValueError("functions contain non-finite values")
+            return f, g, M
+        else:
+            raise ValueError("this measure weighs every point by its own area: it needs the lumped area weights (n,), "
+                             "not a full mass matrix; build the basis with mass='lumped' (the default) or pass the "
+                             "row sums np.asarray(mass.sum(axis=1)).ravel()")
+    mass = np.asarray(mass, dtype=np.float64)
     if f.shape != g.shape:
         raise ValueError(f"f and g must have the same shape; got {f.shape} and {g.shape}")
     if mass.shape != (f.shape[0],):
@@ -30,8 +49,9 @@ def relative_error(f, g_true, mass) -> np.ndarray | float:
         The approximation.
     g_true : (n,) or (n, m) array_like
         The reference, same shape.
-    mass : (n,) array_like
-        Lumped area weights (``basis.mass``).
+    mass : (n,) array_like or sparse (n, n)
+        Lumped area weights (``basis.mass``), or the full mass matrix of a basis built with
+        ``mass="full"`` (the integrals are then ``hᵀ M h``).
 
     Returns
     -------
@@ -53,9 +73,13 @@ def relative_error(f, g_true, mass) -> np.ndarray | float:
     >>> pm.relative_error(np.c_[g, 2 * g], np.c_[g, g], mass).tolist()
     [0.0, 1.0]
     """
-    f, g, mass = _prep(f, g_true, mass)
-    num = np.sqrt(np.einsum("i,i...->...", mass, (f - g) ** 2))
-    den = np.sqrt(np.einsum("i,i...->...", mass, g**2))
+    f, g, mass = _prep(f, g_true, mass, full_ok=True)
+    if sp.issparse(mass):
+        num = np.sqrt(np.maximum(np.einsum("i...,i...->...", f - g, mass @ (f - g)), 0.0))
+        den = np.sqrt(np.maximum(np.einsum("i...,i...->...", g, mass @ g), 0.0))
+    else:
+        num = np.sqrt(np.einsum("i,i...->...", mass, (f - g) ** 2))
+        den = np.sqrt(np.einsum("i,i...->...", mass, g**2))
     if np.any(den == 0):
         raise ValueError("relative error undefined: the reference function is zero")
     out = num / den

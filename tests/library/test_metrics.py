@@ -50,3 +50,22 @@ def test_bad_inputs_raise():
         pm.relative_error(g, g, np.ones(2))
     with pytest.raises(ValueError, match="non-finite"):
         pm.relative_error(np.array([np.nan, 1, 1]), g, mass)
+
+
+def test_relative_error_takes_the_mass_of_any_basis():
+    """``basis.mass`` goes straight in, also for ``mass="full"`` (sparse): the integral is ``hᵀ M h``;
+    a sparse diagonal is the lumped case, and the per-point measures name what they need."""
+    import scipy.sparse as sp
+
+    mesh = pm.mesh.ellipsoid(2)
+    b = pm.eigenbasis(mesh, 8, mass="full")
+    f = mesh.vertices[:, 0] ** 2
+    g = pm.transfer(f, np.eye(8), b, b)
+    M = b.mass
+    expect = np.sqrt((f - g) @ (M @ (f - g)) / (f @ (M @ f)))
+    np.testing.assert_allclose(pm.relative_error(g, f, M), expect, rtol=1e-12)
+    np.testing.assert_allclose(pm.relative_error(np.c_[g, 2 * g], np.c_[f, f], M)[0], expect, rtol=1e-12)
+    lumped = np.asarray(M.sum(axis=1)).ravel()
+    assert pm.relative_error(g, f, sp.diags(lumped)) == pm.relative_error(g, f, lumped)
+    with pytest.raises(ValueError, match="lumped area weights"):
+        pm.area_fraction_curve(g, f, M, [0.1])
