@@ -552,6 +552,11 @@ def extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, point: str = "h
     if point == "closed_form":
         return _closed_form_embeddings(C, b1, b2, t=t, t_scale=t_scale, n_eig=n_eig, rtol=rtol, normalization=norm,
                                        pairs=pairs, vertices=vertices)
+    for i, b in ((1, basis_1), (2, basis_2)):
+        if not b.mass_is_diagonal:
+            raise ValueError(f"point={point!r} needs lumped (diagonal) masses, basis_{i} has a full mass matrix: "
+                             "build the bases with mass='lumped' (the default), or use method='std' or "
+                             "'extended_closed_form'")
     n_max = min(basis_1.k, basis_2.k)
     n_eig = min(DEFAULT_KERNEL_EIG, n_max) if n_eig is None else int(n_eig)
     if not 2 <= n_eig <= n_max:

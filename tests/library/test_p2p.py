@@ -192,6 +192,16 @@ def test_from_fmap_bad_inputs(basis_0, basis_13):
         from_fmap(C, basis_0.vecs, basis_13)
 
 
+@pytest.mark.parametrize("point", ["heat", "delta"])
+def test_extended_names_a_full_mass(point):
+    """Bases built with mass="full": points as functions on the mesh need lumped masses, and say so (the
+    sparse matrix was indexed and failed inside scipy); the standard conversion works."""
+    b = pm.eigenbasis(pm.mesh.ellipsoid(2), 20, mass="full")
+    with pytest.raises(ValueError, match="lumped"):
+        from_fmap(np.eye(8), b, b, "extended", point=point)
+    np.testing.assert_array_equal(from_fmap(np.eye(8), b, b), np.arange(b.n))
+
+
 
 def test_effective_dimension_and_auto_on_extended_embeddings(basis_0, basis_13, monkeypatch):
     """effective_dimension counts the coordinates that carry the spread; on the extended
