@@ -15,7 +15,8 @@ import numpy as np
 from ..io import file_to_mesh_index, save_mesh
 from ..sampling import farthest_point_landmarks
 
-__all__ = ["write_dirty_copy", "write_broken_examples", "user_landmark_pairs", "user_function", "resolve_path"]
+__all__ = ["write_dirty_copy", "write_broken_examples", "user_landmark_pairs", "user_function", "user_ground_truth",
+           "resolve_path"]
 
 
 def write_dirty_copy(mesh, path) -> tuple[int, int]:
@@ -59,6 +60,11 @@ def user_landmark_pairs(landmarks, mesh_2, p2p_21, kept_1, kept_2, n_file_1: int
         lm_2 = farthest_point_landmarks(mesh_2.vertices, 6)
         return np.column_stack([p2p_21[lm_2], lm_2])
     lm_file = np.asarray(landmarks, dtype=np.int64).reshape(-1, 2)
+    for side, n_file in ((0, n_file_1), (1, n_file_2)):
+        bad = (lm_file[:, side] < 0) | (lm_file[:, side] >= n_file)
+        if np.any(bad):  # a negative index would silently wrap around to the end of the file
+            raise ValueError(f"landmarks on mesh {side + 1} must be vertex indices of its file, in [0, {n_file}); "
+                             f"got {lm_file[bad, side].tolist()}")
     lm = np.column_stack([file_to_mesh_index(kept_1, n_file_1)[lm_file[:, 0]],
                           file_to_mesh_index(kept_2, n_file_2)[lm_file[:, 1]]])
     if np.any(lm < 0):
@@ -66,19 +72,51 @@ def user_landmark_pairs(landmarks, mesh_2, p2p_21, kept_1, kept_2, n_file_1: int
     return lm
 
 
-def user_function(spec: str, mesh, kept) -> np.ndarray:
+def user_function(spec: str, mesh, kept, n_file: int | None = None) -> np.ndarray:
     """The function to transfer: ``"x"``, ``"y"``, ``"z"``, ``"indicator"`` or a file of values.
 
     ``"indicator"`` is the top 30 % of the height; a ``.txt``/``.npy`` file holds one value per vertex of
-    mesh 1's file.
+    mesh 1's file (``n_file`` of them when given), and anything else (several columns, another count)
+    raises ``ValueError``.
     """
     X = mesh.vertices
     if spec in ("x", "y", "z"):
         return X[:, "xyz".index(spec)].copy()
     if spec == "indicator":
         return (X[:, 2] >= np.quantile(X[:, 2], 0.7)).astype(float)
-    vals = np.load(spec) if str(spec).endswith(".npy") else np.loadtxt(spec)
-    return np.asarray(vals, dtype=float).reshape(-1)[kept]
+    vals = np.asarray(np.load(spec) if str(spec).endswith(".npy") else np.loadtxt(spec), dtype=float)
+    expected = f"{n_file}" if n_file is not None else f"at least {int(np.max(kept)) + 1}"
+    if vals.ndim > 1 and vals.shape[1:] != (1,) * (vals.ndim - 1):
+        raise ValueError(f"{spec}: one value per vertex of mesh 1's file ({expected}) expected, got an array of "
+                         f"shape {vals.shape}; save one function, e.g. np.save(path, values[:, 0])")
+    vals = vals.reshape(-1)
+    if (n_file is not None and vals.size != n_file) or vals.size <= int(np.max(kept)):
+        raise ValueError(f"{spec}: one value per vertex of mesh 1's file ({expected}) expected, got {vals.size}")
+    return vals[kept]
+
+
+def user_ground_truth(path, kept_1, kept_2, n_file_1: int, n_file_2: int) -> np.ndarray:
+    """``p2p_21`` ``(n2,)`` in the meshes' numbering from a file in the files' numbering, checked.
+
+    The file holds one vertex of mesh 1's file per vertex of mesh 2's file (``n_file_2`` integers in
+    ``[0, n_file_1)``, pyFM's ``p2p_21``); a map of the other direction, indices out of range, or a
+    vertex of mesh 2 mapped to a vertex that the repair of mesh 1 dropped raise ``ValueError``.
+    """
+    gt = np.loadtxt(path, dtype=np.int64, ndmin=1)
+    if gt.ndim == 2 and 1 in gt.shape:  # one column, or one row
+        gt = gt.reshape(-1)
+    if gt.ndim != 1 or gt.size != n_file_2:
+        raise ValueError(f"{path}: a ground truth p2p_21 has one vertex of mesh 1 per vertex of mesh 2's file "
+                         f"({n_file_2}), got shape {gt.shape}" + (" (the map of the other direction, p2p_12?)"
+                                                                  if gt.size == n_file_1 else ""))
+    if gt.min() < 0 or gt.max() >= n_file_1:
+        raise ValueError(f"{path}: ground-truth values must be vertices of mesh 1's file, in [0, {n_file_1}); "
+                         f"got [{gt.min()}, {gt.max()}]")
+    p2p_21 = file_to_mesh_index(kept_1, n_file_1)[gt[kept_2]]
+    if np.any(p2p_21 < 0):
+        raise ValueError(f"{path}: {int(np.sum(p2p_21 < 0))} vertices of mesh 2 map to vertices that the repair "
+                         "of mesh 1 removed")
+    return p2p_21
 
 
 def resolve_path(path, dataset: str) -> Path:
