@@ -431,7 +431,7 @@ def _fista(op: ApproximationOperator, F: np.ndarray) -> np.ndarray:
     x, Gx = np.zeros_like(b), np.zeros_like(b)
     y, Gy = x, Gx
     t = 1.0
-    for it in range(max_iter):
+    for it in range(max_iter if b.shape[1] else 0):  # no functions (F of shape (n, 0)): nothing to fit
         z = y - (Gy - b) / L
         x_new = np.sign(z) * np.maximum(np.abs(z) - lam / L, 0.0)
         Gx_new = G @ x_new

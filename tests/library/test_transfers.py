@@ -181,6 +181,7 @@ def test_built_once_applied_to_parts_equals_applied_to_all(small, method, params
     np.testing.assert_allclose(halves, G, rtol=rtol, atol=atol)
     np.testing.assert_allclose(op(F[:, 1]), G[:, 1], rtol=rtol, atol=atol)
     assert G.shape == (b2.n, 3) and op.approximate(F).shape == (b1.n, 3)
+    assert op(F[:, :0]).shape == (b2.n, 0)  # no functions: no columns (the lasso failed in its stopping test)
     with pytest.raises(ValueError, match="shape"):
         op(F[:10])
     with pytest.raises(ValueError, match="complex"):
