@@ -129,7 +129,10 @@ def check_fmap(C_12, basis_1: Basis, basis_2: Basis, allow_truncation: bool = Fa
                              "pass the bases in the other order?)")
     elif C.shape != (basis_2.k, basis_1.k):
         raise ValueError(f"C_12 must have shape (basis_2.k, basis_1.k) = ({basis_2.k}, {basis_1.k}); got {C.shape}. "
-                         "C_12 maps coefficients on shape 1 to shape 2")
+                         "C_12 maps coefficients on shape 1 to shape 2"
+                         + (f" (a map smaller than the bases: pass basis_1.truncate({C.shape[1]}) and "
+                            f"basis_2.truncate({C.shape[0]}))"
+                            if C.shape[1] <= basis_1.k and C.shape[0] <= basis_2.k else ""))
     if not np.all(np.isfinite(C)):
         raise ValueError("C_12 contains non-finite values")
     return C

@@ -235,6 +235,12 @@ def test_complex_and_sparse_maps(small):
         pm.transfer(f, np.full(C.shape, np.nan), b1, b2, "svd")
     with pytest.raises(ValueError, match=r"\(9, 7\)"):
         pm.transfer_operator(C.T, b1, b2, "ridge")
+    with pytest.raises(ValueError, match=r"smaller than the bases: pass basis_1.truncate\(5\) and basis_2.trunc"):
+        pm.transfer(f, C[:6, :5], b1, b2)  # a pyFM-size map on larger bases: the error says how to cut them
+    with pytest.raises(ValueError) as err:
+        pm.transfer(f, C.T, b1, b2)  # transposed: no truncation hint
+    assert "truncate" not in str(err.value)
+    assert pm.transfer(f, C[:6, :5], b1.truncate(5), b2.truncate(6)).shape == (b2.n,)  # the hint works
     for method in METHODS:
         assert np.array_equal(pm.transfer(f, sp.csr_matrix(C), b1, b2, method), pm.transfer(f, C, b1, b2, method))
 
