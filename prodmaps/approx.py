@@ -14,6 +14,13 @@ Methods
 ``"ridge"`` (Approach A, p = 2)
     ``argmin ||f - B a||_A² + ε σ_max² ||a||²`` in closed form; ``ε`` is relative to
     ``σ_max²``, the largest eigenvalue of ``Bᵀ A B``, so it does not depend on units.
+    ``penalty="norm"``: Equation 4 as printed, norms not squared,
+    ``argmin ||f - B a||_A + ε σ_max ||a||`` (``ε`` relative to ``σ_max``; lumped mass). Its
+    minimiser is the ridge solution at a weight of its own for every function,
+    ``λ = ε σ_max ||f - B a||_A / ||a||`` (the stationarity condition), found by bisection on
+    ``log λ`` along the ridge path of one SVD of ``sqrt(A) B D`` (not the Gram matrix, whose
+    eigenvalues lose the small directions that a small ``λ`` reaches); a function that ``B`` fits
+    closely is barely regularised. ``a = 0`` when ``ε σ_max ||f||_A >= ||Bᵀ A f||``.
 ``"lasso"`` (Approach A, p = 1)
     ``argmin ½||f - B a||_A² + ε λ_max ||a||₁`` with ``λ_max = ||Bᵀ A f||_∞`` (the smallest
     weight whose solution is 0), solved by FISTA on the Gram matrix; stops when the
@@ -71,9 +78,10 @@ from .basis import Basis
 from .checks import check_functions
 
 __all__ = ["ApproximationOperator", "approximation_operator", "approximate", "column_weights", "gram_eigenpairs",
-           "is_extended", "NORMALIZATIONS", "DEFAULT_NORMALIZATION"]
+           "is_extended", "NORMALIZATIONS", "DEFAULT_NORMALIZATION", "RIDGE_PENALTIES"]
 
 METHODS = ("std", "svd", "ridge", "lasso")
+RIDGE_PENALTIES = ("squared", "norm")  # Approach A, p = 2: ||·||² + ε σ_max² ||a||², or Equation 4's norms
 NORMALIZATIONS = ("euclidean", "unit_area", "columns", "area")
 DEFAULT_NORMALIZATION = "euclidean"  # the reading that reproduces the paper (study_normalization)
 
@@ -190,6 +198,7 @@ class ApproximationOperator:
     _sV: np.ndarray | None = None  # (r, K_u):  ã = (Σ_r V_rᵀ) @ (S a)
     _G: np.ndarray | None = None  # (K_u, K_u) Gram of the scaled columns, lasso
     _d: np.ndarray | None = None  # (K_u,) column weights D of the lasso (None: D = I)
+    _svd: tuple | None = None  # (U (n, r), s (r,), Vt (r, K_u), d or None, ε σ_max): ridge, penalty="norm"
 
     @property
     def rank(self) -> int | None:
@@ -205,7 +214,10 @@ class ApproximationOperator:
         if self.method == "lasso":
             return _fista(self, F)
         AF = base.apply_mass(F)
-        if self._M is not None:
+        if self._svd is not None:
+            a = _norm_ridge(self._svd, np.sqrt(base.mass)[:, None] * (F[:, None] if F.ndim == 1 else F))
+            a = a[:, 0] if F.ndim == 1 else a
+        elif self._M is not None:
             a = self._M @ _rmatmul(self.basis, AF)
         else:  # SVD route: U_rᵀ sqrt(A) f, written as U_rᵀ (A f / sqrt(A))
             sqrt_mass = np.sqrt(base.mass)
@@ -245,7 +257,7 @@ class ApproximationOperator:
 
 def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, eps: float = 1e-4,
                            route: str = "auto", tol: float = 1e-6, max_iter: int = 5000,
-                           normalization: str | None = None) -> ApproximationOperator:
+                           normalization: str | None = None, penalty: str = "squared") -> ApproximationOperator:
     """Build the approximation operator of ``basis`` for ``method`` (see module doc).
 
     Parameters
@@ -257,6 +269,8 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
     route : Approach B route, ``"auto"`` | ``"svd"`` | ``"gram"``.
     tol, max_iter : lasso stopping rule.
     normalization : ``D`` of Approaches A and B (module doc; default :data:`DEFAULT_NORMALIZATION`).
+    penalty : ridge only: ``"squared"`` (default) or ``"norm"`` (Equation 4 as printed; ``eps``
+        then relative to σ_max; module doc).
 
     Returns
     -------
@@ -292,7 +306,10 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
         raise TypeError(f"rtol and eps are numbers; got rtol={rtol!r}, eps={eps!r}")
     d = column_weights(basis, normalization)  # (K_u,) or None for D = I
     params = {"rtol": rtol, "eps": eps, "route": route, "tol": tol, "max_iter": max_iter,
-              "normalization": normalization}
+              "normalization": normalization, "penalty": penalty}
+    if penalty not in RIDGE_PENALTIES or (penalty != "squared" and method != "ridge"):
+        raise ValueError(f"penalty must be one of {RIDGE_PENALTIES} (the ridge's; other methods take none), "
+                         f"got {penalty!r} for method={method!r}")
     if method == "svd":
         if not (0 <= rtol < 1):
             raise ValueError(f"rtol must be in [0, 1), got {rtol}")
@@ -329,6 +346,11 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
     if method == "ridge":
         if eps <= 0:
             raise ValueError(f"ridge needs eps > 0, got {eps}")
+        if penalty == "norm":
+            if not base.mass_is_diagonal:
+                raise ValueError("penalty='norm' needs a lumped (diagonal) mass")
+            U, s, Vt = sla.svd(_scaled_columns(basis, d), full_matrices=False, lapack_driver="gesdd")
+            return ApproximationOperator(basis, method, params, _svd=(U, s, Vt, d, eps * s[0]))
         smax2 = sla.eigh(G, eigvals_only=True, subset_by_index=[G.shape[0] - 1] * 2)[0]
         M = sla.solve(G + eps * smax2 * np.eye(G.shape[0]), np.eye(G.shape[0]), assume_a="pos")
         if d is not None:
@@ -338,6 +360,31 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
     if eps <= 0:
         raise ValueError(f"lasso needs eps > 0, got {eps}")
     return ApproximationOperator(basis, method, params, _G=G, _d=d)
+
+
+def _norm_ridge(svd: tuple, G: np.ndarray, steps: int = 100) -> np.ndarray:
+    """``argmin ||f - B a||_A + ε σ_max ||a'||`` for every column (``penalty="norm"``, module doc).
+
+    ``svd = (U, s, Vt, d, ε σ_max)`` of the scaled columns ``X = sqrt(A) B_s D = U diag(s) Vt``;
+    ``G`` ``(n, m)`` the functions times ``sqrt(A)``. On the ridge path
+    ``a'(λ) = Vtᵀ (s c / (s² + λ))`` (``c = Uᵀ g``, ``a = D a'``) the residual is
+    ``||g - U c||² + Σ (λ c / (s² + λ))²``, without cancellation, and ``λ ||a'(λ)|| - ε σ_max ||r(λ)||``
+    changes sign once: ``steps`` bisections on ``log λ`` find it for every column.
+    """
+    U, s, Vt, d, eps = svd
+    c = U.T @ G  # (r, m)
+    perp2 = np.sum((G - U @ c) ** 2, axis=0)  # the part of g outside the span of X
+    s2 = (s ** 2)[:, None]
+    top = np.log(max(s[0] ** 2, 1e-300))
+    lo, hi = np.full(G.shape[1], top - 80.0), np.full(G.shape[1], top + 40.0)
+    for _ in range(steps):
+        lam = np.exp(0.5 * (lo + hi))
+        q = 1.0 / (s2 + lam)  # (r, m)
+        below = lam * np.sqrt(np.sum((s[:, None] * c * q) ** 2, axis=0)) < eps * np.sqrt(
+            perp2 + np.sum((lam * c * q) ** 2, axis=0))
+        lo, hi = np.where(below, 0.5 * (lo + hi), lo), np.where(below, hi, 0.5 * (lo + hi))
+    a = Vt.T @ (s[:, None] * c / (s2 + np.exp(0.5 * (lo + hi))))  # (K_u, m)
+    return a if d is None else d[:, None] * a
 
 
 def gram_eigenpairs(basis, normalization: str):

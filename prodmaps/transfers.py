@@ -23,7 +23,8 @@ Methods, each with its own keyword parameters (:data:`PARAMETERS`)
 ``"svd"`` (``order=2``, ``pairs="ordered"``, ``rtol=1e-3``, ``route``, ``normalization``)
     **The paper's Approach B**: ``B2 C~ a`` with ``a`` the truncated-SVD coefficients of ``F`` in
     the source's extended basis; ``rtol=1e-3`` with the ordered pairs is the paper's exactly.
-``"ridge"``, ``"lasso"`` (``order``, ``pairs``, ``eps``, ``normalization``; lasso also ``tol``, ``max_iter``)
+``"ridge"``, ``"lasso"`` (``order``, ``pairs``, ``eps``, ``normalization``; ridge also ``penalty``, lasso
+``tol``, ``max_iter``)
     **The paper's Approach A** (p = 2, p = 1): ``B2 C~ a`` with ``a`` the penalised fit.
 
 The solver parameters are those of :func:`prodmaps.approx.approximation_operator` (where they are
@@ -121,7 +122,7 @@ PARAMETERS = {
     "std": (),
     "default": tuple(DEFAULT_RULE),
     "svd": ("order", "pairs", "rtol", "route", "normalization"),
-    "ridge": ("order", "pairs", "eps", "normalization"),
+    "ridge": ("order", "pairs", "eps", "normalization", "penalty"),
     "lasso": ("order", "pairs", "eps", "tol", "max_iter", "normalization"),
 }
 """The keyword parameters each method takes (any other raises ``TypeError``)."""

@@ -42,8 +42,8 @@ from .store import ShapeStore
 __all__ = ["ProtocolSettings", "ProtocolResult", "run_protocol", "method_label", "family_means", "area_curves",
            "AreaCurves", "perturbed_map", "AREA_CRITERIA", "METHODS", "STAGES"]
 
-METHODS = ("std", "l1", "l2", "B", "B_gain", "default", "p2p")  # plus "B@<rtol>" and "l2@<eps>"
-_AT_METHODS = ("B@", "l2@")  # a method at another threshold (B) or weight (ridge)
+METHODS = ("std", "l1", "l2", "B", "B_gain", "default", "p2p")  # plus "B@<rtol>", "l2@<eps>" and "l2n@<eps>"
+_AT_METHODS = ("B@", "l2@", "l2n@")  # at another threshold (B), weight (ridge), or Equation 4's norms at a weight
 STAGES = ("approx", "transfer")
 
 
@@ -72,8 +72,8 @@ class ProtocolSettings:
         self.sizes = [(int(a), int(b)) for a, b in self.sizes]
         bad = [m for m in self.methods if m not in METHODS and not _at_value(m)]
         if bad or "std" not in self.methods:
-            raise ValueError(f"methods must contain 'std' and be among {METHODS}, 'B@<rtol>' or 'l2@<eps>' "
-                             f"(a positive number); got {self.methods}")
+            raise ValueError(f"methods must contain 'std' and be among {METHODS}, 'B@<rtol>', 'l2@<eps>' or "
+                             f"'l2n@<eps>' (a positive number); got {self.methods}")
         self.families = pfam.sort_entries(self.families)  # paper order; "name:reading" entries allowed
         if self.family_reading not in pfam.READING_SETS:
             raise ValueError(f"family_reading must be one of {pfam.READING_SETS}, got {self.family_reading!r}")
@@ -117,6 +117,8 @@ def _operator(ext1, method: str, s: ProtocolSettings, rtol: float | None = None)
     norm = {} if s.normalization is None else {"normalization": s.normalization}
     if method == "l2" or method.startswith("l2@"):
         return ext1.operator("ridge", eps=s.eps_ridge if method == "l2" else _at_value(method), **norm)
+    if method.startswith("l2n@"):  # Equation 4 as printed: norms, not squared (ε relative to σ_max)
+        return ext1.operator("ridge", eps=_at_value(method), penalty="norm", **norm)
     if method == "l1":
         return ext1.operator("lasso", eps=s.eps_lasso, max_iter=s.lasso_max_iter, **norm)
     if rtol is None:  # "B", "B@<rtol>"; "B_gain" passes the gain rule's
@@ -256,12 +258,15 @@ def perturbed_map(C_gt: np.ndarray, noise: float, seed) -> np.ndarray:
 def method_label(method: str, table: str | None = None) -> str:
     """Column name of a method in the paper's tables (``our_l2`` is ``our_A`` after Table 1).
 
-    ``"B@<r>"`` is ``our_B_rtol<r>``; ``"l2@<e>"`` is ``our_l2_eps<e>`` (``our_A_eps<e>`` after Table 1).
+    ``"B@<r>"`` is ``our_B_rtol<r>``; ``"l2@<e>"`` is ``our_l2_eps<e>`` (``our_A_eps<e>`` after Table 1),
+    ``"l2n@<e>"`` ``our_l2_norm_eps<e>``.
     """
     if method.startswith("B@"):
         return f"our_B_rtol{method[2:]}"
     if method.startswith("l2@"):
         return f"{method_label('l2', table)}_eps{method[3:]}"
+    if method.startswith("l2n@"):
+        return f"{method_label('l2', table)}_norm_eps{method[4:]}"
     names = {"std": "std", "l1": "our_l1", "l2": "our_l2" if table in (None, "T1") else "our_A",
              "B": "our_B", "B_gain": "our_B_gainrule", "default": "our_default", "p2p": "p2p_transfer"}
     return names[method]

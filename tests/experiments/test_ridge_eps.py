@@ -31,7 +31,7 @@ def test_l2_at_eps_is_the_ridge_at_that_eps(store):
     assert small.mean() < large.mean()  # the weight 100x larger fits worse on the source
 
 
-@pytest.mark.parametrize("bad", ["l2@", "l2@x", "l2@-1e-5", "l2@0", "B@0", "B@nan", "l3"])
+@pytest.mark.parametrize("bad", ["l2@", "l2@x", "l2@-1e-5", "l2@0", "B@0", "B@nan", "l3", "l2n@", "l2n@0"])
 def test_methods_at_a_value_must_name_a_positive_number(bad):
     with pytest.raises(ValueError, match="l2@<eps>"):
         ProtocolSettings(sizes=[(9, 9)], methods=["std", bad])
@@ -41,6 +41,8 @@ def test_method_labels_at_a_weight():
     assert method_label("l2@3e-05", "T1") == "our_l2_eps3e-05"
     assert method_label("l2@3e-05", "T6") == "our_A_eps3e-05"
     assert method_label("B@0.01") == "our_B_rtol0.01"
+    assert method_label("l2n@0.003", "T1") == "our_l2_norm_eps0.003"
+    assert method_label("l2n@0.003", "T5") == "our_A_norm_eps0.003"
 
 
 def test_ridge_eps_scores_the_published_a_cells_and_both_hks_readings(store):
@@ -90,3 +92,55 @@ def test_ridge_eps_report_orders_eps_by_value_and_computes_its_conclusion():
 def test_ridge_eps_rejects_values_that_share_a_key(store):
     with pytest.raises(ValueError, match="6 significant digits"):
         ns.ridge_eps(store, PAIRS, eps_values=[1e-5, 1.0000001e-5])
+
+
+def test_equation_4_as_printed_is_scored_beside_the_squared_ridge(store):
+    """``norm_eps_values``: Approach A with norms (``l2n@<e>``) in the same runs, its own scores and HKS cells."""
+    import prodmaps as pm
+
+    r = ns.ridge_eps(store, PAIRS, eps_values=[1e-6], tables={"T1": [(9, 9)], "T6": [(29, 39)]},
+                     families=["HKS", "XYZ"], norm_eps_values=[1e-3, 1e-1], progress=False)
+    npen = r["norm_penalty"]
+    assert set(npen["scores"]) == {"0.001", "0.1"} and npen["best"] in npen["scores"]
+    assert all(sc["cells"] == r["scores"]["1e-06"]["cells"] for sc in npen["scores"].values())  # the same cells
+    for e in ("0.001", "0.1"):  # a minimiser never fits worse than a = 0: relative errors at most 1
+        assert all(v <= 1.0 for v in npen["hks"][e]["published reading"].values())
+    # the weight grows with ε: the source fits worse
+    assert (npen["hks"]["0.001"]["published reading"]["T6 29/39 approx"]
+            < npen["hks"]["0.1"]["published reading"]["T6 29/39 approx"])
+    # the protocol's l2n@<e> is the library's operator with penalty="norm"
+    res = run_protocol(store, PAIRS[:1], ProtocolSettings(sizes=[(9, 9)], families=["XYZ"],
+                                                          methods=["std", "l2n@0.001"]), progress=False)
+    b1 = store.basis(PAIRS[0][0], 10)
+    F = store.mesh(PAIRS[0][0]).vertices
+    ext = pm.product_basis(b1)
+    a = pm.approximation_operator(ext, "ridge", eps=1e-3, penalty="norm").coefficients(F)
+    np.testing.assert_allclose(res.errors[(9, 9)]["approx"]["l2n@0.001"][0],
+                               pm.relative_error(ext.evaluate(a), F, b1.mass), rtol=1e-9)
+    assert "norm_penalty" not in ns.ridge_eps(store, PAIRS[:1], eps_values=[1e-6], tables={"T1": [(9, 9)]},
+                                              families=["XYZ"], progress=False)
+
+
+def test_norm_penalty_report_computes_which_form_fits():
+    sq = {"3e-05": {"cells": 30, "within": 21, "mean_abs": 0.024, "max_abs": 0.09}}
+    r = {"best": "0.003",
+         "scores": {"0.01": {"cells": 30, "within": 15, "mean_abs": 0.042, "max_abs": 0.37},
+                    "0.003": {"cells": 30, "within": 18, "mean_abs": 0.033, "max_abs": 0.22}},
+         "hks": {e: {"published": {"T5 29/29 transfer": 0.43, "T1 9/9 transfer": 0.15},
+                     "published reading": {"T5 29/29 transfer": v, "T1 9/9 transfer": 0.146}}
+                 for e, v in (("0.01", 0.70), ("0.003", 0.653))}}
+    blocks = ns._norm_penalty_blocks(r, sq, "3e-05")
+    table = next(b for b in blocks if b[0] == "table")
+    assert [row[0] for row in table[2]] == ["0.003", "0.01"]
+    assert table[2][0][-1] == "0.653 (T5 29/29 transfer, published 0.43)"
+    text = blocks[-1][1]
+    assert "at most 18 of 30 Approach A cells (ε = 0.003 σ_max" in text and "the squared ridge 21" in text
+    assert "the squared form (the tables') fits the published column better" in text
+    r["scores"]["0.003"]["within"] = 24
+    assert "the printed form fits the published column better" in ns._norm_penalty_blocks(r, sq, "3e-05")[-1][1]
+    r["scores"]["0.003"]["within"] = 21
+    assert "the two forms fit the published column equally" in ns._norm_penalty_blocks(r, sq, "3e-05")[-1][1]
+    assert ns._norm_penalty_blocks(None, sq, "3e-05") == []
+    # the whole ε section carries it after the squared ridge's conclusion
+    full = {"tables_eps": 1e-6, "best": "3e-05", "scores": sq, "hks": {}, "norm_penalty": r}
+    assert ns._ridge_eps_blocks(full)[-1] == ns._norm_penalty_blocks(r, sq, "3e-05")[-1]

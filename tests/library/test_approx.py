@@ -114,6 +114,55 @@ def test_ridge_tends_to_min_norm_least_squares(basis_0, pairs):
     assert gaps[2] < 1e-6
 
 
+@pytest.mark.parametrize("normalization", ["area", "euclidean"])
+def test_norm_penalty_ridge_is_equation_4_minimiser(b10, normalization):
+    # penalty="norm": argmin ||f - B a||_A + ε σ_max ||a'|| (a' = a / D the scaled coefficients), norms not squared
+    from prodmaps.approx import column_weights
+
+    ext = pm.product_basis(b10, 2, "unique")
+    rng = np.random.default_rng(8)
+    F = np.c_[ext.matrix @ rng.normal(size=ext.K) + 0.3 * rng.normal(size=b10.n), rng.normal(size=b10.n)]
+    d = column_weights(ext, normalization)
+    d = np.ones(ext.K) if d is None else d
+    X = np.sqrt(b10.mass)[:, None] * ext.matrix * d  # (n, K) scaled columns
+    smax = np.linalg.norm(X, 2)
+    for eps in (1e-3, 3e-2):
+        op = pm.approximation_operator(ext, "ridge", eps=eps, penalty="norm", normalization=normalization)
+        a = op.coefficients(F)
+        for j in range(F.shape[1]):
+            x, g = a[:, j] / d, np.sqrt(b10.mass) * F[:, j]
+            if eps * smax * np.linalg.norm(g) >= np.linalg.norm(X.T @ g):  # the dead zone: a = 0
+                assert np.linalg.norm(x) < 1e-12 * np.linalg.norm(np.linalg.lstsq(X, g, rcond=None)[0])
+                continue
+            r = X @ x - g
+            grad = X.T @ r / np.linalg.norm(r) + eps * smax * x / np.linalg.norm(x)
+            assert np.linalg.norm(grad) < 1e-7 * np.linalg.norm(X.T @ g) / np.linalg.norm(g)  # stationary
+            J = lambda y: np.linalg.norm(X @ y - g) + eps * smax * np.linalg.norm(y)
+            assert all(J(x) <= J(x + 1e-4 * np.linalg.norm(x) * rng.normal(size=x.size)) for _ in range(20))
+    # its weight is its own per function: not the squared ridge at any one ε
+    sq = pm.approximate(F, ext, "ridge", eps=1e-6, normalization=normalization)
+    assert not np.allclose(a, sq)
+    # a weight above ||Xᵀ g|| / (σ_max ||g||) gives a = 0 (the norm penalty's dead zone)
+    big = pm.approximation_operator(ext, "ridge", eps=1.0, penalty="norm", normalization=normalization)
+    assert np.abs(big.coefficients(F)).max() < 1e-12 * np.abs(sq).max()
+    single = pm.approximation_operator(ext, "ridge", eps=1e-3, penalty="norm", normalization=normalization)
+    np.testing.assert_allclose(single.coefficients(F[:, 1]), single.coefficients(F)[:, 1], rtol=1e-10, atol=1e-14)
+
+
+def test_norm_penalty_only_for_the_ridge(b10):
+    ext = pm.product_basis(b10, 2, "unique")
+    with pytest.raises(ValueError, match="penalty must be one of"):
+        pm.approximation_operator(ext, "ridge", eps=1e-3, penalty="l1")
+    with pytest.raises(ValueError, match="other methods take none"):
+        pm.approximation_operator(ext, "svd", penalty="norm")
+    f = b10.vecs[:, 3] ** 2
+    C = np.eye(b10.k)  # the transfer takes the penalty as a ridge parameter
+    np.testing.assert_allclose(pm.transfer(f, C, b10, b10, "ridge", eps=1e-3, penalty="norm"),
+                               pm.product_basis(b10).evaluate(pm.approximate(f, pm.product_basis(b10), "ridge",
+                                                                             eps=1e-3, penalty="norm")),
+                               rtol=1e-8, atol=1e-12)
+
+
 def test_lasso_meets_optimality_conditions(b10):
     ext = pm.product_basis(b10, 2, "unique")
     rng = np.random.default_rng(6)
