@@ -388,7 +388,7 @@ def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, ov
                         "parameters")
         params["profile"] = profile
         ds = params.get("dataset") or (parameter_default(run.notebook, "dataset") if run.notebook.is_file() else None)
-        h, inputs = run_hash(run.notebook, params, ds, kernel_name)
+        h, inputs = run_hash(run.notebook, params, ds, kernel_name, cwd=cwd)
         tasks.append({
             "name": n, "notebook": str(run.notebook), "params": params, "profile": profile,
             "run_dir": str(profile_folder(out, profile, dataset) / n), "hash": h, "inputs": inputs,

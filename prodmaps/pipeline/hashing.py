@@ -8,7 +8,9 @@ A run's hash covers what can change its outputs, and nothing else:
   — **except** :mod:`prodmaps.pipeline` (this subpackage: registry, execution, diffing, report,
   CLI) and the embedded datasets (hashed separately), so editing the report reruns nothing;
 * the input data (the dataset's ``SHA256SUMS`` file, or the sizes and modification times of its
-  files);
+  files), and the contents of every file a string parameter names (``-p mesh_1=/my/scan.ply``;
+  absolute, or relative to the notebooks' working directory, the project root), so editing one's
+  own mesh reruns the run that reads it;
 * the kernel name.
 
 Hashes are over contents, not modification times: ``touch`` alone reruns nothing.
@@ -65,10 +67,34 @@ def data_hash(dataset: str | None) -> str:
     return "stat:" + h.hexdigest()
 
 
-def run_hash(notebook: Path, params: dict, dataset: str | None, kernel_name: str = "python3") -> tuple[str, dict]:
-    """``(hash, inputs)`` of one run (see the module doc)."""
+def parameter_files(params: dict, cwd=None) -> dict:
+    """``{name: sha256}`` of the string parameters that name an existing file (absolute or relative to ``cwd``).
+
+    A relative name that is no file under ``cwd`` (e.g. a default relative to the dataset's folder) is
+    left out: the dataset's own fingerprint (:func:`data_hash`) covers it.
+    """
+    base = Path(cwd) if cwd is not None else Path.cwd()
+    files = {}
+    for k, v in sorted(params.items()):
+        if k in ("out_dir", "profile", "dataset") or not isinstance(v, str) or not v.strip() or "\0" in v:
+            continue
+        try:
+            p = base / Path(v).expanduser()
+            if p.is_file():
+                files[k] = sha256_file(p)
+        except (OSError, ValueError):  # not a path this system can name
+            continue
+    return files
+
+
+def run_hash(notebook: Path, params: dict, dataset: str | None, kernel_name: str = "python3", *,
+             cwd=None) -> tuple[str, dict]:
+    """``(hash, inputs)`` of one run (see the module doc); ``cwd``: the notebooks' working directory."""
     inputs = {"notebook": sha256_file(notebook) if Path(notebook).is_file() else "missing",
               "parameters": {k: v for k, v in sorted(params.items()) if k != "out_dir"},
               "library": library_hash(), "data": data_hash(dataset), "kernel": kernel_name}
+    files = parameter_files(params, cwd)
+    if files:  # only then: the hashes of runs that read no file of their own stay as they were
+        inputs["files"] = files
     blob = json.dumps(inputs, sort_keys=True, default=str).encode()
     return sha256_bytes(blob), inputs

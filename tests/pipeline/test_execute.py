@@ -167,6 +167,25 @@ def test_run_hash_tracks_notebook_params_and_data(project):
         execute.plan_runs(runs, profile="huge")
 
 
+def test_run_hash_tracks_the_contents_of_a_file_a_parameter_names(project, tmp_path_factory):
+    # `-p mesh_1=/my/scan.ply`: editing the user's own file must rerun the run, not skip it
+    runs = rp.load_registry()
+    plain = execute.plan_runs(runs, only=["tiny_a"], profile="smoke", out=project / "o", cwd=project)[0]
+    assert "files" not in plain["inputs"]  # runs that name no file keep their hash
+    mine = tmp_path_factory.mktemp("user") / "scan.off"
+    mine.write_text("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    # absolute, or relative to the notebooks' working directory (the project root); never `dataset`
+    (project / "notebooks" / "rel.off").write_text(mine.read_text())
+    assert hashing.parameter_files({"mesh_1": str(mine), "mesh_2": "notebooks/rel.off", "k": 3,
+                                    "dataset": str(mine), "missing": "no/such.ply"}, project) == {
+        "mesh_1": hashing.sha256_file(mine), "mesh_2": hashing.sha256_file(project / "notebooks" / "rel.off")}
+    h0, _ = hashing.run_hash(project / "notebooks" / "tiny_a.ipynb", {"mesh_1": str(mine)}, None, cwd=project)
+    mine.write_text(mine.read_text().replace("1 0 0", "2 0 0"))
+    h1, inputs = hashing.run_hash(project / "notebooks" / "tiny_a.ipynb", {"mesh_1": str(mine)}, None,
+                                  cwd=project)
+    assert h1 != h0 and inputs["files"] == {"mesh_1": hashing.sha256_file(mine)}
+
+
 # ----------------------------------------------------------------------------- running
 @pytest.mark.slow
 def test_cli_runs_resumes_forces_and_reruns_only_changed(project, capsys):
