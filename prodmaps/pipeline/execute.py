@@ -450,7 +450,8 @@ def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None,
                       out=out, kernel_name=kernel_name, timeout=timeout, cwd=project_root(registry))
     skipped = [t for t in tasks if not force and _is_current(Path(t["run_dir"]), t["hash"])]
     # the kernels' run_parameters read the registry the runs came from (--registry too)
-    env = {**thread_env(jobs if scheduler is None else 1), RUNS_ENV: str(registry_path(registry))}
+    env = {**thread_env(jobs if scheduler is None else 1), RUNS_ENV: str(registry_path(registry)),
+           **absolute_path_env()}
     todo = [dict(t, env=env) for t in tasks if t not in skipped]
     results = {t["name"]: RunResult(t["name"], "skipped", 0.0, t["run_dir"]).to_dict() for t in skipped}
     bar = _Progress(len(tasks), progress, stream)
@@ -471,6 +472,23 @@ def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None,
         if own_stream is not None:
             own_stream.close()
     return [RunResult(**results[t["name"]]) for t in tasks]
+
+
+PATH_ENVS = ("PRODMAPS_CACHE", "PRODMAPS_DATA")
+
+
+def absolute_path_env() -> dict:
+    """``PRODMAPS_CACHE`` / ``PRODMAPS_DATA`` set to a relative path, made absolute against this process's folder.
+
+    The kernels run in the project root: left relative, ``PRODMAPS_CACHE=cache`` would put the cache
+    into the checkout and ``PRODMAPS_DATA=data`` would name another folder than the one checked here.
+    """
+    out = {}
+    for name in PATH_ENVS:
+        value = os.environ.get(name, "")
+        if value.strip() and not Path(value).expanduser().is_absolute():
+            out[name] = str(Path.cwd() / Path(value).expanduser())
+    return out
 
 
 def _safe_execute(task) -> dict:

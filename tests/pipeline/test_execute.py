@@ -254,6 +254,32 @@ def test_registry_outside_the_project_reaches_the_kernels_run_parameters(tmp_pat
     assert "PRODMAPS_RUNS" not in os.environ  # the runner's setting is undone after the run
 
 
+def test_relative_cache_and_data_folders_are_the_invoking_folders_not_the_project(tmp_path, monkeypatch, capsys):
+    # the kernels run in the project root: PRODMAPS_CACHE=cache from another folder must not put the
+    # cache into the checkout, nor PRODMAPS_DATA=data name another data folder than the one checked
+    nb = nbformat.v4.new_notebook()
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    nb.cells = [
+        nbformat.v4.new_code_cell('profile = "smoke"\nout_dir = "results/own"\n', metadata={"tags": ["parameters"]}),
+        nbformat.v4.new_code_cell("import os\nfrom prodmaps.experiments import results as nbr\n"
+                                  "nbr.write_results(out_dir, {k: os.path.abspath(os.environ[k]) for k in "
+                                  "('PRODMAPS_CACHE', 'PRODMAPS_DATA')}, {})\n"),
+    ]
+    (tmp_path / "project" / "paper").mkdir(parents=True)
+    nbformat.write(nb, str(tmp_path / "project" / "own.ipynb"))
+    reg = tmp_path / "project" / "paper" / "runs.toml"
+    reg.write_text('[runs.own]\nnotebook = "own.ipynb"\n[runs.own.params.smoke]\n')
+    (tmp_path / "user").mkdir()
+    monkeypatch.chdir(tmp_path / "user")
+    monkeypatch.setenv("PRODMAPS_CACHE", "cache")
+    monkeypatch.setenv("PRODMAPS_DATA", "data")
+    rc, text = _main(["reproduce", "--registry", str(reg), "--profile", "smoke", "--out", "res"], capsys)
+    assert rc == 0, text
+    got = json.loads((tmp_path / "user" / "res" / "smoke" / "own" / "results.json").read_text())["results"]
+    assert got == {"PRODMAPS_CACHE": str(tmp_path / "user" / "cache"), "PRODMAPS_DATA": str(tmp_path / "user" / "data")}
+    assert os.environ["PRODMAPS_CACHE"] == "cache"  # this process's setting is restored
+
+
 @pytest.mark.slow
 def test_failure_is_isolated_kept_and_summarised(project, capsys):
     write_tiny_notebook(project / "notebooks" / "tiny_c.ipynb")
