@@ -66,7 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("baseline_dir")
     d.add_argument("--run", help="registry entry whose [tolerances] apply (default: the baseline folder's name)")
     d.add_argument("--registry", help="run registry file")
-    d.add_argument("--png-threshold", type=float, default=None, help="pixel RMS threshold (0-255, default 2.0)")
+    d.add_argument("--png-threshold", type=_png_threshold, default=None,
+                   help="pixel RMS threshold (0-255, default 2.0)")
     d.add_argument("--diff-dir", help="where side-by-side images go (default RUN_DIR/diff)")
 
     c = sub.add_parser("claims", help="print the verdicts of the claims ledger on a results folder",
@@ -112,6 +113,16 @@ def _positive_seconds(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
     if not v > 0 or v != v or v == float("inf"):
         raise argparse.ArgumentTypeError(f"{text!r}: the per-cell timeout must be a positive number of seconds")
+    return v
+
+
+def _png_threshold(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not 0 <= v <= 255:  # also refuses nan
+        raise argparse.ArgumentTypeError(f"{text!r}: the pixel RMS threshold must be a number in [0, 255]")
     return v
 
 
@@ -176,12 +187,17 @@ def _cmd_reproduce(a) -> int:
 
 
 def _cmd_diff(a) -> int:
+    import os
+
     from .diffing import DEFAULT_PNG_THRESHOLD, diff_runs
-    from .registry import load_registry
+    from .registry import RUNS_ENV, RegistryError, load_registry
 
     try:
         runs = load_registry(a.registry)
-    except Exception:
+    except RegistryError as exc:
+        if a.registry or os.environ.get(RUNS_ENV):  # a registry the user named must be read, not skipped
+            raise
+        print(f"prodmaps diff: note: {exc}; comparing with the default tolerances", file=sys.stderr)
         runs = {}
     new, base = Path(a.run_dir), Path(a.baseline_dir)
     thr = DEFAULT_PNG_THRESHOLD if a.png_threshold is None else a.png_threshold
@@ -191,14 +207,17 @@ def _cmd_diff(a) -> int:
             raise FileNotFoundError(f"{new}: neither a run folder (results.json) nor a profile folder "
                                     "(<run>/results.json)")
         missing = [n for n in names if not (base / n / "results.json").is_file()]
-        ok = not missing
+        absent = sorted(p.parent.name for p in base.glob("*/results.json") if p.parent.name not in names)
+        ok = not missing and not absent
         for n in names:
             if n not in missing:
                 rep = diff_runs(new / n, base / n, runs[n].tolerances if n in runs else {}, png_threshold=thr,
                                 diff_dir=(Path(a.diff_dir) / n) if a.diff_dir else None)
                 print(rep.to_markdown())
                 ok &= rep.ok
-        print(f"{len(names) - len(missing)} run(s) compared" + (f"; no baseline for {missing}" if missing else ""))
+        print(f"{len(names) - len(missing)} run(s) compared" + (f"; no baseline for {missing}" if missing else "")
+              + (f"; no results in {new} for {absent} (in the baseline only; diff one run's folder to compare "
+                 "that run alone)" if absent else ""))
         return 0 if ok else 1
     if new.name != base.resolve().name and not a.run and new.name in runs and base.resolve().name in runs:
         raise ValueError(f"refusing to diff run {new.name!r} against the baseline of another run "

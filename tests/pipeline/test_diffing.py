@@ -204,3 +204,38 @@ def test_cli_diff_two_profile_folders_and_refuses_two_different_runs(tmp_path, m
     capsys.readouterr()
     assert cli.main(["diff", str(tmp_path / "new" / "fig98"), str(tmp_path / "base" / "fig99")]) == 2
     assert "another run" in capsys.readouterr().err
+
+
+def test_cli_diff_of_two_profile_folders_fails_on_a_run_missing_from_the_new_one(tmp_path, monkeypatch, capsys):
+    reg = tmp_path / "runs.toml"
+    reg.write_text('root = "."\n[runs.fig98]\nnotebook = "x.ipynb"\n[runs.fig99]\nnotebook = "y.ipynb"\n')
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    for run in ("fig98", "fig99"):
+        make_run(tmp_path / "base" / run)
+    make_run(tmp_path / "new" / "fig98")  # fig99 did not run (or wrote no results.json)
+    assert cli.main(["diff", str(tmp_path / "new"), str(tmp_path / "base")]) == 1
+    out = capsys.readouterr().out
+    assert "1 run(s) compared" in out and "['fig99']" in out and "in the baseline only" in out
+    assert cli.main(["diff", str(tmp_path / "new" / "fig98"), str(tmp_path / "base" / "fig98")]) == 0
+
+
+def test_cli_diff_refuses_a_registry_it_cannot_read_instead_of_dropping_its_tolerances(tmp_path, monkeypatch,
+                                                                                        capsys):
+    monkeypatch.delenv("PRODMAPS_RUNS", raising=False)
+    base, new = make_run(tmp_path / "base" / "fig99"), make_run(tmp_path / "new" / "fig99")
+    assert cli.main(["diff", str(new), str(base), "--registry", str(tmp_path / "nope.toml")]) == 2
+    assert "nope.toml" in capsys.readouterr().err
+    monkeypatch.setenv("PRODMAPS_RUNS", str(tmp_path / "nope.toml"))
+    assert cli.main(["diff", str(new), str(base)]) == 2
+    monkeypatch.delenv("PRODMAPS_RUNS")
+    monkeypatch.chdir(tmp_path)  # no paper/runs.toml here or above: the defaults, said so
+    assert cli.main(["diff", str(new), str(base)]) == 0
+    assert "default tolerances" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("value", ["-1", "nan", "abc", "300"])
+def test_cli_diff_refuses_a_png_threshold_outside_0_255(tmp_path, capsys, value):
+    base, new = make_run(tmp_path / "base" / "fig99"), make_run(tmp_path / "new" / "fig99")
+    with pytest.raises(SystemExit) as exc:
+        cli.main(["diff", str(new), str(base), "--png-threshold", value])
+    assert exc.value.code == 2 and "--png-threshold" in capsys.readouterr().err
