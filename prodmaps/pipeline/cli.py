@@ -50,7 +50,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--update-baselines", action="store_true",
                    help="copy results.json and PNGs of the runs into paper/baselines/<profile>/<run>/ (smoke only)")
     r.add_argument("--registry", help="run registry file (default $PRODMAPS_RUNS or paper/runs.toml)")
-    r.add_argument("--timeout", type=_positive_seconds, default=None, help="per-cell timeout in seconds (> 0)")
+    r.add_argument("--timeout", type=_positive_seconds, default=None,
+                   help="per-cell timeout in seconds (> 0; rounded up to whole seconds)")
     r.add_argument("--kernel", default="python3", help="Jupyter kernel name (default python3)")
     r.add_argument("--report", metavar="PATH", help="where to write the report (default: OUT/<profile>/REPORT.md, "
                    "beside the results; the committed paper/REPORT.md changes only by `prodmaps publish`)")
@@ -151,6 +152,9 @@ def _cmd_reproduce(a) -> int:
     if a.update_baselines and a.profile != "smoke":
         raise ValueError("--update-baselines refreshes the smoke baselines: add --profile smoke")
     overrides = registry.parse_params(a.param)
+    from ..experiments.parallel import default_workers
+
+    default_workers()  # a bad PRODMAPS_WORKERS is refused here, not in every notebook that computes pairs
     if a.dataset is not None:
         _check_dataset(a.dataset)
     if a.report and not a.no_report:

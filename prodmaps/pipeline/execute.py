@@ -31,6 +31,7 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import json
+import math
 import os
 import re
 import shutil
@@ -82,7 +83,8 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
         pm_.execute_notebook(
             str(notebook), str(executed), parameters=parameters, kernel_name=kernel_name,
             cwd=str(cwd or Path.cwd()), progress_bar=False, log_output=False,
-            execution_timeout=timeout, shutdown_kernel="immediate",
+            execution_timeout=None if timeout is None else math.ceil(timeout),  # nbclient takes whole seconds
+            shutdown_kernel="immediate",
         )
     finally:
         if shown_out_dir is not None and executed.is_file():
@@ -234,8 +236,9 @@ def _execute_task(task: dict) -> dict:
             tb = "\n".join(getattr(exc, "traceback", []) or [])
             error = f"{getattr(exc, 'ename', 'Error')}: {getattr(exc, 'evalue', exc)}\n\n{_ANSI.sub('', tb)}"
             error = f"cell {getattr(exc, 'exec_count', '?')} failed\n" + error
-        else:
-            error = "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+        else:  # the exception first: the summary shows the first two lines (e.g. a cell timeout)
+            error = f"{type(exc).__name__}: {exc}\n\n" + "".join(
+                traceback.format_exception(type(exc), exc, exc.__traceback__))
         (tmp / "error.txt").write_text(error)
     seconds = time.perf_counter() - t0
     status = "failed" if error else "ok"

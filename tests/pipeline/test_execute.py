@@ -548,6 +548,36 @@ def test_bad_command_lines_fail_early_and_leave_no_results_folder(tmp_path, caps
     assert not out.exists()
 
 
+@pytest.mark.parametrize("value", ["abc", "0", "-2"])
+def test_a_bad_prodmaps_workers_is_refused_before_anything_runs(tmp_path, monkeypatch, capsys, value):
+    monkeypatch.setenv("PRODMAPS_WORKERS", value)
+    out = tmp_path / "results"
+    assert cli.main(["reproduce", "--only", "fig02", "--out", str(out), "--no-progress"]) == 2
+    assert f"PRODMAPS_WORKERS must be a positive integer, got {value!r}" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_a_fractional_timeout_runs_and_a_cell_timeout_is_named_in_the_summary(tmp_path, monkeypatch, capsys):
+    nb = nbformat.v4.new_notebook()
+    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
+    nb.cells = [
+        nbformat.v4.new_code_cell('profile = "smoke"\nout_dir = "results/own"\nnap = 0.0\n',
+                                  metadata={"tags": ["parameters"]}),
+        nbformat.v4.new_code_cell("import time\nfrom prodmaps.experiments import results as nbr\ntime.sleep(nap)\n"
+                                  "nbr.write_results(out_dir, {'nap': nap}, {})\n"),
+    ]
+    (tmp_path / "paper").mkdir()
+    nbformat.write(nb, str(tmp_path / "own.ipynb"))
+    reg = tmp_path / "paper" / "runs.toml"
+    reg.write_text('[runs.own]\nnotebook = "own.ipynb"\n[runs.own.params.smoke]\n')
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    args = ["reproduce", "--profile", "smoke", "--out", str(tmp_path / "res")]
+    rc, text = _main(args + ["--timeout", "30.5"], capsys)  # nbclient takes whole seconds only
+    assert rc == 0, text
+    rc, text = _main(args + ["--timeout", "0.5", "-p", "nap=5.0"], capsys)
+    assert rc == 1 and "FAILED own: CellTimeoutError: A cell timed out" in text, text
+
+
 def test_an_unreachable_scheduler_is_a_clear_error(project, capsys):
     import time as _time
 
