@@ -13,7 +13,7 @@ Datasets
                  ``python -m prodmaps.prepare tosca --archive toscahires-asci.zip``.
 
 Where datasets are found (:func:`dataset_dir`): ``$PRODMAPS_DATA/<name>`` if ``PRODMAPS_DATA``
-is set and holds the dataset, else, for the embedded ``anny_humans``, the copy shipped inside
+is set and holds the dataset (its ``shapes/`` folder), else, for the embedded ``anny_humans``, the copy shipped inside
 the installed package (``prodmaps/data/``, package data: editable or not, the install finds
 it), else ``<data_root()>/<name>``. :func:`data_root` is where prepared datasets live:
 ``$PRODMAPS_DATA`` if set, else ``$XDG_DATA_HOME/prodmaps`` (``~/.local/share/prodmaps``); the
@@ -142,8 +142,8 @@ def _spec(name: str) -> _Spec:
 def dataset_dir(name: str) -> Path:
     """Folder of dataset ``name`` (see the module doc for the search order; may not exist)."""
     _spec(name)
-    if os.environ.get("PRODMAPS_DATA") and (data_root() / name).is_dir():
-        return data_root() / name
+    if os.environ.get("PRODMAPS_DATA") and (data_root() / name / "shapes").is_dir():
+        return data_root() / name  # holds the dataset (a folder without shapes/, e.g. remeshed/ only, does not)
     if name in EMBEDDED and (embedded_root() / name).is_dir():
         return embedded_root() / name
     return data_root() / name

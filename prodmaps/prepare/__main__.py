@@ -9,6 +9,12 @@ from .archive import run_cli
 def main(argv=None) -> int:
     """Run ``python -m prodmaps.prepare faust|tosca|variants [options]``; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] in (["-h"], ["--help"]):
+        print("usage: python -m prodmaps.prepare {faust,tosca,variants} [options]  (--help for each)\n\n"
+              "  faust     MPI-FAUST training registrations (or any subset) from your own download\n"
+              "  tosca     TOSCA high-resolution from your own download\n"
+              "  variants  remeshed variants of a prepared dataset's shapes, with their ground truth")
+        return 0
     if not argv or argv[0] not in ("faust", "tosca", "variants"):
         print("usage: python -m prodmaps.prepare {faust,tosca,variants} [options]  (--help for each)", file=sys.stderr)
         return 2

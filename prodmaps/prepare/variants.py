@@ -131,7 +131,15 @@ def make_variants(dataset: str, shape_ids, recipes=RECIPES, data_root=None, *, s
 
     root = Path(data_root) if data_root is not None else ds.data_root()
     with mock.patch.dict(os.environ, PRODMAPS_DATA=str(root)):  # restored afterwards
-        ids = ds.shape_ids(dataset)
+        folder = ds.dataset_dir(dataset)
+        if folder.resolve() != (root / dataset).resolve():  # the embedded copy: variants beside it are never read
+            raise PrepareError(f"{dataset!r} is read from {folder} (shipped with the package, with its variants), "
+                               f"not from {root / dataset}: variants written there would never be read. Copy "
+                               f"{folder} to {root / dataset} first (then PRODMAPS_DATA={root} reads that copy)")
+        try:
+            ids = ds.shape_ids(dataset)
+        except ds.DatasetNotPreparedError as exc:
+            raise PrepareError(str(exc)) from None
         for sid in shape_ids:
             if sid not in ids:
                 raise PrepareError(f"unknown shape {sid!r} in {dataset!r} (first ids: {ids[:3]})")

@@ -319,6 +319,30 @@ def test_make_variants_ground_truth(tmp_path, monkeypatch):
         variants.make_variants("anny_humans", ["anny_000"], ["thin"], data_root=root, verbose=False)
 
 
+def test_make_variants_refuses_what_it_cannot_write_where_it_is_read(tmp_path, monkeypatch):
+    # anny_humans without a copy under the data root is read from the package: variants written under the
+    # root would never be read, and the folder they made used to hide the embedded dataset under PRODMAPS_DATA
+    root = tmp_path / "data"
+    with pytest.raises(PrepareError, match="never be read"):
+        variants.make_variants("anny_humans", ["anny_000"], ["thin"], data_root=root, verbose=False)
+    assert not (root / "anny_humans").exists()
+    with pytest.raises(PrepareError, match="'faust' is not prepared"):  # was a DatasetNotPreparedError traceback
+        variants.make_variants("faust", ["tr_reg_000"], ["thin"], data_root=root, verbose=False)
+    r = subprocess.run([sys.executable, "-m", "prodmaps.prepare", "variants", "--dataset", "faust", "--shapes",
+                        "tr_reg_000", "--recipes", "thin", "--data-root", str(root)], capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.startswith("error: dataset 'faust' is not prepared"), r.stderr
+    (root / "anny_humans" / "remeshed").mkdir(parents=True)  # a stray folder without shapes/
+    monkeypatch.setenv("PRODMAPS_DATA", str(root))
+    ds.clear_cache()
+    assert ds.dataset_dir("anny_humans") == ds.embedded_root() / "anny_humans"
+    assert "anny_humans" in ds.prepared() and ds.load_shape("anny_humans", "anny_000").n_vertices == 5002
+
+
+def test_prepare_help_lists_the_commands_and_exits_0():
+    r = subprocess.run([sys.executable, "-m", "prodmaps.prepare", "--help"], capture_output=True, text=True)
+    assert r.returncode == 0 and "faust" in r.stdout and "variants" in r.stdout
+
+
 def test_faust_subset_from_several_sources_in_ply_and_off(tmp_path, faust_shapes, capsys, monkeypatch):
     """Any subset, in several folders/archives, as PLY or OFF, anywhere below the sources (the
     layout of the eight public registrations); a shape found twice must be the same mesh."""
