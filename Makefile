@@ -41,13 +41,13 @@ update-baselines: venv
 	$(PY) -m prodmaps reproduce --profile smoke --out $(OUT) --jobs $(JOBS) --update-baselines --force
 
 report: venv
-	$(PY) -m prodmaps report $(OUT)/paper
+	$(PY) -m prodmaps report $(OUT)/$(PROFILE)
 
 publish: venv
 	$(PY) -m prodmaps publish $(OUT)/paper $(if $(ALLOW_PARTIAL),--allow-partial)
 
 claims: venv
-	$(PY) -m prodmaps claims $(OUT)/paper
+	$(PY) -m prodmaps claims $(OUT)/$(PROFILE)
 
 lint: venv
 	$(VENV)/bin/ruff check prodmaps tests benchmarks data_scripts notebooks

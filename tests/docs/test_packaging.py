@@ -4,6 +4,8 @@ the exact versions behind the baselines and satisfies those ranges, and `require
 from __future__ import annotations
 
 import re
+import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -70,3 +72,14 @@ def test_requires_python_and_libigl_where_figure_14_needs_it():
     assert any(Requirement(r).name == "libigl" for r in proj["optional-dependencies"]["notebooks"])
     mk = (ROOT / "Makefile").read_text()
     assert "-c requirements-lock.txt" in mk
+
+
+@pytest.mark.parametrize("target", ["report", "claims"])
+def test_make_report_and_claims_read_the_profile_reproduce_wrote(target):
+    # `make reproduce PROFILE=smoke` writes OUT/smoke: `make report` / `make claims` with the same PROFILE read it
+    if shutil.which("make") is None:
+        pytest.skip("make is not installed")
+    r = subprocess.run(["make", "-n", "-o", "venv", target, "OUT=somewhere", "PROFILE=smoke"], capture_output=True,
+                       text=True, cwd=ROOT, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert f"-m prodmaps {target} somewhere/smoke" in r.stdout
