@@ -720,6 +720,27 @@ def test_published_report_links_resolve_in_a_fresh_clone(tmp_path, monkeypatch):
     assert "outputs in `results/paper/tab01`" in text  # the run folder named relative to the project
 
 
+def test_publishing_a_run_kept_outside_the_project_writes_no_machine_path(tmp_path, monkeypatch):
+    # `make reproduce OUT=/scratch/res` then `make publish OUT=/scratch/res`: the committed report names
+    # the results folder `<out>/paper`, not /scratch/res/paper or ../../scratch/res/paper
+    from prodmaps.pipeline.report import publish
+
+    reg, paper = _complete_paper_run(tmp_path / "project")
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    elsewhere = tmp_path / "scratch" / "res"
+    elsewhere.mkdir(parents=True)
+    paper = paper.rename(elsewhere / "paper")
+    md, html, problems = publish(paper, registry=reg)
+    assert problems == []
+    for f in (md, html):
+        text = f.read_text(encoding="utf-8")
+        assert "scratch" not in text and str(tmp_path) not in text
+    text = md.read_text(encoding="utf-8")
+    assert "from `<out>/paper`" in text and "outputs in `<out>/paper/tab01`" in text
+    local, _ = build_report(paper, registry=reg)  # a local report keeps the paths that open on this machine
+    assert "outputs in `tab01`" in local.read_text(encoding="utf-8")
+
+
 def test_publish_keeps_the_faust_section_when_faust_was_not_rerun(tmp_path, monkeypatch):
     from prodmaps.pipeline.report import kept_dataset, publish
 
