@@ -600,3 +600,15 @@ def test_manifest_records_versions_blas_commit_and_overrides(project, capsys):
     assert man["commit"]  # the throwaway project is no git checkout: "unknown"
     env = execute.run_environment(Path(__file__).resolve().parents[2])
     assert env["commit"] != "unknown" and len(env["commit"].split("+")[0]) == 40
+
+
+def test_param_files_are_read_from_the_invoking_folder(tmp_path, monkeypatch):
+    """``-p mesh_1=scan.ply`` typed in one's own folder names that folder's file (the kernels run elsewhere)."""
+    (tmp_path / "scan.ply").write_text("ply\n")
+    (tmp_path / "sub").mkdir()
+    monkeypatch.chdir(tmp_path)
+    given = {"mesh_1": "scan.ply", "mesh_2": "missing.ply", "k": 30, "dataset": "faust", "folder": "sub",
+             "abs": str(tmp_path / "scan.ply"), "empty": ""}
+    out = cli._files_from_here(given)
+    assert out["mesh_1"] == str((tmp_path / "scan.ply").resolve())
+    assert {k: out[k] for k in given if k != "mesh_1"} == {k: v for k, v in given.items() if k != "mesh_1"}
