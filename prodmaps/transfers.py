@@ -23,9 +23,9 @@ Methods, each with its own keyword parameters (:data:`PARAMETERS`)
 ``"svd"`` (``order=2``, ``pairs="ordered"``, ``rtol=1e-3``, ``route``, ``normalization``)
     **The paper's Approach B**: ``B2 C~ a`` with ``a`` the truncated-SVD coefficients of ``F`` in
     the source's extended basis; ``rtol=1e-3`` with the ordered pairs is the paper's exactly.
-``"ridge"``, ``"lasso"`` (``order``, ``pairs``, ``eps``, ``normalization``; ridge also ``penalty``, lasso
-``tol``, ``max_iter``)
-    **The paper's Approach A** (p = 2, p = 1): ``B2 C~ a`` with ``a`` the penalised fit.
+``"ridge"``, ``"lasso"`` (``order``, ``pairs``, ``eps``, ``normalization``; ``penalty``; ``tol``, ``max_iter``)
+    **The paper's Approach A** (p = 2, p = 1): ``B2 C~ a`` with ``a`` the penalised fit; the ridge
+    also takes ``penalty`` (``"norm"``: Equation 4 as printed), the lasso ``tol`` and ``max_iter``.
 
 The solver parameters are those of :func:`prodmaps.approx.approximation_operator` (where they are
 defined); a parameter of another method raises ``TypeError``.
