@@ -226,6 +226,20 @@ def _shown(path: Path, base: Path | None, registry=None, out_root: Path | None =
     return str(path) if base is None else _rel(path, base)
 
 
+def _without_machine_paths(text: str, registry=None) -> str:
+    """A traceback for a committed report, without this machine's paths.
+
+    Paths in the project become relative, installed packages ``<site-packages>/...``, and any other
+    absolute path is cut to ``…/<file name>``.
+    """
+    text = re.sub(r"(?:/[^\s/\"':,]+)+/(site-packages|dist-packages)/", r"<\1>/", text)
+    try:
+        text = text.replace(str(project_root(registry).resolve()) + "/", "")
+    except ValueError:  # no project
+        pass
+    return re.sub(r"(?<![\w.<>~-])/(?:[^\s/\"':,]+/)+([^\s/\"':,]+)", r"…/\1", text)
+
+
 def _num(v, signed=False) -> str:
     return "" if v is None else (f"{v:+.3f}" if signed else f"{v:.3f}")
 
@@ -538,7 +552,8 @@ def build_report(results_dir, out=None, *, registry=None, published=None, html_o
             + _nb_link(i.folder, base, read, notebooks)
             + "; every number in `results.json`.")
         if i.status == "failed" and (i.folder / "error.txt").is_file():
-            d.code("\n".join((i.folder / "error.txt").read_text().splitlines()[:15]))
+            excerpt = "\n".join((i.folder / "error.txt").read_text().splitlines()[:15])
+            d.code(excerpt if machine_paths else _without_machine_paths(excerpt, registry))
         _figures(d, i, base, copy_figures)
 
     if published_rows:

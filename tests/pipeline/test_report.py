@@ -828,3 +828,21 @@ def test_a_main_study_run_on_a_prepared_dataset_is_not_repeated_beside_its_datas
     text = build_report(res, tmp_path / "paper" / "REPORT.md", registry=reg)[0].read_text(encoding="utf-8")
     assert text.count("Study: owned2, on FAUST") == 1 and "n = 8" in _section(text, "On FAUST")
     assert "n = 7" not in text
+
+
+def test_a_published_report_quotes_a_failed_run_without_machine_paths(tmp_path, monkeypatch):
+    # `prodmaps publish --allow-partial` quotes a failed run's error.txt: no absolute path of this machine
+    reg, res = make_project(tmp_path / "proj")
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    root = (tmp_path / "proj").resolve()
+    (res / "fig03" / "error.txt").write_text(
+        f'  File "{root}/.venv/lib/python3.11/site-packages/nbclient/client.py", line 10, in run\n'
+        f'  File "{root}/prodmaps/experiments/howto.py", line 5, in f\n'
+        f"MeshError: {tmp_path}/alice/scans/spot_03.off: no such file\n")
+    published, _ = build_report(res, tmp_path / "pub.md", registry=reg, machine_paths=False)
+    text = published.read_text(encoding="utf-8")
+    assert str(tmp_path) not in text
+    assert '"<site-packages>/nbclient/client.py"' in text and '"prodmaps/experiments/howto.py"' in text
+    assert "MeshError: …/spot_03.off: no such file" in text
+    local, _ = build_report(res, tmp_path / "local.md", registry=reg)  # a local report keeps them
+    assert f"{tmp_path}/alice/scans/spot_03.off" in local.read_text(encoding="utf-8")
