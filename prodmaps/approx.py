@@ -20,7 +20,7 @@ Methods
     ``λ = ε σ_max ||f - B a||_A / ||a||`` (the stationarity condition), found by bisection on
     ``log λ`` along the ridge path of one SVD of ``sqrt(A) B D`` (not the Gram matrix, whose
     eigenvalues lose the small directions that a small ``λ`` reaches); a function that ``B`` fits
-    closely is barely regularised. ``a = 0`` when ``ε σ_max ||f||_A >= ||Bᵀ A f||``.
+    closely is barely regularised. ``a = 0`` when ``ε σ_max ||f||_A >= ||D Bᵀ A f||``.
 ``"lasso"`` (Approach A, p = 1)
     ``argmin ½||f - B a||_A² + ε λ_max ||a||₁`` with ``λ_max = ||Bᵀ A f||_∞`` (the smallest
     weight whose solution is 0), solved by FISTA on the Gram matrix; stops when the
@@ -198,7 +198,7 @@ class ApproximationOperator:
     _sV: np.ndarray | None = None  # (r, K_u):  ã = (Σ_r V_rᵀ) @ (S a)
     _G: np.ndarray | None = None  # (K_u, K_u) Gram of the scaled columns, lasso
     _d: np.ndarray | None = None  # (K_u,) column weights D of the lasso (None: D = I)
-    _svd: tuple | None = None  # (U (n, r), s (r,), Vt (r, K_u), d or None, ε σ_max): ridge, penalty="norm"
+    _svd: tuple | None = None  # ((U (n, r), s (r,), Vt (r, K_u)), d or None, ε): ridge, penalty="norm"
 
     @property
     def rank(self) -> int | None:
@@ -213,11 +213,12 @@ class ApproximationOperator:
             return base.project(F)
         if self.method == "lasso":
             return _fista(self, F)
-        AF = base.apply_mass(F)
-        if self._svd is not None:
-            a = _norm_ridge(self._svd, np.sqrt(base.mass)[:, None] * (F[:, None] if F.ndim == 1 else F))
+        if self._svd is not None:  # ridge, penalty="norm"
+            a = _norm_ridge(*self._svd, np.sqrt(base.mass)[:, None] * (F[:, None] if F.ndim == 1 else F))
             a = a[:, 0] if F.ndim == 1 else a
-        elif self._M is not None:
+            return a if E is None else E @ a
+        AF = base.apply_mass(F)
+        if self._M is not None:
             a = self._M @ _rmatmul(self.basis, AF)
         else:  # SVD route: U_rᵀ sqrt(A) f, written as U_rᵀ (A f / sqrt(A))
             sqrt_mass = np.sqrt(base.mass)
@@ -295,6 +296,9 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if penalty not in RIDGE_PENALTIES or (penalty != "squared" and method != "ridge"):
+        raise ValueError(f"penalty must be one of {RIDGE_PENALTIES} (the ridge's; other methods take none), "
+                         f"got {penalty!r} for method={method!r}")
     normalization = DEFAULT_NORMALIZATION if normalization is None else normalization
     _, base, _, _ = _solver_parts(basis)  # (a TypeError for anything but a Basis or ProductBasis)
     if method == "std":
@@ -307,9 +311,14 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
     d = column_weights(basis, normalization)  # (K_u,) or None for D = I
     params = {"rtol": rtol, "eps": eps, "route": route, "tol": tol, "max_iter": max_iter,
               "normalization": normalization, "penalty": penalty}
-    if penalty not in RIDGE_PENALTIES or (penalty != "squared" and method != "ridge"):
-        raise ValueError(f"penalty must be one of {RIDGE_PENALTIES} (the ridge's; other methods take none), "
-                         f"got {penalty!r} for method={method!r}")
+    if method == "ridge" and penalty == "norm":
+        if eps <= 0:
+            raise ValueError(f"ridge needs eps > 0, got {eps}")
+        if not base.mass_is_diagonal:
+            raise ValueError("penalty='norm' needs a lumped (diagonal) mass")
+        svd = (basis.cache.get(("scaled_svd", normalization), lambda: _scaled_svd(basis, d)) if is_extended(basis)
+               else _scaled_svd(basis, d))  # one SVD per basis and normalisation serves every ε
+        return ApproximationOperator(basis, method, params, _svd=(svd, d, float(eps)))
     if method == "svd":
         if not (0 <= rtol < 1):
             raise ValueError(f"rtol must be in [0, 1), got {rtol}")
@@ -346,11 +355,6 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
     if method == "ridge":
         if eps <= 0:
             raise ValueError(f"ridge needs eps > 0, got {eps}")
-        if penalty == "norm":
-            if not base.mass_is_diagonal:
-                raise ValueError("penalty='norm' needs a lumped (diagonal) mass")
-            U, s, Vt = sla.svd(_scaled_columns(basis, d), full_matrices=False, lapack_driver="gesdd")
-            return ApproximationOperator(basis, method, params, _svd=(U, s, Vt, d, eps * s[0]))
         smax2 = sla.eigh(G, eigvals_only=True, subset_by_index=[G.shape[0] - 1] * 2)[0]
         M = sla.solve(G + eps * smax2 * np.eye(G.shape[0]), np.eye(G.shape[0]), assume_a="pos")
         if d is not None:
@@ -362,28 +366,47 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
     return ApproximationOperator(basis, method, params, _G=G, _d=d)
 
 
-def _norm_ridge(svd: tuple, G: np.ndarray, steps: int = 100) -> np.ndarray:
+def _scaled_svd(basis, d):
+    """Thin SVD ``(U (n, r), s (r,), Vt (r, K_u))`` of the scaled columns ``X = sqrt(A) B_s D``."""
+    return tuple(sla.svd(_scaled_columns(basis, d), full_matrices=False, lapack_driver="gesdd"))
+
+
+def _norm_ridge(svd: tuple, d, eps: float, G: np.ndarray, steps: int = 100) -> np.ndarray:
     """``argmin ||f - B a||_A + ε σ_max ||a'||`` for every column (``penalty="norm"``, module doc).
 
-    ``svd = (U, s, Vt, d, ε σ_max)`` of the scaled columns ``X = sqrt(A) B_s D = U diag(s) Vt``;
-    ``G`` ``(n, m)`` the functions times ``sqrt(A)``. On the ridge path
+    ``svd = (U, s, Vt)`` of the scaled columns ``X = sqrt(A) B_s D`` (``d`` the diagonal of ``D``
+    or None), ``G`` ``(n, m)`` the functions times ``sqrt(A)``. On the ridge path
     ``a'(λ) = Vtᵀ (s c / (s² + λ))`` (``c = Uᵀ g``, ``a = D a'``) the residual is
-    ``||g - U c||² + Σ (λ c / (s² + λ))²``, without cancellation, and ``λ ||a'(λ)|| - ε σ_max ||r(λ)||``
-    changes sign once: ``steps`` bisections on ``log λ`` find it for every column.
+    ``||g - U c||² + Σ (λ c / (s² + λ))²``, without cancellation, and ``λ ||a'(λ)|| / ||r(λ)||`` grows
+    with ``λ``: ``steps`` bisections on ``log λ`` find where it reaches ``ε σ_max``. The problem is
+    1-homogeneous in ``f``: each column is solved at unit norm and scaled back. Columns in the dead
+    zone (``||Xᵀ g|| <= ε σ_max ||g||``) get exactly 0.
     """
-    U, s, Vt, d, eps = svd
-    c = U.T @ G  # (r, m)
-    perp2 = np.sum((G - U @ c) ** 2, axis=0)  # the part of g outside the span of X
+    U, s, Vt = svd
+    w = eps * s[0]  # ε σ_max
+    peak = np.max(np.abs(G), axis=0, initial=0.0)  # (m,): columns scaled by their peak first (no overflow)
+    live = peak > 0
+    Gu = G[:, live] / peak[live]
+    norm = np.sqrt(np.sum(Gu ** 2, axis=0))
+    Gu /= norm  # unit columns
+    c = U.T @ Gu  # (r, m)
+    outside = np.sqrt(np.sum((s[:, None] * c) ** 2, axis=0)) <= w  # the dead zone: ||Xᵀ g|| <= ε σ_max ||g||
+    Gu, c, norm = Gu[:, ~outside], c[:, ~outside], (norm * peak[live])[~outside]
+    live[live] = ~outside
+    a = np.zeros((Vt.shape[1], G.shape[1]))
+    if not live.any():
+        return a if d is None else d[:, None] * a
+    perp2 = np.sum((Gu - U @ c) ** 2, axis=0)  # the part of g outside the span of X
     s2 = (s ** 2)[:, None]
     top = np.log(max(s[0] ** 2, 1e-300))
-    lo, hi = np.full(G.shape[1], top - 80.0), np.full(G.shape[1], top + 40.0)
+    lo, hi = np.full(Gu.shape[1], top - 80.0), np.full(Gu.shape[1], top + 40.0)
     for _ in range(steps):
         lam = np.exp(0.5 * (lo + hi))
         q = 1.0 / (s2 + lam)  # (r, m)
-        below = lam * np.sqrt(np.sum((s[:, None] * c * q) ** 2, axis=0)) < eps * np.sqrt(
+        below = lam * np.sqrt(np.sum((s[:, None] * c * q) ** 2, axis=0)) < w * np.sqrt(
             perp2 + np.sum((lam * c * q) ** 2, axis=0))
         lo, hi = np.where(below, 0.5 * (lo + hi), lo), np.where(below, hi, 0.5 * (lo + hi))
-    a = Vt.T @ (s[:, None] * c / (s2 + np.exp(0.5 * (lo + hi))))  # (K_u, m)
+    a[:, live] = (Vt.T @ (s[:, None] * c / (s2 + np.exp(0.5 * (lo + hi))))) * norm  # (K_u, m), scaled back
     return a if d is None else d[:, None] * a
 
 

@@ -37,6 +37,9 @@ class Basis:
     cache : a :class:`prodmaps.cache.Cache` of derived values (product bases), shared with
         every truncation of this basis; keys name the column count they depend on.
 
+    The basis owns its arrays: ``vecs`` and ``evals`` are made read-only (its caches depend on
+    them). :func:`prodmaps.basis.from_arrays` copies the caller's arrays first.
+
     Raises
     ------
     ValueError
@@ -384,7 +387,7 @@ def from_arrays(vecs, evals, mass, *, name: str = "", atol: float = 1e-6) -> Bas
             raise ValueError(f"mass must be ({V.shape[0]}, {V.shape[0]}); got {M.shape}")
         off = M - sp.diags(M.diagonal())
         mass = M.diagonal() if off.count_nonzero() == 0 else M
-    mass_v = mass if sp.issparse(mass) else np.asarray(mass, dtype=np.float64).ravel()
+    mass_v = mass if sp.issparse(mass) else np.array(mass, dtype=np.float64, copy=True).ravel()  # a copy: as V
     if not sp.issparse(mass_v) and mass_v.shape != (V.shape[0],):
         raise ValueError(f"mass must have one area weight per vertex ({V.shape[0]},); got {mass_v.shape}")
     c = V[:, 0]

@@ -91,7 +91,9 @@ def run(store, pairs, *, readings: dict | None = None, tables: dict | None = Non
     families : the function families (``prodmaps.experiments.families``).
     eps_ridge : Approach A's ``ε`` (relative to ``σ_max²``) under every reading.
     ridge_eps_values : if given, :func:`ridge_eps` at these ``ε`` (same pairs, tables, families)
-        is added as ``ridge_eps``; ``norm_eps_values`` its Equation 4 as printed (relative to σ_max).
+        is added as ``ridge_eps``.
+    norm_eps_values : Equation 4 as printed (norms) at these ``ε`` (relative to σ_max), scored in
+        the same :func:`ridge_eps` runs (``ridge_eps["norm_penalty"]``); needs ``ridge_eps_values``.
 
     Returns
     -------
@@ -135,6 +137,8 @@ def run(store, pairs, *, readings: dict | None = None, tables: dict | None = Non
     out = {"readings": readings, "tables": {t: [list(z) for z in v] for t, v in tables.items()},
            "pairs": [list(p) for p in pairs], "families": list(families), "errors": errors, "scores": scores,
            "rtol": rtols, "ranks": ranks, "best": best_reading(scores)}
+    if norm_eps_values and ridge_eps_values is None:
+        raise ValueError("norm_eps_values are scored beside the squared ridge: give ridge_eps_values too")
     if ridge_eps_values is not None:
         out["ridge_eps"] = ridge_eps(store, pairs, eps_values=ridge_eps_values, tables=tables, families=families,
                                      norm_eps_values=norm_eps_values or (), progress=progress)
@@ -164,7 +168,8 @@ def ridge_eps(store, pairs, *, eps_values=RIDGE_EPS, tables: dict | None = None,
         smaller mean |diff|) and ``tables_eps`` (the tables' ε); with ``norm_eps_values``,
         ``norm_penalty`` holds ``eps``, ``scores``, ``hks`` and ``best`` of Equation 4 as printed.
     """
-    eps_values, norm_values = _eps_list(eps_values, "eps_values"), _eps_list(norm_eps_values, "norm_eps_values", True)
+    eps_values = _eps_list(eps_values, "eps_values")
+    norm_values = _eps_list(norm_eps_values or (), "norm_eps_values", empty_ok=True)
     tables = {t: v for t, v in dict(GT_TABLES if tables is None else tables).items() if t in ("T1", "T5", "T6")}
     fams = list(families) + (["HKS:textbook"] if "HKS" in families else [])
     methods = {("sq", e): f"l2@{e:g}" for e in eps_values} | {("norm", e): f"l2n@{e:g}" for e in norm_values}
@@ -424,20 +429,22 @@ def _norm_penalty_blocks(r: dict | None, sq_scores: dict, sq_best: str) -> list:
             c = max(cells, key=lambda c: abs(h["published reading"][c] - h["published"][c]))
             worst[e] = (c, h["published reading"][c], h["published"][c])
         sc = scores[e]
-        rows.append([e, f"{sc['within']}/{sc['cells']}", f"{sc['mean_abs']:.3f}", f"{sc['max_abs']:.3g}",
+        rows.append([e, f"{sc['within']}/{sc['cells']}", f"{sc['mean_abs']:.3f}", f"{sc['max_abs']:.3f}",
                      f"{worst[e][1]:.3g} ({worst[e][0]}, published {worst[e][2]:.2f})" if e in worst else "—"])
     best = r.get("best") if r.get("best") in scores else best_reading({e: {"A": v} for e, v in scores.items()}, "A")
     b, q = scores[best], sq_scores[sq_best]
-    verdict = ("the squared form (the tables') fits the published column better" if b["within"] < q["within"] else
-               "the printed form fits the published column better" if b["within"] > q["within"] else
-               "the two forms fit the published column equally")
-    text = (f"Conclusion, computed from the numbers: read literally, Equation 4 reproduces at most {b['within']} of "
-            f"{b['cells']} Approach A cells (ε = {best} σ_max, mean |diff| {b['mean_abs']:.3f}), the squared ridge "
-            f"{q['within']} at its best ε: {verdict}.")
+    rank = {"printed": (-b["within"], b["mean_abs"]), "squared": (-q["within"], q["mean_abs"])}  # best_reading's order
+    verdict = ("the squared form (the tables') fits the published column better" if rank["squared"] < rank["printed"]
+               else "the printed form fits the published column better" if rank["printed"] < rank["squared"]
+               else "the two forms fit the published column equally")
+    text = (f"Conclusion, computed from the numbers: read literally, Equation 4 reproduces at best {b['within']} of "
+            f"{b['cells']} Approach A cells over the ε tried (ε = {best} σ_max, mean |diff| {b['mean_abs']:.3f}), the "
+            f"squared ridge {q['within']} at its best ε (mean |diff| {q['mean_abs']:.3f}): {verdict} (more cells "
+            "within ±0.02, then the smaller mean |diff|).")
     if best in worst:
         c, v, pub = worst[best]
-        text += (f" At that ε the published-reading HKS's largest transfer error is {v:.3g} ({c}; published "
-                 f"{pub:.2f}).")
+        text += (f" At that ε the published-reading HKS's transfer cell farthest from the paper is {c}: {v:.3g} "
+                 f"(published {pub:.2f}).")
     return [("p", "Equation 4 as printed has norms, not squares: ||B a − f||_A + ε ||a|| (ε relative to σ_max here). "
                   "Its minimiser is the ridge solution at a weight of its own per function, ε σ_max ||B a − f||_A / "
                   "||a||: a function the products fit closely is hardly regularised, and its transfer through C~ is "

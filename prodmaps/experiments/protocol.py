@@ -8,7 +8,8 @@ the source and transferred to the target with a functional map ``C_12`` (ground 
 
 ``std``        A-orthogonal projection ``Φ1ᵀ A1 F``, transfer ``Φ2 C Φ1ᵀ A1 F``;
 ``l1``, ``l2`` Approach A (lasso by FISTA, ridge) in the extended basis, transfer ``B2 C~ a``;
-               ``l2@<e>`` Approach A (ridge) at ``eps = e`` (relative to ``σ_max²``);
+               ``l2@<e>`` Approach A (ridge) at ``eps = e`` (relative to ``σ_max²``); ``l2n@<e>``
+               Equation 4 as printed (norms, not squares; ``penalty="norm"``, ``e`` relative to ``σ_max``);
 ``B``          Approach B at the paper's ``rtol``; ``B@<r>`` Approach B at ``rtol = r``;
 ``B_gain``     Approach B with ``rtol`` from the map-based gain rule
                (:func:`prodmaps.truncation.select_rtol`, no ground truth);
@@ -102,7 +103,7 @@ class ProtocolResult:
 
 
 def _at_value(method) -> float | None:
-    """The number of a ``"B@<rtol>"`` / ``"l2@<eps>"`` method (a positive float), else None."""
+    """The number of a ``"B@<rtol>"`` / ``"l2@<eps>"`` / ``"l2n@<eps>"`` method (a positive float), else None."""
     m = str(method)
     if not m.startswith(_AT_METHODS):
         return None
@@ -259,7 +260,7 @@ def method_label(method: str, table: str | None = None) -> str:
     """Column name of a method in the paper's tables (``our_l2`` is ``our_A`` after Table 1).
 
     ``"B@<r>"`` is ``our_B_rtol<r>``; ``"l2@<e>"`` is ``our_l2_eps<e>`` (``our_A_eps<e>`` after Table 1),
-    ``"l2n@<e>"`` ``our_l2_norm_eps<e>``.
+    ``"l2n@<e>"`` ``our_l2_norm_eps<e>`` (``our_A_norm_eps<e>`` after Table 1).
     """
     if method.startswith("B@"):
         return f"our_B_rtol{method[2:]}"

@@ -237,7 +237,7 @@ def _without_machine_paths(text: str, registry=None) -> str:
         text = text.replace(str(project_root(registry).resolve()) + "/", "")
     except ValueError:  # no project
         pass
-    return re.sub(r"(?<![\w.<>~-])/(?:[^\s/\"':,]+/)+([^\s/\"':,]+)", r"…/\1", text)
+    return re.sub(r"(?<![\w.<>~/:-])/(?:[^\s/\"':,]+/)+([^\s/\"':,]+)", r"…/\1", text)  # not in a URL
 
 
 def _num(v, signed=False) -> str:

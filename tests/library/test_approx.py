@@ -114,7 +114,7 @@ def test_ridge_tends_to_min_norm_least_squares(basis_0, pairs):
     assert gaps[2] < 1e-6
 
 
-@pytest.mark.parametrize("normalization", ["area", "euclidean"])
+@pytest.mark.parametrize("normalization", ["area", "euclidean", "columns"])
 def test_norm_penalty_ridge_is_equation_4_minimiser(b10, normalization):
     # penalty="norm": argmin ||f - B a||_A + ε σ_max ||a'|| (a' = a / D the scaled coefficients), norms not squared
     from prodmaps.approx import column_weights
@@ -132,7 +132,7 @@ def test_norm_penalty_ridge_is_equation_4_minimiser(b10, normalization):
         for j in range(F.shape[1]):
             x, g = a[:, j] / d, np.sqrt(b10.mass) * F[:, j]
             if eps * smax * np.linalg.norm(g) >= np.linalg.norm(X.T @ g):  # the dead zone: a = 0
-                assert np.linalg.norm(x) < 1e-12 * np.linalg.norm(np.linalg.lstsq(X, g, rcond=None)[0])
+                assert not np.any(x)
                 continue
             r = X @ x - g
             grad = X.T @ r / np.linalg.norm(r) + eps * smax * x / np.linalg.norm(x)
@@ -144,9 +144,37 @@ def test_norm_penalty_ridge_is_equation_4_minimiser(b10, normalization):
     assert not np.allclose(a, sq)
     # a weight above ||Xᵀ g|| / (σ_max ||g||) gives a = 0 (the norm penalty's dead zone)
     big = pm.approximation_operator(ext, "ridge", eps=1.0, penalty="norm", normalization=normalization)
-    assert np.abs(big.coefficients(F)).max() < 1e-12 * np.abs(sq).max()
+    assert not np.any(big.coefficients(F))
     single = pm.approximation_operator(ext, "ridge", eps=1e-3, penalty="norm", normalization=normalization)
     np.testing.assert_allclose(single.coefficients(F[:, 1]), single.coefficients(F)[:, 1], rtol=1e-10, atol=1e-14)
+
+
+def test_norm_penalty_ordered_pairs_scale_and_full_mass(b10, basis_0, human_0):
+    ordr = pm.product_basis(b10, 2, "ordered")
+    F = np.c_[b10.vecs[:, 2] * b10.vecs[:, 5] + 0.1 * b10.vecs[:, 7], np.random.default_rng(9).normal(size=b10.n)]
+    # ordered pairs (the solver runs on the scaled unique basis): the minimiser of the ordered problem itself
+    a_o = pm.approximate(F, ordr, "ridge", eps=3e-3, penalty="norm", normalization="area")
+    assert a_o.shape == (ordr.K, 2)
+    X = np.sqrt(b10.mass)[:, None] * ordr.matrix  # (n, K) ordered columns, D = I
+    smax = np.linalg.norm(X, 2)
+    for j in range(2):
+        g, x = np.sqrt(b10.mass) * F[:, j], a_o[:, j]
+        r = X @ x - g
+        grad = X.T @ r / np.linalg.norm(r) + 3e-3 * smax * x / np.linalg.norm(x)
+        assert np.linalg.norm(grad) < 1e-7 * np.linalg.norm(X.T @ g) / np.linalg.norm(g)
+    a_o = pm.approximate(F, ordr, "ridge", eps=3e-3, penalty="norm")
+    # 1-homogeneous in f: any scale of the function, the same fit scaled (no overflow at 1e200)
+    with np.errstate(all="raise"):
+        big = pm.approximate(1e200 * F, ordr, "ridge", eps=3e-3, penalty="norm")
+    np.testing.assert_allclose(big / 1e200, a_o, rtol=1e-9, atol=1e-15)
+    zero = pm.approximate(np.zeros((b10.n, 1)), ordr, "ridge", eps=3e-3, penalty="norm")
+    assert zero.shape == (ordr.K, 1) and not np.any(zero)
+    full = pm.product_basis(pm.eigenbasis(human_0, 6, mass="full"))
+    with pytest.raises(ValueError, match="lumped"):
+        pm.approximation_operator(full, "ridge", eps=1e-3, penalty="norm")
+    # one SVD per basis and normalisation serves every ε
+    ordr.operator("ridge", eps=1e-2, penalty="norm")
+    assert ("scaled_svd", "euclidean") in ordr.cache
 
 
 def test_norm_penalty_only_for_the_ridge(b10):
@@ -155,6 +183,8 @@ def test_norm_penalty_only_for_the_ridge(b10):
         pm.approximation_operator(ext, "ridge", eps=1e-3, penalty="l1")
     with pytest.raises(ValueError, match="other methods take none"):
         pm.approximation_operator(ext, "svd", penalty="norm")
+    with pytest.raises(ValueError, match="penalty must be one of"):
+        pm.approximation_operator(b10, "std", penalty="bogus")
     f = b10.vecs[:, 3] ** 2
     C = np.eye(b10.k)  # the transfer takes the penalty as a ridge parameter
     np.testing.assert_allclose(pm.transfer(f, C, b10, b10, "ridge", eps=1e-3, penalty="norm"),

@@ -612,3 +612,15 @@ def test_param_files_are_read_from_the_invoking_folder(tmp_path, monkeypatch):
     out = cli._files_from_here(given)
     assert out["mesh_1"] == str((tmp_path / "scan.ply").resolve())
     assert {k: out[k] for k in given if k != "mesh_1"} == {k: v for k, v in given.items() if k != "mesh_1"}
+    # a value that names a file in the project root keeps its meaning (and its run's hash)
+    root = tmp_path / "project"
+    root.mkdir()
+    (root / "scan.ply").write_text("ply\n")
+    assert cli._files_from_here(given, root) == given
+
+
+def test_the_cli_module_runs_as_a_script():
+    """``python -m prodmaps.pipeline.cli``: every helper is defined before the module's ``__main__`` block runs."""
+    p = subprocess.run([sys.executable, "-m", "prodmaps.pipeline.cli", "reproduce", "--only", "nope", "--no-progress"],
+                       capture_output=True, text=True)
+    assert p.returncode == 2 and "nope" in p.stderr and "NameError" not in p.stderr

@@ -838,11 +838,11 @@ def test_a_published_report_quotes_a_failed_run_without_machine_paths(tmp_path, 
     (res / "fig03" / "error.txt").write_text(
         f'  File "{root}/.venv/lib/python3.11/site-packages/nbclient/client.py", line 10, in run\n'
         f'  File "{root}/prodmaps/experiments/howto.py", line 5, in f\n'
-        f"MeshError: {tmp_path}/alice/scans/spot_03.off: no such file\n")
+        f"MeshError: {tmp_path}/alice/scans/spot_03.off: no such file (see https://example.org/a/b/c)\n")
     published, _ = build_report(res, tmp_path / "pub.md", registry=reg, machine_paths=False)
     text = published.read_text(encoding="utf-8")
     assert str(tmp_path) not in text
     assert '"<site-packages>/nbclient/client.py"' in text and '"prodmaps/experiments/howto.py"' in text
-    assert "MeshError: …/spot_03.off: no such file" in text
+    assert "MeshError: …/spot_03.off: no such file (see https://example.org/a/b/c)" in text  # URLs stay
     local, _ = build_report(res, tmp_path / "local.md", registry=reg)  # a local report keeps them
     assert f"{tmp_path}/alice/scans/spot_03.off" in local.read_text(encoding="utf-8")
