@@ -311,9 +311,9 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
     d = column_weights(basis, normalization)  # (K_u,) or None for D = I
     params = {"rtol": rtol, "eps": eps, "route": route, "tol": tol, "max_iter": max_iter,
               "normalization": normalization, "penalty": penalty}
+    if method == "ridge" and eps <= 0:
+        raise ValueError(f"ridge needs eps > 0, got {eps}")
     if method == "ridge" and penalty == "norm":
-        if eps <= 0:
-            raise ValueError(f"ridge needs eps > 0, got {eps}")
         if not base.mass_is_diagonal:
             raise ValueError("penalty='norm' needs a lumped (diagonal) mass")
         svd = (basis.cache.get(("scaled_svd", normalization), lambda: _scaled_svd(basis, d)) if is_extended(basis)
@@ -327,7 +327,7 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
         if route == "svd":
             if not base.mass_is_diagonal:
                 raise ValueError("route='svd' needs a lumped (diagonal) mass; use route='gram'")
-            U, s, Vt = sla.svd(_scaled_columns(basis, d), full_matrices=False, lapack_driver="gesdd")
+            U, s, Vt = _scaled_svd(basis, d)
             r = int(np.sum(s > rtol * s[0]))
             P, sV, U = Vt[:r].T / s[:r], s[:r, None] * Vt[:r], U[:, :r]  # (K_u, r), (r, K_u) in the scaled columns
             route_info = {"route": "svd"}
@@ -353,8 +353,6 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, ep
     if d is not None:
         G = d[:, None] * G * d  # Gram of the scaled columns
     if method == "ridge":
-        if eps <= 0:
-            raise ValueError(f"ridge needs eps > 0, got {eps}")
         smax2 = sla.eigh(G, eigvals_only=True, subset_by_index=[G.shape[0] - 1] * 2)[0]
         M = sla.solve(G + eps * smax2 * np.eye(G.shape[0]), np.eye(G.shape[0]), assume_a="pos")
         if d is not None:

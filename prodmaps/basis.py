@@ -356,6 +356,12 @@ def fourier_basis(n: int, k: int, period: float = 2 * np.pi) -> Basis:
     return Basis(vecs, np.concatenate([[0.0], freq ** 2]), np.full(n, period / n), name="fourier")
 
 
+def diagonal_if_lumped(M) -> np.ndarray | sp.csr_matrix:
+    """A sparse mass matrix as its diagonal ``(n,)`` when it has nothing off the diagonal, else as CSR."""
+    M = sp.csr_matrix(M)
+    return M.diagonal() if (M - sp.diags(M.diagonal())).count_nonzero() == 0 else M
+
+
 def from_arrays(vecs, evals, mass, *, name: str = "", atol: float = 1e-6) -> Basis:
     """A :class:`Basis` from eigenpairs computed elsewhere (pyFM, geomfum, your own code), checked.
 
@@ -385,8 +391,7 @@ def from_arrays(vecs, evals, mass, *, name: str = "", atol: float = 1e-6) -> Bas
         M = sp.csr_matrix(mass)
         if M.shape != (V.shape[0],) * 2:
             raise ValueError(f"mass must be ({V.shape[0]}, {V.shape[0]}); got {M.shape}")
-        off = M - sp.diags(M.diagonal())
-        mass = M.diagonal() if off.count_nonzero() == 0 else M
+        mass = diagonal_if_lumped(M)
     mass_v = mass if sp.issparse(mass) else np.array(mass, dtype=np.float64, copy=True).ravel()  # a copy: as V
     if not sp.issparse(mass_v) and mass_v.shape != (V.shape[0],):
         raise ValueError(f"mass must have one area weight per vertex ({V.shape[0]},); got {mass_v.shape}")

@@ -9,32 +9,26 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .basis import diagonal_if_lumped
+
 __all__ = ["relative_error", "area_fraction_curve", "pointwise_error"]
 
 
 def _prep(f, g, mass, full_ok: bool = False):
     """``f, g`` as float64 and ``mass`` as ``(n,)`` weights, or a sparse ``(n, n)`` matrix when ``full_ok``."""
     f, g = (np.asarray(x, dtype=np.float64) for x in (f, g))
-    if sp.issparse(mass):  # basis.mass of a basis built with mass="full" (or a pyFM-style sparse A)
-        M = sp.csr_matrix(mass)
-        if (M - sp.diags(M.diagonal())).count_nonzero() == 0:
-            mass = M.diagonal()
-        elif full_ok:
-            if M.shape != (f.shape[0],) * 2 or f.shape != g.shape:
-                raise ValueError(f"mass must be ({f.shape[0]}, {f.shape[0]}) and f, g the same shape; got {M.shape}, "
-                                 f"{f.shape} and {g.shape}")
-            if not (np.all(np.isfinite(f)) and np.all(np.isfinite(g))):
-                raise ValueError("functions contain non-finite values")
-            return f, g, M
-        else:
-            raise ValueError("this measure weighs every point by its own area: it needs the lumped area weights (n,), "
-                             "not a full mass matrix; build the basis with mass='lumped' (the default) or pass the "
-                             "row sums np.asarray(mass.sum(axis=1)).ravel()")
-    mass = np.asarray(mass, dtype=np.float64)
+    # basis.mass of a basis built with mass="full" (or a pyFM-style sparse A): a diagonal one is lumped weights
+    mass = diagonal_if_lumped(mass) if sp.issparse(mass) else np.asarray(mass, dtype=np.float64)
+    if sp.issparse(mass) and not full_ok:
+        raise ValueError("this measure weighs every point by its own area: it needs the lumped area weights (n,), "
+                         "not a full mass matrix; build the basis with mass='lumped' (the default) or pass the "
+                         "row sums np.asarray(mass.sum(axis=1)).ravel()")
     if f.shape != g.shape:
         raise ValueError(f"f and g must have the same shape; got {f.shape} and {g.shape}")
-    if mass.shape != (f.shape[0],):
-        raise ValueError(f"mass must have shape ({f.shape[0]},); got {mass.shape}")
+    n = f.shape[0]
+    if mass.shape != ((n, n) if sp.issparse(mass) else (n,)):
+        raise ValueError(f"mass must have shape ({n},)" + (f" or ({n}, {n})" if full_ok else "")
+                         + f"; got {mass.shape}")
     if not (np.all(np.isfinite(f)) and np.all(np.isfinite(g))):
         raise ValueError("functions contain non-finite values")
     return f, g, mass

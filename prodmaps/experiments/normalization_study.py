@@ -206,7 +206,7 @@ def ridge_eps(store, pairs, *, eps_values=RIDGE_EPS, tables: dict | None = None,
     def part(kind, values):
         scores = {f"{e:g}": sc["A"] for e in values if "A" in (sc := score_cells(ours[(kind, e)], pub_all, ("A",)))}
         return {"eps": values, "scores": scores, "hks": {f"{e:g}": hks[(kind, e)] for e in values},
-                "best": best_reading({e: {"A": sc} for e, sc in scores.items()}, "A")}
+                "best": _best_eps({"scores": scores})}
 
     out = {**part("sq", eps_values), "tables": {t: [list(z) for z in v] for t, v in tables.items()},
            "tables_eps": TABLES_EPS}
@@ -244,10 +244,21 @@ def explain_cell(published_b: float, closest_b: float, published_std: float | No
     return f"no reading within ±{tol:g} ({d:+.3f}{ctrl}): not explained by the data"
 
 
+def _fit(score: dict) -> tuple:
+    """Order of fits to the published cells (larger is better): cells within ±0.02, then the smaller mean |diff|."""
+    return score["within"], -score["mean_abs"]
+
+
 def best_reading(scores: dict, method: str = "our_B") -> str | None:
     """The reading with the most reproduced ``method`` cells (ties: the smaller mean |diff|)."""
-    cand = [(v[method]["within"], -v[method]["mean_abs"], name) for name, v in scores.items() if method in v]
+    cand = [(*_fit(v[method]), name) for name, v in scores.items() if method in v]
     return max(cand)[2] if cand else None
+
+
+def _best_eps(r: dict) -> str | None:
+    """The best ε of a :func:`ridge_eps` part: its recorded ``best``, else recomputed from its scores."""
+    scores = r.get("scores", {})
+    return r.get("best") if r.get("best") in scores else best_reading({e: {"A": v} for e, v in scores.items()}, "A")
 
 
 def figure(results: dict):
@@ -377,9 +388,7 @@ def _ridge_eps_blocks(r: dict | None) -> list:
     if cell:
         pub = next(h["published"][cell] for h in hks.values() if cell in h.get("published", {}))
         header += [f"HKS, {cell} (published {pub:.2f}): published reading", "textbook HKS"]
-    best = r.get("best")
-    if best not in scores:
-        best = best_reading({e: {"A": sc} for e, sc in scores.items()}, "A")
+    best = _best_eps(r)
     text = (f"Conclusion, computed from the numbers: the published Approach A column is closest at ε = {best}"
             + (" (the tables' ε)" if best == tables_eps else "")
             + f" ({scores[best]['within']} of {scores[best]['cells']} cells within ±0.02, mean |diff| "
@@ -431,11 +440,10 @@ def _norm_penalty_blocks(r: dict | None, sq_scores: dict, sq_best: str) -> list:
         sc = scores[e]
         rows.append([e, f"{sc['within']}/{sc['cells']}", f"{sc['mean_abs']:.3f}", f"{sc['max_abs']:.3f}",
                      f"{worst[e][1]:.3g} ({worst[e][0]}, published {worst[e][2]:.2f})" if e in worst else "—"])
-    best = r.get("best") if r.get("best") in scores else best_reading({e: {"A": v} for e, v in scores.items()}, "A")
+    best = _best_eps(r)
     b, q = scores[best], sq_scores[sq_best]
-    rank = {"printed": (-b["within"], b["mean_abs"]), "squared": (-q["within"], q["mean_abs"])}  # best_reading's order
-    verdict = ("the squared form (the tables') fits the published column better" if rank["squared"] < rank["printed"]
-               else "the printed form fits the published column better" if rank["printed"] < rank["squared"]
+    verdict = ("the squared form (the tables') fits the published column better" if _fit(q) > _fit(b)
+               else "the printed form fits the published column better" if _fit(b) > _fit(q)
                else "the two forms fit the published column equally")
     text = (f"Conclusion, computed from the numbers: read literally, Equation 4 reproduces at best {b['within']} of "
             f"{b['cells']} Approach A cells over the ε tried (ε = {best} σ_max, mean |diff| {b['mean_abs']:.3f}), the "

@@ -155,7 +155,7 @@ def _cmd_reproduce(a) -> int:
         root = registry.project_root(a.registry)
     except ValueError:  # no project (RegistryError): nothing to keep relative to
         root = None
-    overrides = _files_from_here(registry.parse_params(a.param), root)
+    overrides = execute.absolute_param_files(registry.parse_params(a.param), root)
     from ..experiments.parallel import default_workers
 
     default_workers()  # a bad PRODMAPS_WORKERS is refused here, not in every notebook that computes pairs
@@ -289,22 +289,6 @@ def _cmd_publish(a) -> int:
     return 0
 
 
-def _files_from_here(overrides: dict, root: Path | None = None) -> dict:
-    """``-p`` string values that name a file relative to this folder (and not in ``root``), made absolute.
-
-    The notebooks run in the project root ``root``; a user who types ``-p mesh_1=scan.ply`` in their
-    own folder means that folder's file. A value that names a file relative to ``root`` keeps its
-    meaning (and the run its hash); other values and absolute paths are left as given.
-    """
-    out = dict(overrides)
-    for key, value in overrides.items():
-        if isinstance(value, str) and value.strip() and not Path(value).expanduser().is_absolute():
-            here = Path.cwd() / Path(value).expanduser()
-            if here.is_file() and not (root is not None and (root / Path(value).expanduser()).is_file()):
-                out[key] = str(here.resolve())
-    return out
-
-
 def main(argv=None) -> int:
     """Entry point of the ``prodmaps`` command; returns the exit status."""
     parser = build_parser()
@@ -319,4 +303,3 @@ def main(argv=None) -> int:
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())
-

@@ -494,6 +494,22 @@ def absolute_path_env() -> dict:
     return out
 
 
+def absolute_param_files(overrides: dict, root: Path | None = None) -> dict:
+    """``-p`` string values that name a file relative to this process's folder (and not in ``root``), made absolute.
+
+    As :func:`absolute_path_env`: the notebooks run in the project root ``root``, and a user who types
+    ``-p mesh_1=scan.ply`` in their own folder means that folder's file. A value that names a file
+    relative to ``root`` keeps its meaning (and the run its hash); other values are left as given.
+    """
+    out = dict(overrides)
+    for key, value in overrides.items():
+        if isinstance(value, str) and value.strip() and not Path(value).expanduser().is_absolute():
+            rel = Path(value).expanduser()
+            if (Path.cwd() / rel).is_file() and not (root is not None and (root / rel).is_file()):
+                out[key] = str((Path.cwd() / rel).resolve())
+    return out
+
+
 def _safe_execute(task) -> dict:
     """:func:`_execute_task` in this process; an unexpected error fails that run only."""
     try:

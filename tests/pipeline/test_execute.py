@@ -41,17 +41,20 @@ print("tiny done", results["sum"])
 """
 
 
-def write_tiny_notebook(path: Path, extra: str = "") -> Path:
+def write_notebook(path: Path, params: str, *cells: str, title: str | None = None) -> Path:
+    """A python3 notebook at ``path``: an optional Markdown title, the ``parameters`` cell, then code cells."""
     nb = nbformat.v4.new_notebook()
     nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
-    nb.cells = [
-        nbformat.v4.new_markdown_cell("# Tiny test notebook" + extra),
-        nbformat.v4.new_code_cell(TINY_PARAMS, metadata={"tags": ["parameters"]}),
-        nbformat.v4.new_code_cell(TINY_BODY),
-    ]
+    nb.cells = ([nbformat.v4.new_markdown_cell(title)] if title is not None else []) + [
+        nbformat.v4.new_code_cell(params, metadata={"tags": ["parameters"]})] + [
+        nbformat.v4.new_code_cell(c) for c in cells]
     path.parent.mkdir(parents=True, exist_ok=True)
     nbformat.write(nb, str(path))
     return path
+
+
+def write_tiny_notebook(path: Path, extra: str = "") -> Path:
+    return write_notebook(path, TINY_PARAMS, TINY_BODY, title="# Tiny test notebook" + extra)
 
 
 def write_registry(tmp: Path, entries: dict) -> Path:
@@ -230,17 +233,12 @@ def test_cli_runs_resumes_forces_and_reruns_only_changed(project, capsys):
 def test_registry_outside_the_project_reaches_the_kernels_run_parameters(tmp_path, monkeypatch, capsys):
     # a run only a registry of the user's own holds (no paper/runs.toml anywhere); its notebook reads its
     # knobs with run_parameters, which must read the registry given on the command line
-    nb = nbformat.v4.new_notebook()
-    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
-    nb.cells = [
-        nbformat.v4.new_code_cell('profile = "smoke"\nout_dir = "results/own"\nknob = None\n',
-                                  metadata={"tags": ["parameters"]}),
-        nbformat.v4.new_code_cell("from prodmaps.experiments import results as nbr\n"
-                                  "from prodmaps.pipeline import registry\n"
-                                  'P = registry.run_parameters("own_run", profile, globals())\n'
-                                  'nbr.write_results(out_dir, {"knob_twice": 2 * P["knob"]}, P)\n'),
-    ]
-    nbformat.write(nb, str(tmp_path / "own.ipynb"))
+    write_notebook(tmp_path / "own.ipynb",
+                   'profile = "smoke"\nout_dir = "results/own"\nknob = None\n',
+                   "from prodmaps.experiments import results as nbr\n"
+                   "from prodmaps.pipeline import registry\n"
+                   'P = registry.run_parameters("own_run", profile, globals())\n'
+                   'nbr.write_results(out_dir, {"knob_twice": 2 * P["knob"]}, P)\n')
     reg = tmp_path / "elsewhere" / "my_runs.toml"
     reg.parent.mkdir()
     reg.write_text('root = ".."\n[runs.own_run]\nnotebook = "own.ipynb"\n[runs.own_run.params.smoke]\nknob = 21\n')
@@ -257,16 +255,12 @@ def test_registry_outside_the_project_reaches_the_kernels_run_parameters(tmp_pat
 def test_relative_cache_and_data_folders_are_the_invoking_folders_not_the_project(tmp_path, monkeypatch, capsys):
     # the kernels run in the project root: PRODMAPS_CACHE=cache from another folder must not put the
     # cache into the checkout, nor PRODMAPS_DATA=data name another data folder than the one checked
-    nb = nbformat.v4.new_notebook()
-    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
-    nb.cells = [
-        nbformat.v4.new_code_cell('profile = "smoke"\nout_dir = "results/own"\n', metadata={"tags": ["parameters"]}),
-        nbformat.v4.new_code_cell("import os\nfrom prodmaps.experiments import results as nbr\n"
-                                  "nbr.write_results(out_dir, {k: os.path.abspath(os.environ[k]) for k in "
-                                  "('PRODMAPS_CACHE', 'PRODMAPS_DATA')}, {})\n"),
-    ]
     (tmp_path / "project" / "paper").mkdir(parents=True)
-    nbformat.write(nb, str(tmp_path / "project" / "own.ipynb"))
+    write_notebook(tmp_path / "project" / "own.ipynb",
+                   'profile = "smoke"\nout_dir = "results/own"\n',
+                   "import os\nfrom prodmaps.experiments import results as nbr\n"
+                   "nbr.write_results(out_dir, {k: os.path.abspath(os.environ[k]) for k in "
+                   "('PRODMAPS_CACHE', 'PRODMAPS_DATA')}, {})\n")
     reg = tmp_path / "project" / "paper" / "runs.toml"
     reg.write_text('[runs.own]\nnotebook = "own.ipynb"\n[runs.own.params.smoke]\n')
     (tmp_path / "user").mkdir()
@@ -438,12 +432,9 @@ plt.show()
 
 
 def test_executed_notebook_shows_its_figures_and_its_own_output_folder(project, capsys):
-    nb = nbformat.v4.new_notebook()
-    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
-    nb.cells = [nbformat.v4.new_code_cell('profile = "smoke"\nout_dir = "results/x"',
-                                          metadata={"tags": ["parameters"]}),
-                nbformat.v4.new_code_cell(FIGURE_BODY)]
-    nbformat.write(nb, str(project / "notebooks" / "tiny_fig.ipynb"))
+    write_notebook(project / "notebooks" / "tiny_fig.ipynb",
+                   'profile = "smoke"\nout_dir = "results/x"',
+                   FIGURE_BODY)
     write_registry(project, {"tiny_fig": ("notebooks/tiny_fig.ipynb", {})})
     out = project / "results"
     rc, text = _main(["reproduce", "--profile", "smoke", "--out", str(out), "--only", "tiny_fig"], capsys)
@@ -465,13 +456,10 @@ def test_records_of_a_run_outside_the_project_hold_no_machine_path(project, tmp_
     """--out outside the project: manifest, results.json and the executed notebook (its injected
     cell and papermill's metadata) name the run as <out>/<profile>/<run> and the notebook relative
     to the project, never the machine's folders."""
-    nb = nbformat.v4.new_notebook()
-    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
-    nb.cells = [nbformat.v4.new_code_cell('profile = "smoke"\nout_dir = "results/x"',
-                                          metadata={"tags": ["parameters"]}),
-                nbformat.v4.new_code_cell(FIGURE_BODY),
-                nbformat.v4.new_code_cell("print(out_dir)\nimport pathlib; pathlib.Path(out_dir) / 'results.json'")]
-    nbformat.write(nb, str(project / "notebooks" / "tiny_fig.ipynb"))
+    write_notebook(project / "notebooks" / "tiny_fig.ipynb",
+                   'profile = "smoke"\nout_dir = "results/x"',
+                   FIGURE_BODY,
+                   "print(out_dir)\nimport pathlib; pathlib.Path(out_dir) / 'results.json'")
     write_registry(project, {"tiny_fig": ("notebooks/tiny_fig.ipynb", {})})
     elsewhere = tmp_path_factory.mktemp("elsewhere")
     out = elsewhere / "runs"
@@ -558,16 +546,11 @@ def test_a_bad_prodmaps_workers_is_refused_before_anything_runs(tmp_path, monkey
 
 
 def test_a_fractional_timeout_runs_and_a_cell_timeout_is_named_in_the_summary(tmp_path, monkeypatch, capsys):
-    nb = nbformat.v4.new_notebook()
-    nb.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3", "language": "python"}
-    nb.cells = [
-        nbformat.v4.new_code_cell('profile = "smoke"\nout_dir = "results/own"\nnap = 0.0\n',
-                                  metadata={"tags": ["parameters"]}),
-        nbformat.v4.new_code_cell("import time\nfrom prodmaps.experiments import results as nbr\ntime.sleep(nap)\n"
-                                  "nbr.write_results(out_dir, {'nap': nap}, {})\n"),
-    ]
     (tmp_path / "paper").mkdir()
-    nbformat.write(nb, str(tmp_path / "own.ipynb"))
+    write_notebook(tmp_path / "own.ipynb",
+                   'profile = "smoke"\nout_dir = "results/own"\nnap = 0.0\n',
+                   "import time\nfrom prodmaps.experiments import results as nbr\ntime.sleep(nap)\n"
+                   "nbr.write_results(out_dir, {'nap': nap}, {})\n")
     reg = tmp_path / "paper" / "runs.toml"
     reg.write_text('[runs.own]\nnotebook = "own.ipynb"\n[runs.own.params.smoke]\n')
     monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
@@ -609,14 +592,14 @@ def test_param_files_are_read_from_the_invoking_folder(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     given = {"mesh_1": "scan.ply", "mesh_2": "missing.ply", "k": 30, "dataset": "faust", "folder": "sub",
              "abs": str(tmp_path / "scan.ply"), "empty": ""}
-    out = cli._files_from_here(given)
+    out = execute.absolute_param_files(given)
     assert out["mesh_1"] == str((tmp_path / "scan.ply").resolve())
     assert {k: out[k] for k in given if k != "mesh_1"} == {k: v for k, v in given.items() if k != "mesh_1"}
     # a value that names a file in the project root keeps its meaning (and its run's hash)
     root = tmp_path / "project"
     root.mkdir()
     (root / "scan.ply").write_text("ply\n")
-    assert cli._files_from_here(given, root) == given
+    assert execute.absolute_param_files(given, root) == given
 
 
 def test_the_cli_module_runs_as_a_script():
