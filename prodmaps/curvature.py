@@ -50,8 +50,9 @@ def principal_curvatures(mesh: Mesh, smooth: int = 1):
     the (smoothed) face tensors, vertex curvatures from the vertex tensors.
 
     Returns a dict with per-face ``dir_max``/``dir_min`` ``(m, 3)`` unit principal directions
-    (tangent to the face), ``k_max``/``k_min`` ``(m,)`` and per-vertex ``mean``/``gauss``
-    ``(n,)`` curvatures (convention: positive mean curvature on a sphere with outward normals).
+    (tangent to the face), ``k_max``/``k_min`` ``(m,)`` and per-vertex ``mean``/``gauss``/
+    ``vertex_k_max``/``vertex_k_min`` ``(n,)`` curvatures (convention: positive mean curvature on
+    a sphere with outward normals).
     Directions are defined up to sign; everything is invariant to rigid motions.
     """
     mesh = check_mesh(mesh)
@@ -104,4 +105,15 @@ def principal_curvatures(mesh: Mesh, smooth: int = 1):
     S2v = np.einsum("vai,vab,vbj->vij", Pv, 0.5 * (Tv + Tv.transpose(0, 2, 1)), Pv)
     kv = np.linalg.eigvalsh(S2v)
     return {"dir_max": dir_max, "dir_min": dir_min, "k_max": kf[:, 1], "k_min": kf[:, 0], "mean": kv.mean(axis=1),
-            "gauss": kv[:, 0] * kv[:, 1]}
+            "gauss": kv[:, 0] * kv[:, 1], "vertex_k_max": kv[:, 1], "vertex_k_min": kv[:, 0]}
+
+
+def shape_index(k_max: np.ndarray, k_min: np.ndarray) -> np.ndarray:
+    """Koenderink's shape index ``(2/π) atan((κ1 + κ2)/(κ1 − κ2))`` in ``[-1, 1]``, ``κ1 >= κ2``.
+
+    ``+1`` at convex umbilics (a sphere with outward normals, :func:`principal_curvatures`'s sign
+    convention), ``-1`` at concave ones, ``0`` at symmetric saddles, ``±1/2`` on cylinders; unit-free.
+    Umbilics (``κ1 = κ2``) are well defined (``atan2``); flat points (both 0) give 0.
+    """
+    k1, k2 = np.asarray(k_max, dtype=np.float64), np.asarray(k_min, dtype=np.float64)
+    return (2.0 / np.pi) * np.arctan2(k1 + k2, k1 - k2)

@@ -16,7 +16,7 @@ from .spectral import (
                        wks_energies_from_evals,
                        wks_weights,
 )
-from .windowed_fourier import awft
+from .windowed_fourier import GEOVEC_BANDS, awft, geometry_vectors
 
 __all__ = ["hks", "hks_times", "wks", "wks_energies", "wks_energies_from_evals", "wks_weights",
-           "heat_kernel", "shot", "awft", "SHOT_DIM", "ZERO_EIGENVALUE_REL"]
+           "heat_kernel", "shot", "awft", "geometry_vectors", "GEOVEC_BANDS", "SHOT_DIM", "ZERO_EIGENVALUE_REL"]

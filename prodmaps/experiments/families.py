@@ -36,7 +36,7 @@ SHOT         10  no    10 random columns of :func:`prodmaps.descriptors.shot` (3
                        at least 1 % of the vertices (the others have no meaningful
                        relative error)
 AWFT         10  no    10 random columns of :func:`prodmaps.descriptors.awft` (30 dims with
-                       the defaults)
+                       the defaults; the published reading, :data:`AWFT_RELEASE`, has 90)
 =========== ==== ===== =================================================================
 
 The table above gives each family's **textbook** reading (this module's defaults). The paper does
@@ -73,7 +73,7 @@ from ..basis import Basis, eigenbasis
 from ..cache import Cache
 from ..mesh import Mesh, check_mesh, check_vertex_indices
 
-__all__ = ["FAMILIES", "PAPER_LABELS", "READINGS", "PUBLISHED_READINGS", "READING_SETS", "resolve_reading",
+__all__ = ["FAMILIES", "PAPER_LABELS", "AWFT_RELEASE", "READINGS", "PUBLISHED_READINGS", "READING_SETS", "resolve_reading",
            "split_entry", "entry_label", "sort_entries", "hks_columns", "FamilySpec", "make_family", "pull_back",
            "family_names", "descriptor_key", "family_seed"]
 
@@ -106,6 +106,18 @@ RANDOM_COEFFICIENTS = ("normal", "uniform")
 RANDOM_SCALINGS = ("columns", "unit_area")
 
 # ----------------------------------------------------------------------------- readings
+AWFT_RELEASE = {"k": 200, "alpha": (100.0, 300.0), "angles_deg": (45.0, 90.0, 135.0, 180.0), "include_isotropic": True,
+                "taus": (0.002, 0.05), "freqs0": (0, 0),
+                "functions": ("geovec3", "geovec4", "shape_index", "fiedler", "constant"), "curvature_smooth": 10}
+"""AWFT as the authors of [MRCB16] (four of the paper's six authors) parametrise it in the demo of
+their public AWFT code, which runs on a FAUST registration: 200 eigenpairs; anisotropies
+``α = 100, 300`` at the angles 45°, 90°, 135°, 180° plus the isotropic operator; two low-pass windows
+``τ = 0.002, 0.05`` (``freqs0`` 1 there, 1-based: ``j0 = 0`` here); the signals geometry vectors 3 and
+4, shape index, Fiedler vector and constant; curvature smoothed 10 times (this package's smoothing
+rounds, :func:`prodmaps.curvature.principal_curvatures`, stand in for the release's ring size). 90
+columns: the release's isotropic operator, listed once per ``α``, is counted once here."""
+
+
 READINGS: dict[str, dict[str, dict]] = {
     "hk_k": {"textbook": {}, "t=5e-4": {"t_rel": 5e-4}},
     "hk_K": {"textbook": {}, "t=5e-4": {"t_rel": 5e-4}, "t=2.5e-4": {"t_rel": 2.5e-4}, "t=2e-3": {"t_rel": 2e-3}},
@@ -123,7 +135,8 @@ READINGS: dict[str, dict[str, dict]] = {
                   "area 0.4": {"min_frac": 0.4, "max_frac": 0.4}, "area 0.25": {"min_frac": 0.25, "max_frac": 0.25}},
     "SHOT": {"textbook": {}, "radius 0.075": {"radius_frac": 0.075}, "radius 0.05": {"radius_frac": 0.05}},
     "AWFT": {"textbook": {}, "curvature only": {"functions": ("mean_curvature",)},
-             "small windows": {"taus": (0.001, 0.002, 0.005)}},
+             "small windows": {"taus": (0.001, 0.002, 0.005)},
+             "authors' release": AWFT_RELEASE},
 }
 """Plausible readings of every family's definition (Section 5.1 leaves the parameters open):
 ``READINGS[family][reading] = options`` of :func:`make_family`. ``"textbook"`` is the definition
@@ -138,6 +151,7 @@ PUBLISHED_READINGS: dict[str, str] = {
     "Random": "uniform, ordered, unit_area",
     "Indicator": "area U[0.3, 0.5]",
     "SHOT": "radius 0.05",
+    "AWFT": "authors' release",
 }
 """The readings that reproduce the paper's standard columns (the control no product method
 touches), chosen by :func:`prodmaps.experiments.family_readings.family_readings_study` on the

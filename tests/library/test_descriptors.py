@@ -279,6 +279,50 @@ def test_awft_options_and_errors(anny):
         pm.operators.anisotropic_laplacian(anny, 0.0, -1.0)
 
 
+def test_geometry_vectors_are_cubic_bspline_bands_of_the_squared_eigenfunctions():
+    """Band ``j`` (0-based here) weighs ``φ_i²`` by ``β3((λ_i − jΔ)/Δ)``: 2/3 at its centre, 1/6 one
+    band away, 0 from two bands on; interior eigenvalues get total weight 1 (partition of unity)."""
+    bands = 11
+    evals = np.array([0.0, 1.0, 2.5, 4.0, 10.0])  # Δ = 1
+    evecs = np.eye(5)  # vertex i carries φ_i only: row i of the result is eigenvalue i's band weights
+    G = D.geometry_vectors(evals, evecs, bands=bands)
+    assert G.shape == (5, bands)
+    np.testing.assert_allclose(G[1, :4], [1 / 6, 2 / 3, 1 / 6, 0.0], atol=1e-15)
+    np.testing.assert_allclose(G[2, 1:5], [1 / 48, 23 / 48, 23 / 48, 1 / 48], atol=1e-15)  # halfway
+    np.testing.assert_allclose(G[:4].sum(axis=1)[1:], 1.0, atol=1e-14)  # interior: partition of unity
+    assert G[0, 0] == pytest.approx(2 / 3) and G[4, -1] == pytest.approx(2 / 3)  # the end bands
+    # unit-free: scaling the eigenvalues (the mesh's size) changes nothing; signs of φ do not matter
+    np.testing.assert_allclose(D.geometry_vectors(7.0 * evals, -evecs, bands=bands), G, atol=1e-15)
+
+
+def test_awft_release_signals_and_several_anisotropies(anny, anny_moved, sphere):
+    kw = dict(k=30, angles_deg=(45.0, 90.0), taus=(0.002, 0.05), freqs0=(0, 0),
+              functions=("geovec3", "geovec4", "shape_index", "fiedler", "constant"), curvature_smooth=3)
+    A0 = D.awft(anny, alpha=(100.0, 300.0), **kw)
+    assert A0.shape == (anny.n_vertices, 2 * (2 * 2 + 1) * 5)  # taus x (alphas x angles + isotropic) x signals
+    assert np.all(np.isfinite(A0)) and np.all(A0 >= 0)
+    # one operator list per alpha, in order: the columns of single-alpha runs without the isotropic one
+    one = dict(kw, taus=(0.05,), freqs0=(0,), functions=("shape_index",), include_isotropic=False)
+    both = D.awft(anny, alpha=(100.0, 300.0), **one)
+    np.testing.assert_array_equal(both, np.hstack([D.awft(anny, alpha=a, **one) for a in (100.0, 300.0)]))
+    # rigid motions and scaling change nothing (every signal is intrinsic or scale-free)
+    for other in (anny_moved, rigid(anny, seed=11, scale=3.0)):
+        np.testing.assert_allclose(D.awft(other, alpha=(100.0, 300.0), **kw), A0, rtol=1e-7, atol=1e-7 * A0.max())
+    # shape index: +1 on a sphere (convex, nearly umbilic once discretised), the textbook values elsewhere
+    from prodmaps.curvature import principal_curvatures, shape_index
+
+    c = principal_curvatures(sphere)
+    assert np.all(c["vertex_k_max"] >= c["vertex_k_min"])
+    np.testing.assert_allclose(shape_index(c["vertex_k_max"], c["vertex_k_min"]), 1.0, atol=0.02)
+    np.testing.assert_allclose(shape_index([1.0, 1.0, 1.0, 2.0, 0.0, 0.0], [1.0, -1.0, 0.0, 2.0, -1.0, 0.0]),
+                               [1.0, 0.0, 0.5, 1.0, -0.5, 0.0], atol=1e-15)
+    for bad in ("geovec0", "geovec151", "geovec", "shape"):
+        with pytest.raises(ValueError, match="functions"):
+            D.awft(anny, k=20, functions=(bad,))
+    with pytest.raises(ValueError, match="alpha"):
+        D.awft(anny, k=20, alpha=(10.0, -1.0))
+
+
 def test_awft_cache_shares_the_eigenpairs_between_readings_with_the_same_numbers(anny, monkeypatch):
     """With a cache of the mesh, a second reading (other windows, other functions) solves no eigenproblem."""
     from prodmaps.cache import Cache
