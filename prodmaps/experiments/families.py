@@ -73,9 +73,9 @@ from ..basis import Basis, eigenbasis
 from ..cache import Cache
 from ..mesh import Mesh, check_mesh, check_vertex_indices
 
-__all__ = ["FAMILIES", "PAPER_LABELS", "AWFT_RELEASE", "READINGS", "PUBLISHED_READINGS", "READING_SETS", "resolve_reading",
-           "split_entry", "entry_label", "sort_entries", "hks_columns", "FamilySpec", "make_family", "pull_back",
-           "family_names", "descriptor_key", "family_seed"]
+__all__ = ["FAMILIES", "PAPER_LABELS", "AWFT_RELEASE", "READINGS", "PUBLISHED_READINGS", "READING_SETS",
+           "resolve_reading", "split_entry", "entry_label", "sort_entries", "hks_columns", "FamilySpec", "make_family",
+           "pull_back", "family_names", "descriptor_key", "family_seed"]
 
 
 @dataclass(frozen=True)
