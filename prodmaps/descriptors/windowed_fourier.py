@@ -29,6 +29,7 @@ def _eigenpairs(W, A, k: int, weyl_area: float | None = None):
 
 _AWFT_FUNCTIONS = ("constant", "mean_curvature", "hks", "shape_index", "fiedler", "geovec<j>")
 _ISOTROPIC_FUNCTIONS = ("hks", "fiedler")  # signals computed from the isotropic eigenpairs (and geovec<j>)
+GEOVEC_BANDS = 150  # spectral bands of the geometry vectors (the authors' release)
 
 
 def _geovec_index(name: str) -> int | None:
@@ -36,9 +37,6 @@ def _geovec_index(name: str) -> int | None:
     if name.startswith("geovec") and name[6:].isdigit() and 1 <= int(name[6:]) <= GEOVEC_BANDS:
         return int(name[6:])
     return None
-
-
-GEOVEC_BANDS = 150  # spectral bands of the geometry vectors (the authors' release)
 
 
 def _cubic_bspline(x: np.ndarray) -> np.ndarray:
@@ -147,7 +145,7 @@ def awft(mesh: Mesh, *, k: int = 100, angles_deg=(0.0, 45.0, 90.0, 135.0), alpha
         if include_isotropic:
             eig.append(iso)
 
-    fvals = []
+    fvals, bands = [], None
     for name in functions:
         if name == "constant":
             fvals.append(np.ones(mesh.n_vertices))
@@ -161,7 +159,8 @@ def awft(mesh: Mesh, *, k: int = 100, angles_deg=(0.0, 45.0, 90.0, 135.0), alpha
         elif name == "fiedler":
             fvals.append(iso[1][:, 1] * np.sqrt(area))
         else:  # geovec<j>
-            fvals.append(geometry_vectors(*iso)[:, _geovec_index(name) - 1] * area)
+            bands = geometry_vectors(*iso) if bands is None else bands  # (n, GEOVEC_BANDS), once
+            fvals.append(bands[:, _geovec_index(name) - 1] * area)
     fmat = np.stack(fvals, axis=1)  # (n, F)
 
     cols = []
