@@ -73,9 +73,9 @@ from ..basis import Basis, eigenbasis
 from ..cache import Cache
 from ..mesh import Mesh, check_mesh, check_vertex_indices
 
-__all__ = ["FAMILIES", "PAPER_LABELS", "AWFT_RELEASE", "READINGS", "PUBLISHED_READINGS", "READING_SETS",
-           "resolve_reading", "split_entry", "entry_label", "sort_entries", "hks_columns", "FamilySpec", "make_family",
-           "pull_back", "family_names", "descriptor_key", "family_seed"]
+__all__ = ["FAMILIES", "PAPER_LABELS", "AWFT_RELEASE", "HEAT_TIMES", "READINGS", "TIED_READINGS", "PUBLISHED_READINGS",
+           "READING_SETS", "resolve_reading", "split_entry", "entry_label", "sort_entries", "hks_columns", "FamilySpec",
+           "make_family", "pull_back", "family_names", "descriptor_key", "family_seed"]
 
 
 @dataclass(frozen=True)
@@ -118,9 +118,21 @@ rounds, :func:`prodmaps.curvature.principal_curvatures`, stand in for the releas
 columns: the release's isotropic operator, listed once per ``α``, is counted once here."""
 
 
+HEAT_TIMES = (2.5e-4, 5e-4, 2e-3)
+"""Heat kernel times ``t_rel`` (``t = t_rel · area``) read for hk k and hk K besides the textbook
+``1e-3``: an octave grid. A finer grid only follows the pairs: on FAUST's eight registrations the
+``std`` control is closest at ``6e-4``, on the embedded humans at ``5e-4``."""
+
+
+def _time_name(t: float) -> str:
+    """``5e-4`` -> ``"t=5e-4"``, ``2.5e-4`` -> ``"t=2.5e-4"`` (the reading's name)."""
+    mantissa, exponent = f"{t:.1e}".split("e")
+    return f"t={mantissa.rstrip('0').rstrip('.')}e{int(exponent)}"
+
+
 READINGS: dict[str, dict[str, dict]] = {
-    "hk_k": {"textbook": {}, "t=5e-4": {"t_rel": 5e-4}},
-    "hk_K": {"textbook": {}, "t=5e-4": {"t_rel": 5e-4}, "t=2.5e-4": {"t_rel": 2.5e-4}, "t=2e-3": {"t_rel": 2e-3}},
+    "hk_k": {"textbook": {}} | {_time_name(t): {"t_rel": t} for t in HEAT_TIMES},
+    "hk_K": {"textbook": {}} | {_time_name(t): {"t_rel": t} for t in HEAT_TIMES},
     "HKS": {"textbook": {}, "SOG09, 200 eigenpairs": {"n_eig": 200},
             "SOG09, times x10": {"factor": 40.0 * np.log(10.0)},
             "reversed pairing": {"weights": "reversed"}, "growing": {"weights": "growing"}},
@@ -145,7 +157,14 @@ as a reader of the cited papers would write it (this module's defaults: SOG09 HK
 radius ``0.1·sqrt(area)``, heat kernels at ``t = 1e-3·area``). Every option is unit-free.
 ``notebooks/study_family_readings.ipynb`` scores them all against the published tables."""
 
+TIED_READINGS: tuple[tuple[str, ...], ...] = (("hk_k", "hk_K"),)
+"""Families the text defines as the same functions, which therefore take one reading: hk k and hk K
+are "the heat kernel functions h(x, ·) ... approximated using k_M + 1 eigenfunctions (for hk k) and
+using 200 eigenfunctions (for hk K)", the same kernels at one time under two truncations. Their
+reading is chosen by the ``std`` cells of all of them together."""
+
 PUBLISHED_READINGS: dict[str, str] = {
+    "hk_k": "t=5e-4",
     "hk_K": "t=5e-4",
     "HKS": "reversed pairing",
     "Random": "uniform, ordered, unit_area",

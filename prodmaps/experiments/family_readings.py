@@ -12,8 +12,10 @@ cells it reproduces within ±0.02, ``std`` first, then Approach B (``our_B``).
 
 **Choice rule** (:func:`choose`): per family, the reading with the most ``std`` cells within
 ±0.02, ties broken by the smaller mean ``|diff|`` of the ``std`` cells (at two decimals), then by
-the closeness to the definition's text (the order of the readings). Approach B's cells never
-enter the choice; they are reported beside it.
+the closeness to the definition's text (the order of the readings). Families the text defines as
+the same functions (:data:`~prodmaps.experiments.families.TIED_READINGS`: hk k and hk K, one heat
+kernel under two truncations) take one reading, chosen by their ``std`` cells together
+(:func:`choose_all`). Approach B's cells never enter the choice; they are reported beside it.
 
 Conventions: ``k_M``, ``k_N`` are the paper's counts (non-constant functions); the maps are the
 ground truth ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]``; errors are the paper's area-weighted relative L2,
@@ -32,7 +34,8 @@ from .protocol import ProtocolSettings, run_protocol
 from .published import published_values
 from .results import to_jsonable
 
-__all__ = ["GROUPS", "family_readings_study", "choose", "score_table", "summary_rows", "summary_text", "report_blocks",
+__all__ = ["GROUPS", "family_readings_study", "choose", "choose_all", "score_table", "summary_rows", "summary_text",
+           "report_blocks",
            "figure"]
 
 # the ground-truth tables, grouped by the basis size of the basis-dependent families (the largest
@@ -67,7 +70,7 @@ def family_readings_study(store, pairs, *, readings: dict | None = None, groups:
     dict
         ``errors[family][reading]["k{k_M}_{k_N}"][stage][method]`` (means over pairs),
         ``scores[family][reading][method]`` (published cells, within ±0.02, mean and largest
-        |diff|), ``chosen[family]`` (:func:`choose`), ``published_readings`` (the library's
+        |diff|), ``chosen[family]`` (:func:`choose_all`), ``published_readings`` (the library's
         :data:`~prodmaps.experiments.families.PUBLISHED_READINGS` with the textbook defaults),
         ``agrees`` (whether the study's choice is the library's), ``seconds``.
     """
@@ -100,7 +103,7 @@ def family_readings_study(store, pairs, *, readings: dict | None = None, groups:
               for fam in pfam.FAMILIES if fam in errors}
     scores = {fam: {r: score_table(errors[fam][r], pub, pfam.PAPER_LABELS[fam]) for r in errors[fam]}
               for fam in errors}
-    chosen = {fam: choose(sc) for fam, sc in scores.items()}
+    chosen = choose_all(scores)
     library = {fam: pfam.PUBLISHED_READINGS.get(fam, "textbook") for fam in errors}
     return {"pairs": [list(p) for p in pairs], "groups": {g: [list(z) for z in v] for g, v in groups.items()},
             "readings": {fam: {r: to_jsonable(pfam.READINGS[fam][r]) for r in names}
@@ -121,20 +124,45 @@ def score_table(errors_by_size: dict, published: dict, label: str) -> dict:
     return score_cells(ours, {c: v for c, v in published.items() if c[4] == label}, methods=METHODS)
 
 
-def choose(scores_by_reading: dict) -> str:
+def choose(scores_by_reading: dict, *tied: dict) -> str:
     """The reading with the most ``std`` cells within ±0.02; Approach B's cells are not used.
 
     Ties: the smaller mean |diff| of the ``std`` cells at the paper's two decimals (smaller differences
     are draw noise), then the order of :data:`~prodmaps.experiments.families.READINGS` (the textbook
-    first, then the readings closest to the definition's text).
+    first, then the readings closest to the definition's text). ``tied``: the score tables of
+    families that take the same reading (:data:`~prodmaps.experiments.families.TIED_READINGS`); the
+    reading is then chosen among those they all have, by their ``std`` cells together (cells summed,
+    mean |diff| over all of them).
     """
-    order = list(scores_by_reading)
+    tables = (scores_by_reading, *tied)
+    order = [r for r in scores_by_reading if all(r in t for t in tied)]
+    if not order:
+        raise ValueError("choose: the tied families share no reading")
 
     def key(name):
-        sc = scores_by_reading[name].get("std", {"within": 0, "mean_abs": np.inf})
-        return (-sc["within"], round(float(sc["mean_abs"]), 2), order.index(name))
+        scs = [t[name].get("std") for t in tables]
+        if any(sc is None or not sc["cells"] for sc in scs):
+            return (0, np.inf, order.index(name))
+        cells = sum(sc["cells"] for sc in scs)
+        mean = sum(float(sc["mean_abs"]) * sc["cells"] for sc in scs) / cells
+        return (-sum(sc["within"] for sc in scs), round(mean, 2), order.index(name))
 
     return min(order, key=key)
+
+
+def choose_all(scores: dict) -> dict:
+    """``{family: reading}`` by :func:`choose`; tied families are chosen together.
+
+    The families of a :data:`~prodmaps.experiments.families.TIED_READINGS` group (those scored)
+    take the reading :func:`choose` gives for all of their ``std`` cells together.
+    """
+    chosen = {fam: choose(sc) for fam, sc in scores.items()}
+    for group in pfam.TIED_READINGS:
+        present = [f for f in group if f in scores]
+        if len(present) > 1:
+            reading = choose(*(scores[f] for f in present))
+            chosen.update({f: reading for f in present})
+    return chosen
 
 
 def summary_rows(results: dict) -> list:
@@ -180,6 +208,11 @@ def report_blocks(results: dict, dataset: str, *, main: bool = True) -> list:
             f"control: a reading is chosen by the `std` cells it reproduces within ±{WITHIN:g}, never by Approach B's. "
             f"Over the families, the chosen readings reproduce {tot['ch']} of {cells} published `std` and Approach B "
             f"cells, the textbook definitions {tot['tb']}. ")
+    for group in pfam.TIED_READINGS:
+        present = [pfam.PAPER_LABELS[f] for f in group if f in results["scores"]]
+        if len(present) > 1:
+            text += (f"{' and '.join(present)}, which the text defines as the same functions, take one reading, "
+                     f"chosen by their `std` cells together ({results['chosen'][group[0]]}). ")
     text += ("The study's choice is the library's `PUBLISHED_READINGS` for every family." if not agree else
              f"The study's choice differs from the library's for {', '.join(agree)}.")
     hks = results["scores"].get("HKS", {})

@@ -251,8 +251,9 @@ SYSTEMATIC_DIFFERENCES = [
     "(`python -m prodmaps.prepare faust ...`); when prepared, their runs have their own verdict column and section.",
     "**Function families.** Section 5.1 gives no parameters for its families; the tables use the readings "
     "that reproduce the published standard columns, the control no product method touches "
-    "(`study_family_readings`, `prodmaps.experiments.families.PUBLISHED_READINGS`): heat kernels hk K at "
-    "t = 5e-4·area, Random with U[0, 1] coefficients on the ordered extended basis of unit-area "
+    "(`study_family_readings`, `prodmaps.experiments.families.PUBLISHED_READINGS`): heat kernels hk k and "
+    "hk K at one time, t = 5e-4·area (the text defines them as the same kernels under two truncations), "
+    "Random with U[0, 1] coefficients on the ordered extended basis of unit-area "
     "eigenfunctions, indicators of balls of U[0.3, 0.5] of the area, SHOT of radius 0.05·sqrt(area). "
     "**HKS** differs in kind: the textbook HKS (SOG09) is smooth (standard error near 0.01 where the paper "
     "has ~0.55); the published numbers fit only an HKS dominated by the squares of the highest "

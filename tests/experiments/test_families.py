@@ -282,6 +282,27 @@ def test_family_readings_choice_ignores_approach_b():
     assert choose({"textbook": sc(6, 0.0166, 0), "a": sc(6, 0.0170, 7)}) == "textbook"
 
 
+def test_tied_families_take_one_reading_chosen_by_their_std_cells_together():
+    from prodmaps.experiments.family_readings import choose, choose_all
+
+    def sc(within, mean, cells=8):
+        return {"std": {"cells": cells, "within": within, "mean_abs": mean, "max_abs": 1.0},
+                "our_B": {"cells": 7, "within": 7, "mean_abs": 0.0, "max_abs": 0.0}}
+
+    hk_k = {"textbook": sc(6, 0.017), "t=5e-4": sc(6, 0.017), "t=6e-4": sc(5, 0.018), "only_k": sc(8, 0.0)}
+    hk_K = {"textbook": sc(1, 0.076), "t=5e-4": sc(6, 0.019), "t=6e-4": sc(8, 0.007)}
+    # alone, each family has its own best; tied, the reading they share with the most cells in total
+    assert choose(hk_k) == "only_k" and choose(hk_K) == "t=6e-4"
+    assert choose(hk_k, hk_K) == "t=6e-4"  # 13 cells, against 12 for t=5e-4 and 7 for the textbook
+    chosen = choose_all({"hk_k": hk_k, "hk_K": hk_K, "XYZ": {"textbook": sc(2, 0.03)}})
+    assert chosen == {"hk_k": "t=6e-4", "hk_K": "t=6e-4", "XYZ": "textbook"}
+    assert choose_all({"hk_k": hk_k}) == {"hk_k": "only_k"}  # a tied family scored alone is chosen alone
+    # the mean |diff| of the tie-break is over all cells of the tied families (weighted by cells)
+    assert choose({"a": sc(4, 0.05, 4), "b": sc(4, 0.01, 4)}, {"a": sc(4, 0.0, 12), "b": sc(4, 0.02, 12)}) == "a"
+    with pytest.raises(ValueError, match="share no reading"):
+        choose({"a": sc(1, 0.1)}, {"b": sc(1, 0.1)})
+
+
 def test_family_readings_study_runs_every_reading_on_the_same_pairs():
     import prodmaps.experiments.family_readings as FR
     from prodmaps.experiments.store import ShapeStore
