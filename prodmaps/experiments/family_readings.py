@@ -35,8 +35,7 @@ from .published import published_values
 from .results import to_jsonable
 
 __all__ = ["GROUPS", "family_readings_study", "choose", "choose_all", "score_table", "summary_rows", "summary_text",
-           "report_blocks",
-           "figure"]
+           "report_blocks", "figure"]
 
 # the ground-truth tables, grouped by the basis size of the basis-dependent families (the largest
 # k_M of each table, as the tables compute them)
