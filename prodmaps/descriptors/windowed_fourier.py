@@ -27,7 +27,7 @@ def _eigenpairs(W, A, k: int, weyl_area: float | None = None):
     return np.maximum(evals, 0.0), vecs
 
 
-_AWFT_FUNCTIONS = ("constant", "mean_curvature", "hks", "shape_index", "fiedler", "geovec<j>")
+_AWFT_FUNCTIONS = ("constant", "mean_curvature", "hks", "shape_index", "fiedler")  # and "geovec<j>"
 _ISOTROPIC_FUNCTIONS = ("hks", "fiedler")  # signals computed from the isotropic eigenpairs (and geovec<j>)
 GEOVEC_BANDS = 150  # spectral bands of the geometry vectors (the authors' release)
 
@@ -112,14 +112,14 @@ def awft(mesh: Mesh, *, k: int = 100, angles_deg=(0.0, 45.0, 90.0, 135.0), alpha
             or np.any(freqs0 >= k)):
         raise ValueError(f"freqs0 must be integers in [0, k) with one entry per tau; got {freqs0!r}")
     angles = as_1d_finite(angles_deg, "angles_deg") if len(np.atleast_1d(angles_deg)) else np.zeros(0)
-    alphas = as_1d_finite(alpha, "alpha")
-    if alphas.size == 0 or np.any(alphas < 0):
+    alphas = as_1d_finite(alpha, "alpha")  # non-empty
+    if np.any(alphas < 0):
         raise ValueError(f"alpha must be one or more numbers >= 0, got {alpha!r}")
     functions = tuple(functions)
-    bad = [f for f in functions if f not in _AWFT_FUNCTIONS[:-1] and _geovec_index(f) is None]
+    bad = [f for f in functions if f not in _AWFT_FUNCTIONS and _geovec_index(f) is None]
     if bad or not functions:
-        raise ValueError(f"functions must be a non-empty subset of {_AWFT_FUNCTIONS} "
-                         f"(geovec<j>: j in 1..{GEOVEC_BANDS}), got {functions!r}")
+        raise ValueError(f"functions must be a non-empty subset of {_AWFT_FUNCTIONS} or 'geovec<j>' "
+                         f"(j in 1..{GEOVEC_BANDS}), got {functions!r}")
     if angles.size == 0 and not include_isotropic:
         raise ValueError("no operator: give angles_deg or include_isotropic=True")
 
@@ -163,17 +163,18 @@ def awft(mesh: Mesh, *, k: int = 100, angles_deg=(0.0, 45.0, 90.0, 135.0), alpha
             fvals.append(bands[:, _geovec_index(name) - 1] * area)
     fmat = np.stack(fvals, axis=1)  # (n, F)
 
+    # (k, k) Φᵀ A diag(f) Φ per operator and signal: independent of the window, computed once
+    mod = [[vecs.T @ ((A * f)[:, None] * vecs) for f in fmat.T] for _, vecs in eig]
     cols = []
     rho = np.sqrt(area)
     for ell, tau in enumerate(taus):
-        for ev, vecs in eig:
+        for (ev, vecs), Ms in zip(eig, mod):
             ghat = np.exp(-tau * area * np.abs(ev - ev[freqs0[ell]]))  # (k,)
             c = vecs * ghat[None, :]  # (n, k)
             c /= np.linalg.norm(c, axis=1, keepdims=True)
             lam2 = ev**2
             wpow = lam2 / lam2.sum()
-            for fi in range(fmat.shape[1]):
-                M = vecs.T @ ((A * fmat[:, fi])[:, None] * vecs)  # (k, k) Φᵀ A diag(f) Φ
+            for M in Ms:
                 Sf = rho * (c @ M.T)  # (n, k): Sf[x, j] = Σ_l c_l(x) M[j, l]
                 d = (Sf**2) @ wpow  # (n,)
                 cols.append(d / np.sqrt(np.sum(A * d * d) / area))  # unit area-RMS

@@ -130,9 +130,14 @@ def _time_name(t: float) -> str:
     return f"t={mantissa.rstrip('0').rstrip('.')}e{int(exponent)}"
 
 
+def _heat_readings() -> dict[str, dict]:
+    """The readings of one heat-kernel family: the textbook time and :data:`HEAT_TIMES`."""
+    return {"textbook": {}} | {_time_name(t): {"t_rel": t} for t in HEAT_TIMES}
+
+
 READINGS: dict[str, dict[str, dict]] = {
-    "hk_k": {"textbook": {}} | {_time_name(t): {"t_rel": t} for t in HEAT_TIMES},
-    "hk_K": {"textbook": {}} | {_time_name(t): {"t_rel": t} for t in HEAT_TIMES},
+    "hk_k": _heat_readings(),
+    "hk_K": _heat_readings(),
     "HKS": {"textbook": {}, "SOG09, 200 eigenpairs": {"n_eig": 200},
             "SOG09, times x10": {"factor": 40.0 * np.log(10.0)},
             "reversed pairing": {"weights": "reversed"}, "growing": {"weights": "growing"}},

@@ -225,9 +225,8 @@ def report_blocks(results: dict, dataset: str, *, main: bool = True) -> list:
                      "The tables carry both and every claim is judged under both readings.")
     gaps = ("Gaps that stay: the paper's 20 pairs are unknown, and a draw of 10 functions moves a family's mean "
             "by about ±0.02.")
-    poor = [pfam.PAPER_LABELS[fam] for fam, by_r in results["scores"].items()
-            if by_r[results["chosen"][fam]].get("std", {}).get("within", 0) * 2
-            < by_r[results["chosen"][fam]].get("std", {}).get("cells", 0)]
+    chosen_std = {fam: by_r[results["chosen"][fam]].get("std", {}) for fam, by_r in results["scores"].items()}
+    poor = [pfam.PAPER_LABELS[fam] for fam, sc in chosen_std.items() if 2 * sc.get("within", 0) < sc.get("cells", 0)]
     if poor:
         gaps += (f" No reading tried reproduces half of the `std` cells of {', '.join(poor)}: their definitions "
                  "leave more open than the readings cover.")
