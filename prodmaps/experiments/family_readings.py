@@ -29,13 +29,13 @@ import time
 import numpy as np
 
 from . import families as pfam
-from .normalization_study import WITHIN, score_cells
-from .protocol import ProtocolSettings, run_protocol
-from .published import published_values
+from .normalization_study import score_cells
+from .protocol import ProtocolSettings, run_protocol, standard_error
+from .published import DRAW_Z, WITHIN, published_values, within_draw_noise, within_published
 from .results import to_jsonable
 
-__all__ = ["GROUPS", "family_readings_study", "choose", "choose_all", "score_table", "summary_rows", "summary_text",
-           "report_blocks", "figure"]
+__all__ = ["GROUPS", "family_readings_study", "choose", "choose_all", "score_table", "draw_noise",
+           "summary_rows", "summary_text", "report_blocks", "figure"]
 
 # the ground-truth tables, grouped by the basis size of the basis-dependent families (the largest
 # k_M of each table, as the tables compute them)
@@ -68,6 +68,8 @@ def family_readings_study(store, pairs, *, readings: dict | None = None, groups:
     -------
     dict
         ``errors[family][reading]["k{k_M}_{k_N}"][stage][method]`` (means over pairs),
+        ``standard_errors`` (the same keys: :func:`~prodmaps.experiments.protocol.standard_error` of the
+        per-pair means),
         ``scores[family][reading][method]`` (published cells, within ±0.02, mean and largest
         |diff|), ``chosen[family]`` (:func:`choose_all`), ``published_readings`` (the library's
         :data:`~prodmaps.experiments.families.PUBLISHED_READINGS` with the textbook defaults),
@@ -79,6 +81,7 @@ def family_readings_study(store, pairs, *, readings: dict | None = None, groups:
     entries = [f"{fam}:{r}" for fam, names in readings.items() for r in names]
     t0 = time.perf_counter()
     errors: dict = {}
+    sems: dict = {}
     for gname, sizes in groups.items():
         s = ProtocolSettings(sizes=[tuple(z) for z in sizes], map_kind="gt", families=entries, methods=["std", "B"],
                              seed=seed, k_M_family=max(a for a, _ in sizes))
@@ -91,8 +94,11 @@ def family_readings_study(store, pairs, *, readings: dict | None = None, groups:
                     for entry, sl in res.cols.items():
                         fam, reading = pfam.split_entry(entry)
                         lab = "std" if m == "std" else "our_B"
+                        per_pair_means = E[:, sl].mean(axis=1)  # (pairs,)
                         (errors.setdefault(fam, {}).setdefault(reading, {}).setdefault(key, {})
-                         .setdefault(st, {}))[lab] = float(E[:, sl].mean(axis=1).mean())
+                         .setdefault(st, {}))[lab] = float(per_pair_means.mean())
+                        (sems.setdefault(fam, {}).setdefault(reading, {}).setdefault(key, {})
+                         .setdefault(st, {}))[lab] = standard_error(per_pair_means)
         if progress:
             print(f"{gname}: {len(pairs)} pairs, {len(entries)} family readings, "
                   f"{time.perf_counter() - t0:.0f} s", flush=True)
@@ -100,6 +106,7 @@ def family_readings_study(store, pairs, *, readings: dict | None = None, groups:
     pub = _published_cells(all_sizes)
     errors = {fam: {r: errors[fam][r] for r in readings[fam] if r in errors.get(fam, {})}  # READINGS order
               for fam in pfam.FAMILIES if fam in errors}
+    sems = {fam: {r: sems[fam][r] for r in by_r} for fam, by_r in errors.items()}
     scores = {fam: {r: score_table(errors[fam][r], pub, pfam.PAPER_LABELS[fam]) for r in errors[fam]}
               for fam in errors}
     chosen = choose_all(scores)
@@ -107,9 +114,60 @@ def family_readings_study(store, pairs, *, readings: dict | None = None, groups:
     return {"pairs": [list(p) for p in pairs], "groups": {g: [list(z) for z in v] for g, v in groups.items()},
             "readings": {fam: {r: to_jsonable(pfam.READINGS[fam][r]) for r in names}
                          for fam, names in readings.items()},
-            "errors": errors, "scores": scores, "chosen": chosen, "published_readings": library,
+            "errors": errors, "standard_errors": sems, "scores": scores, "chosen": chosen,
+            "published_readings": library,
             "agrees": {fam: chosen[fam] == library[fam] for fam in errors},
             "seconds": time.perf_counter() - t0}
+
+
+def _cell_name(size_key: str, stage: str, method: str, label: str) -> str:
+    a, b = map(int, size_key[1:].split("_"))
+    return f"{label}, {_TABLE_OF.get((a, b), '?')} {a}/{b} {stage} {method}"
+
+
+def draw_noise(results: dict) -> dict | None:
+    """How much of the chosen readings' distance to the paper the draw of pairs and functions explains.
+
+    Over the published ``std`` and ``our_B`` cells of the chosen readings (``results["chosen"]``):
+    the standard errors ``SE`` of our cell means over the pairs (``results["standard_errors"]``),
+    the cells missed (not :func:`~prodmaps.experiments.published.within_published`), and which of
+    those lie within the band of two independent draws
+    (:func:`~prodmaps.experiments.published.within_draw_noise`: ``0.02 + 2·√2·SE``).
+
+    Returns ``{"n_pairs", "cells", "median_se", "max_se", "max_se_cell", "missed", "within_noise",
+    "beyond": [(cell, diff, se), ...]}``, or None when the results carry no standard errors (one
+    pair, or a results document written before they were kept).
+    """
+    sems = results.get("standard_errors")
+    if not sems:
+        return None
+    sizes = [tuple(z) for v in results.get("groups", {}).values() for z in v]
+    pub = _published_cells(sizes)
+    ses, missed, beyond = [], 0, []
+    for fam, reading in results["chosen"].items():
+        label = pfam.PAPER_LABELS[fam]
+        errs, se_r = results["errors"][fam][reading], sems.get(fam, {}).get(reading, {})
+        for key, by_stage in errs.items():
+            a, b = map(int, key[1:].split("_"))
+            for st, by_m in by_stage.items():
+                for m, ours in by_m.items():
+                    p = pub.get((a, b, st, m, label))
+                    se = se_r.get(key, {}).get(st, {}).get(m)
+                    if p is None or se is None:
+                        continue
+                    ses.append((se, _cell_name(key, st, m, label)))
+                    diff = ours - p
+                    if not within_published(diff):
+                        missed += 1
+                        if not within_draw_noise(diff, se):
+                            beyond.append((_cell_name(key, st, m, label), float(diff), float(se)))
+    if not ses:
+        return None
+    top = max(ses)
+    return {"n_pairs": len(results.get("pairs", [])), "cells": len(ses),
+            "median_se": float(np.median([v for v, _ in ses])), "max_se": float(top[0]), "max_se_cell": top[1],
+            "missed": missed, "within_noise": missed - len(beyond),
+            "beyond": sorted(beyond, key=lambda c: -abs(c[1]))}
 
 
 def score_table(errors_by_size: dict, published: dict, label: str) -> dict:
@@ -223,8 +281,21 @@ def report_blocks(results: dict, dataset: str, *, main: bool = True) -> list:
                      f"squares of the highest eigenfunctions ({results['chosen']['HKS']}: mean |diff| "
                      f"{ch['mean_abs']:.3f}). "
                      "The tables carry both and every claim is judged under both readings.")
-    gaps = ("Gaps that stay: the paper's 20 pairs are unknown, and a draw of 10 functions moves a family's mean "
-            "by about ±0.02.")
+    gaps = "Gaps that stay: the paper's 20 pairs and its draws of functions are unknown."
+    noise = draw_noise(results)
+    if noise is not None:
+        gaps += (f" Draw noise, computed from the per-pair errors: the standard error of a cell's mean over the "
+                 f"{noise['n_pairs']} pairs is {noise['median_se']:.3f} in the median cell of the chosen readings "
+                 f"(largest {noise['max_se']:.3f}: {noise['max_se_cell']}). Taking the paper's means to be as noisy "
+                 f"as ours, a difference between the two has a standard error √2 times as large. Of the "
+                 f"{noise['missed']} cells the chosen readings miss by more than ±{WITHIN:g}, "
+                 f"{noise['within_noise']} lie within {WITHIN:g} + {DRAW_Z:g}·√2·SE of the published value (two "
+                 f"independent draws, about 95 %)")
+        if noise["beyond"]:
+            gaps += ("; the others differ by more than the draw explains: " +
+                     "; ".join(f"{c} ({d:+.3f}, SE {e:.3f})" for c, d, e in noise["beyond"]) + ".")
+        else:
+            gaps += "; none lies beyond it."
     chosen_std = {fam: by_r[results["chosen"][fam]].get("std", {}) for fam, by_r in results["scores"].items()}
     poor = [pfam.PAPER_LABELS[fam] for fam, sc in chosen_std.items() if 2 * sc.get("within", 0) < sc.get("cells", 0)]
     if poor:

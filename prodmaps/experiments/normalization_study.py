@@ -36,7 +36,7 @@ import time
 import numpy as np
 
 from .protocol import ProtocolSettings, family_means, method_label, run_protocol
-from .published import published_values
+from .published import WITHIN, published_values, within_published
 
 __all__ = ["READINGS", "GT_TABLES", "RIDGE_EPS", "NORM_EPS", "ofp_rtol", "run", "ridge_eps", "score_cells",
            "best_reading", "explain_cell", "report_blocks"]
@@ -53,7 +53,6 @@ GT_TABLES = {"T1": [(9, 9)], "T3": [(6, 7), (27, 35)], "T5": [(29, 29)], "T6": [
 RIDGE_EPS = (1e-6, 3e-6, 1e-5, 3e-5, 1e-4, 3e-4)  # Approach A's ε, relative to σ_max²; 1e-6 is the tables'
 NORM_EPS = (1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1)  # Equation 4 as printed (norms): ε relative to σ_max
 TABLES_EPS = ProtocolSettings.eps_ridge  # the protocol's ε, which the registry's tables use
-WITHIN = 0.02  # the paper prints two decimals
 
 
 def ofp_rtol(k_M: int) -> float:
@@ -71,7 +70,7 @@ def score_cells(ours: dict, published: dict, methods=("std", "our_A", "our_l2", 
     for m in methods:
         d = [abs(ours[c] - v) for c, v in published.items() if c[3] == m and c in ours]
         if d:
-            out[m] = {"cells": len(d), "within": int(sum(x <= WITHIN + 1e-12 for x in d)),
+            out[m] = {"cells": len(d), "within": int(sum(map(within_published, d))),
                       "mean_abs": float(np.mean(d)), "max_abs": float(np.max(d))}
     return out
 

@@ -40,8 +40,8 @@ from .maps import no17_demo_map
 from .parallel import map_by_source
 from .store import ShapeStore
 
-__all__ = ["ProtocolSettings", "ProtocolResult", "run_protocol", "method_label", "family_means", "area_curves",
-           "AreaCurves", "perturbed_map", "AREA_CRITERIA", "METHODS", "STAGES"]
+__all__ = ["ProtocolSettings", "ProtocolResult", "run_protocol", "method_label", "family_means", "standard_error",
+           "area_curves", "AreaCurves", "perturbed_map", "AREA_CRITERIA", "METHODS", "STAGES"]
 
 METHODS = ("std", "l1", "l2", "B", "B_gain", "default", "p2p")  # plus "B@<rtol>", "l2@<eps>" and "l2n@<eps>"
 _AT_METHODS = ("B@", "l2@", "l2n@")  # at another threshold (B), weight (ridge), or Equation 4's norms at a weight
@@ -276,8 +276,9 @@ def method_label(method: str, table: str | None = None) -> str:
 def family_means(result: ProtocolResult, table: str | None = None, pairs_mask=None) -> dict:
     """``{(k_M, k_N, stage, method label, paper family label): (mean over pairs, std over pairs)}``.
 
-    Each pair contributes the mean over the family's columns; ``pairs_mask`` (boolean, one entry
-    per pair) restricts the average to some pairs (e.g. the intra-subject ones).
+    The std is the population one (``ddof=0``); over ``n`` pairs the mean's :func:`standard_error`
+    is ``std / sqrt(n - 1)``. Each pair contributes the mean over the family's columns;
+    ``pairs_mask`` (boolean, one entry per pair) restricts the average to some pairs (e.g. the intra-subject ones).
     """
     out = {}
     for z, by_stage in result.errors.items():
@@ -291,6 +292,18 @@ def family_means(result: ProtocolResult, table: str | None = None, pairs_mask=No
                     label = pfam.entry_label(fam, result.settings.family_reading)
                     out[(z[0], z[1], st, method_label(m, table), label)] = (float(per.mean()), float(per.std()))
     return out
+
+
+def standard_error(values) -> float | None:
+    """Standard error of the mean of ``values`` ``(n,)``: ``std(ddof=1) / sqrt(n)``; None when ``n < 2``.
+
+    >>> round(standard_error([0.1, 0.3]), 12)
+    0.1
+    """
+    v = np.asarray(values, dtype=np.float64).ravel()
+    if v.size < 2:
+        return None
+    return float(v.std(ddof=1) / np.sqrt(v.size))
 
 
 AREA_CRITERIA = ("paper", "scale_free")

@@ -25,6 +25,15 @@ An entry is matched to the CSV row that agrees on every field it gives (table, f
 stage, method and whichever of fmap, k_M, k_N are present). Entries matching no row, or
 several, are listed in the report as unmatched. The difference is ``ours - published``;
 the paper prints two decimals, so ``|difference| <= 0.005`` is "as published".
+
+An entry may also give ``se``, the standard error of our value over its pairs (a mean over
+drawn pairs and functions). Comparisons with the paper (one home for the report and the studies):
+
+* :func:`within_published`: ``|ours − published| <= WITHIN`` (0.02): the cell is reproduced;
+* :func:`within_draw_noise`: ``|ours − published| <= WITHIN + DRAW_Z·√2·se``: the difference is
+  within what two independent draws of as many pairs explain at about 95 % (``DRAW_Z = 2``),
+  taking the paper's mean to be as noisy as ours (its pairs and functions are unknown). A miss
+  beyond it is a difference of data or definition, not of the draw.
 """
 
 from __future__ import annotations
@@ -34,11 +43,32 @@ import importlib.resources
 import re
 from pathlib import Path
 
-__all__ = ["PUBLISHED_CSV", "TABLE_KEYS", "load_published", "normalize_entry", "match_entries", "published_values"]
+__all__ = ["PUBLISHED_CSV", "TABLE_KEYS", "WITHIN", "DRAW_Z", "load_published", "normalize_entry", "match_entries",
+           "published_values", "within_published", "within_draw_noise"]
 
 PUBLISHED_CSV = Path(str(importlib.resources.files("prodmaps.experiments") / "published_tables.csv"))
 TABLE_KEYS = ("table", "fmap", "k_M", "k_N", "function", "stage", "method")
 _OPTIONAL = ("fmap", "k_M", "k_N")
+WITHIN = 0.02  # the paper prints two decimals
+DRAW_Z = 2.0  # standard errors of the band of within_draw_noise (about 95 %)
+_ROUND = 1e-12  # a difference of exactly 0.02 counts as within, whatever the float rounding
+
+
+def within_published(diff: float) -> bool:
+    """Whether a difference ``ours − published`` reproduces the printed cell (``|diff| <= WITHIN``)."""
+    return abs(float(diff)) <= WITHIN + _ROUND
+
+
+def within_draw_noise(diff: float, se: float) -> bool:
+    """Whether ``|ours − published| <= WITHIN + DRAW_Z·√2·se`` (module doc); ``se >= 0`` is our value's standard error.
+
+    >>> within_draw_noise(0.04, 0.01), within_draw_noise(0.05, 0.01)
+    (True, False)
+    """
+    se = float(se)
+    if not se >= 0:
+        raise ValueError(f"se must be a standard error >= 0, got {se!r}")
+    return abs(float(diff)) <= WITHIN + DRAW_Z * 2 ** 0.5 * se + _ROUND
 
 
 def load_published(path=None) -> list[dict]:
@@ -76,6 +106,11 @@ def normalize_entry(entry: dict) -> dict:
     out = {"table": _table_id(e["table"]), "function": str(e["function"]),
            "stage": str(e["stage"]), "method": str(e["method"]), "value": float(e["value"])}
     out.update({k: str(int(e[k])) if k != "fmap" else str(e[k]) for k in _OPTIONAL if e.get(k) is not None})
+    if e.get("se") is not None:
+        se = float(e["se"])
+        if not se >= 0:
+            raise ValueError(f"table entry {entry!r}: se must be a standard error >= 0")
+        out["se"] = se
     return out
 
 

@@ -112,8 +112,10 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
             by_kind[kind] = nested({k: v[0] for k, v in family_means(res, table, pairs_mask=mask).items()})
     all_cols, pub_cols = _col_order(k[:4] for k in ours), _col_order(k[:4] for k in pub)
     shown = [c for c in pub_cols if c in all_cols] if pub_cols else all_cols  # the published table's, if any
+    n_pairs = len(res.pairs)  # the mean's standard error from the population std (family_means)
+    se = {k: float(v / np.sqrt(n_pairs - 1)) if n_pairs > 1 else None for k, v in spread.items()}
     entries = [{"table": int(table[1:]), "fmap": fmap, "k_M": c[0], "k_N": c[1], "function": r, "stage": c[2],
-                "method": c[3], "value": ours[c + (r,)]}
+                "method": c[3], "value": ours[c + (r,)], "se": se[c + (r,)]}
                for c in shown for r in rows if table and c + (r,) in pub]
     better = {}
     for s, lab, r in ((s, method_label(m, table), r) for s in sizes for m in prod_methods for r in rows):

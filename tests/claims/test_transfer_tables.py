@@ -47,6 +47,11 @@ def test_table1_outputs_well_formed(smoke_results):
     assert len(matches) == 6 * len(labels)
     assert all(np.isfinite(e["value"]) and e["value"] >= 0 for e in res["table"])
     assert res["map_deviation_from_gt"]["k9_9"]["mean"] < 1e-12  # the ground-truth map
+    # each value carries its standard error over the pairs: the population std over 2 pairs, / sqrt(2 - 1)
+    for e in res["table"]:
+        std = res["errors_std_over_pairs"]["k9_9"][e["stage"]][e["method"]][e["function"]]
+        assert e["se"] == pytest.approx(std, rel=1e-12, abs=1e-15)
+    assert any(e["se"] > 1e-4 for e in res["table"])  # the two pairs differ
 
 
 def test_table1_hkk_in_span(smoke_results):

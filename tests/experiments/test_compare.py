@@ -96,3 +96,30 @@ def test_tie_mask_is_is_tie_elementwise():
     assert mask.shape == a.shape and mask.dtype == bool
     assert mask.tolist() == [cmp.is_tie(x, y) for x, y in zip(a, b)]
     assert 0 < mask.sum() < a.size
+
+
+# ------------------------------------------------------------------------------ comparisons with the paper
+def test_within_published_and_within_draw_noise():
+    from prodmaps.experiments import published as P
+
+    assert P.within_published(0.02) and P.within_published(-0.02) and not P.within_published(0.0201)
+    band = P.WITHIN + P.DRAW_Z * np.sqrt(2) * 0.01  # 0.0483
+    assert P.within_draw_noise(band - 1e-6, 0.01) and P.within_draw_noise(-(band - 1e-6), 0.01)
+    assert not P.within_draw_noise(band + 1e-6, 0.01)
+    assert P.within_draw_noise(0.02, 0.0) and not P.within_draw_noise(0.021, 0.0)  # no spread: the printed band
+    with pytest.raises(ValueError, match="se must be"):
+        P.within_draw_noise(0.01, -0.1)
+    with pytest.raises(ValueError, match="se must be"):
+        P.within_draw_noise(0.01, float("nan"))
+
+
+def test_table_entries_keep_their_standard_error():
+    from prodmaps.experiments.published import load_published, match_entries, normalize_entry
+
+    e = {"table": 1, "function": "HKS", "stage": "transfer", "method": "std", "value": 0.5, "se": 0.01}
+    assert normalize_entry(e)["se"] == 0.01
+    assert "se" not in normalize_entry({**e, "se": None})
+    (m,), _ = match_entries([e], load_published())
+    assert m[1]["se"] == 0.01 and m[0]["value"] == 0.54  # Table 1, HKS transfer std
+    with pytest.raises(ValueError, match="se must be"):
+        normalize_entry({**e, "se": -1})

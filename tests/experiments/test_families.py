@@ -320,3 +320,40 @@ def test_family_readings_study_runs_every_reading_on_the_same_pairs():
     assert e["textbook"]["k9_9"]["transfer"]["std"] < 0.2 < e["reversed pairing"]["k9_9"]["transfer"]["std"]
     assert res["chosen"]["XYZ"] == "textbook" and res["agrees"]["XYZ"]
     assert "|" not in FR.summary_text(res) and len(FR.summary_rows(res)) == 2
+
+
+def test_family_readings_standard_errors_are_those_of_the_per_pair_means():
+    import prodmaps.experiments.family_readings as FR
+    from prodmaps.experiments.store import ShapeStore
+
+    assert FR.standard_error([0.5]) is None  # one pair: no spread to measure
+    assert FR.standard_error([0.1, 0.3]) == pytest.approx(0.1, abs=1e-15)  # |a - b| / 2 for two values
+    store = ShapeStore("anny_humans", 30, disk_cache=False)
+    pairs = [("anny_000", "anny_013"), ("anny_013", "anny_000")]
+    kw = dict(readings={"XYZ": ["textbook"]}, groups={"T1": [(9, 9)]}, progress=False)  # XYZ: no random draw
+    both = FR.family_readings_study(store, pairs, **kw)
+    one = [FR.family_readings_study(store, [p], **kw) for p in pairs]
+    cell = lambda r, key: r[key]["XYZ"]["textbook"]["k9_9"]["transfer"]["our_B"]  # noqa: E731
+    a, b = (cell(r, "errors") for r in one)
+    assert cell(both, "errors") == pytest.approx((a + b) / 2, rel=1e-12)
+    assert cell(both, "standard_errors") == pytest.approx(abs(a - b) / 2, rel=1e-9)
+    assert a != pytest.approx(b, abs=1e-3)  # the two directions differ: the test can see a spread
+    assert cell(one[0], "standard_errors") is None and FR.draw_noise(one[0]) is None
+
+
+def test_draw_noise_separates_misses_the_draw_explains_from_the_others():
+    import prodmaps.experiments.family_readings as FR
+
+    # Table 1 XYZ: published approx std 0.29, transfer std 0.29, transfer our_B 0.23
+    errors = {"k9_9": {"approx": {"std": 0.30}, "transfer": {"std": 0.33, "our_B": 0.35}}}
+    sems = {"k9_9": {"approx": {"std": 0.004}, "transfer": {"std": 0.01, "our_B": 0.01}}}
+    res = {"pairs": [["a", "b"]] * 20, "groups": {"T1": [[9, 9]]}, "chosen": {"XYZ": "textbook"},
+           "errors": {"XYZ": {"textbook": errors}}, "standard_errors": {"XYZ": {"textbook": sems}}}
+    n = FR.draw_noise(res)
+    assert n["cells"] == 3 and n["n_pairs"] == 20
+    assert n["median_se"] == pytest.approx(0.01) and n["max_se"] == pytest.approx(0.01)
+    # 0.30 is within ±0.02; 0.33 misses by 0.04 <= 0.02 + 2·√2·0.01 = 0.048; 0.35 misses by 0.12 > 0.048
+    assert n["missed"] == 2 and n["within_noise"] == 1
+    (cell, diff, se), = n["beyond"]
+    assert cell == "XYZ, T1 9/9 transfer our_B" and diff == pytest.approx(0.12) and se == pytest.approx(0.01)
+    assert FR.draw_noise({**res, "standard_errors": {}}) is None

@@ -73,11 +73,13 @@ DELTAS = {("transfer", "std", "HKS"): 0.010, ("transfer", "our_B", "HKS"): -0.05
           ("transfer", "our_B", "XYZ"): 0.100, ("approx", "std", "Indicator"): -0.004}
 TABLE1 = [
     {"table": 1, "fmap": "ground_truth", "k_M": 9, "k_N": 9, "function": "HKS", "stage": "transfer", "method": "std",
-     "value": PUB1[(9, 9, "transfer", "std", "HKS")] + 0.010},
+     "value": PUB1[(9, 9, "transfer", "std", "HKS")] + 0.010, "se": 0.004},
+    # missed by 0.05, within draw noise: 0.05 <= 0.02 + 2·√2·0.012 = 0.054
     {"table": "T1", "function": "HKS", "stage": "transfer", "method": "our_B",
-     "value": PUB1[(9, 9, "transfer", "our_B", "HKS")] - 0.050},
+     "value": PUB1[(9, 9, "transfer", "our_B", "HKS")] - 0.050, "se": 0.012},
+    # missed by 0.10, beyond it: 0.10 > 0.02 + 2·√2·0.01 = 0.048
     {"table": "Table 1", "function": "XYZ", "column": "transfer_our_B",
-     "value": PUB1[(9, 9, "transfer", "our_B", "XYZ")] + 0.100},
+     "value": PUB1[(9, 9, "transfer", "our_B", "XYZ")] + 0.100, "se": 0.01},
     {"table": 1, "function": "Indicator", "stage": "approx", "method": "std",
      "value": PUB1[(9, 9, "approx", "std", "Indicator")] - 0.004},
     {"table": 1, "function": "Nope", "stage": "transfer", "method": "std", "value": 0.5},  # matches nothing
@@ -320,8 +322,8 @@ def test_no_reproduced_wording(project):
 
 
 # ------------------------------------------------------------------------------ tables
-SUMMARY_HEADER = ["table", "cells compared", "within ±0.02", "mean |diff|", "largest |diff|",
-                  "products beat std: paper B (all · intra · inter)", "gain rule", "default"]
+SUMMARY_HEADER = ["table", "cells compared", "within ±0.02", "missed, within draw noise", "mean |diff|",
+                  "largest |diff|", "products beat std: paper B (all · intra · inter)", "gain rule", "default"]
 
 
 def _summary_rows(text):
@@ -344,14 +346,15 @@ def test_table_summaries_count_mean_and_largest_difference(project):
     diffs = sorted(abs(d) for d in DELTAS.values())
     assert sum(d <= 0.02 for d in diffs) == 2 and abs(np.mean(diffs) - 0.041) < 1e-12
     t1 = rows["Table 1"]
-    assert t1[1:5] == [f"4 of {N_PUB['1']}", "2", "0.041", "0.100"]
+    assert t1[1:6] == [f"4 of {N_PUB['1']}", "2", "1 of 2", "0.041", "0.100"]
     # products beat std, per method, over all · intra · inter pairs (3 families, one size)
-    assert t1[5:] == ["2/3 · 1/3 · 0/3", "3/3 · 2/3 · 1/3", "2/3 · 2/3 · 0/3"]
-    # Table 2: one value from an unregistered run (top-level "table"), no tab02 run for the product columns
-    assert rows["Table 2"][1:] == [f"1 of {N_PUB['2']}", "0", "0.030", "0.030", "— · — · —", "— · — · —",
+    assert t1[6:] == ["2/3 · 1/3 · 0/3", "3/3 · 2/3 · 1/3", "2/3 · 2/3 · 0/3"]
+    # Table 2: one value from an unregistered run (top-level "table", no standard error: no noise count),
+    # no tab02 run for the product columns
+    assert rows["Table 2"][1:] == [f"1 of {N_PUB['2']}", "0", "—", "0.030", "0.030", "— · — · —", "— · — · —",
                                    "— · — · —"]
     for t in "3456":
-        assert rows[f"Table {t}"][1:5] == [f"0 of {N_PUB[t]}", "—", "—", "—"]
+        assert rows[f"Table {t}"][1:6] == [f"0 of {N_PUB[t]}", "—", "—", "—", "—"]
     assert "Systematic differences (stated once):" in _section(project["text"], "Tables 1–6")
 
 
@@ -367,12 +370,13 @@ def test_table_summaries_against_a_custom_published_csv(tmp_path):
     text = md.read_text(encoding="utf-8")
     rows = _summary_rows(text)
     assert list(rows) == ["Table 1", "Table 3"]
-    assert rows["Table 1"][1:5] == ["2 of 3", "1", "0.030", "0.050"]
-    assert rows["Table 3"][1:5] == ["0 of 1", "—", "—", "—"]
+    # HKS std is off by 0.05 with SE 0.004: beyond 0.02 + 2·√2·0.004 = 0.031
+    assert rows["Table 1"][1:6] == ["2 of 3", "1", "0 of 1", "0.030", "0.050"]
+    assert rows["Table 3"][1:6] == ["0 of 1", "—", "—", "—", "—"]
     app = _section(text, "Appendix")
-    assert "| HKS | transfer | std | 0.50 | 0.550 | +0.050 | tab01 |" in app
-    assert "| HKS | transfer | our_B | 0.11 | 0.100 | -0.010 | tab01 |" in app
-    assert "| WKS | transfer | std | 0.20 | — |  |  |" in app
+    assert "| HKS | transfer | std | 0.50 | 0.550 | +0.050 | 0.004 | tab01 |" in app
+    assert "| HKS | transfer | our_B | 0.11 | 0.100 | -0.010 | 0.012 | tab01 |" in app
+    assert "| WKS | transfer | std | 0.20 | — |  |  |  |" in app
 
 
 def test_no_published_csv_means_no_table_sections(tmp_path):
@@ -392,16 +396,18 @@ def test_appendix_lists_every_published_value(project):
     tables = _tables(app)
     assert len(tables) == 7  # six paper tables and the unmatched values
     t1 = tables[0]
-    assert t1[0] == ["function", "stage", "method", "published", "ours", "difference", "run"]
+    assert t1[0] == ["function", "stage", "method", "published", "ours", "difference", "SE of ours", "run"]
     assert len(t1) - 1 == N_PUB["1"]
     by = {(r[1], r[2], r[0]): r for r in t1[1:]}
     for key, delta in DELTAS.items():
         pub = PUB1[(9, 9) + key]
-        assert by[key][3:] == [f"{pub:.2f}", f"{pub + delta:.3f}", f"{delta:+.3f}", "tab01"], key
-    assert by[("transfer", "std", "WKS")][4:] == ["—", "", ""]
+        se = next(e.get("se") for e in TABLE1 if e["value"] == pytest.approx(pub + delta))
+        assert by[key][3:] == [f"{pub:.2f}", f"{pub + delta:.3f}", f"{delta:+.3f}",
+                               "—" if se is None else f"{se:.3f}", "tab01"], key
+    assert by[("transfer", "std", "WKS")][4:] == ["—", "", "", ""]
     assert tables[2][0][:3] == ["k_M", "k_N", "function"]  # Table 3 has two settings
     t2 = {(r[1], r[2], r[0]): r for r in tables[1][1:]}
-    assert t2[("transfer", "std", "HKS")][6] == "extra_run"
+    assert t2[("transfer", "std", "HKS")][7] == "extra_run"
     unmatched = tables[-1]
     assert unmatched[0] == ["run", "entry", "reason"]
     assert len(unmatched) == 2
