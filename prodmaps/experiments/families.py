@@ -51,7 +51,10 @@ HKS and WKS use the ``k_M + 1`` source eigenpairs by default, as Section 5.2 des
 computes them from more eigenpairs instead (then they are no longer in that span).
 
 Heat kernel time (not stated in the paper): ``t = t_rel · area`` with ``t_rel = 1e-3`` by
-default (a localised kernel, Gaussian width ``~sqrt(4t) ≈ 0.06·sqrt(area)``); a parameter.
+default (a localised kernel, Gaussian width ``~sqrt(4t) ≈ 0.06·sqrt(area)``); a parameter. The
+kernels' "random point x" is a vertex drawn uniformly (``points="vertices"``, the default) or a
+point uniform on the surface (``points="area"``: a vertex drawn with probability proportional to
+its lumped area).
 Relative errors are computed column by column, so the per-column scaling of HKS/WKS does not
 change any reported number.
 
@@ -73,9 +76,9 @@ from ..basis import Basis, eigenbasis
 from ..cache import Cache
 from ..mesh import Mesh, check_mesh, check_vertex_indices
 
-__all__ = ["FAMILIES", "PAPER_LABELS", "AWFT_RELEASE", "HEAT_TIMES", "READINGS", "TIED_READINGS", "PUBLISHED_READINGS",
-           "READING_SETS", "resolve_reading", "split_entry", "entry_label", "sort_entries", "hks_columns", "FamilySpec",
-           "make_family", "pull_back", "family_names", "descriptor_key", "family_seed"]
+__all__ = ["FAMILIES", "PAPER_LABELS", "AWFT_RELEASE", "HEAT_TIMES", "HEAT_POINTS", "READINGS", "TIED_READINGS",
+           "PUBLISHED_READINGS", "READING_SETS", "resolve_reading", "split_entry", "entry_label", "sort_entries",
+           "hks_columns", "FamilySpec", "make_family", "pull_back", "family_names", "descriptor_key", "family_seed"]
 
 
 @dataclass(frozen=True)
@@ -131,8 +134,12 @@ def _time_name(t: float) -> str:
 
 
 def _heat_readings() -> dict[str, dict]:
-    """The readings of one heat-kernel family: the textbook time and :data:`HEAT_TIMES`."""
-    return {"textbook": {}} | {_time_name(t): {"t_rel": t} for t in HEAT_TIMES}
+    """The readings of one heat-kernel family: the textbook time and :data:`HEAT_TIMES`.
+
+    The random point is a uniform vertex; then the same times with the point uniform on the surface.
+    """
+    return ({"textbook": {}} | {_time_name(t): {"t_rel": t} for t in HEAT_TIMES}
+            | {f"{_time_name(t)}, x on the surface": {"t_rel": t, "points": "area"} for t in HEAT_TIMES})
 
 
 READINGS: dict[str, dict[str, dict]] = {
@@ -247,11 +254,25 @@ def _random_vertices(rng, n: int, m: int) -> np.ndarray:
     return rng.choice(n, size=m, replace=m > n)
 
 
-def _gen_hk(ctx, rng, m, *, t_rel: float = 1e-3, n_eig_K: int = 200, big: bool):
-    mesh, area = ctx["mesh"], ctx["mesh"].area
+HEAT_POINTS = ("vertices", "area")
+
+
+def _random_points(ctx, rng, m: int, points: str) -> np.ndarray:
+    """``m`` random points ``(m,)`` (vertex indices): uniform over the vertices, or uniform on the surface."""
+    if points == "vertices":
+        return _random_vertices(rng, ctx["mesh"].n_vertices, m)
+    if points != "area":
+        raise ValueError(f"points must be one of {HEAT_POINTS}, got {points!r}")
+    basis = ctx["basis"]
+    mass = basis.mass if basis.mass_is_diagonal else np.asarray(basis.mass.sum(axis=1)).ravel()  # (n,) lumped
+    return rng.choice(mass.shape[0], size=m, replace=True, p=mass / mass.sum())
+
+
+def _gen_hk(ctx, rng, m, *, t_rel: float = 1e-3, n_eig_K: int = 200, points: str = "vertices", big: bool):
+    area = ctx["mesh"].area
     if not np.isfinite(t_rel) or t_rel <= 0:
         raise ValueError(f"t_rel must be > 0, got {t_rel!r}")
-    src = _random_vertices(rng, mesh.n_vertices, m)
+    src = _random_points(ctx, rng, m, points)
     return _d.heat_kernel(_big_basis(ctx, n_eig_K) if big else ctx["basis_k"], src, t_rel * area)
 
 
@@ -434,7 +455,7 @@ def make_family(name: str, mesh_1: Mesh, basis_1: Basis, *, k_M: int, seed: int,
     m : number of functions (default ``FAMILIES[name].m``; XYZ always has 3).
     cache : optional :class:`prodmaps.cache.Cache`, one per source mesh, reused for
         SHOT/AWFT/200-eigenpair bases (see the module doc for the keys).
-    options : family parameters (``t_rel``, ``n_eig_K`` for the heat kernels; ``num_grid``,
+    options : family parameters (``t_rel``, ``n_eig_K``, ``points`` for the heat kernels; ``num_grid``,
         ``variance``, ``margin``, ``n_eig`` for WKS; ``factor``, ``n_eig`` for HKS; ``min_frac``, ``max_frac``,
         ``method`` for Indicator; :func:`~prodmaps.descriptors.shot` /
         :func:`~prodmaps.descriptors.awft` keywords for SHOT / AWFT).

@@ -357,3 +357,25 @@ def test_draw_noise_separates_misses_the_draw_explains_from_the_others():
     (cell, diff, se), = n["beyond"]
     assert cell == "XYZ, T1 9/9 transfer our_B" and diff == pytest.approx(0.12) and se == pytest.approx(0.01)
     assert FR.draw_noise({**res, "standard_errors": {}}) is None
+
+
+def test_heat_kernel_points_uniform_on_the_surface(src):
+    mesh, basis, _ = src
+    b10 = basis.truncate(K_M + 1)
+    F, _ = make("hk_k", src, seed=3, points="area", t_rel=5e-4)
+    # the points are vertices drawn with probability proportional to their lumped area
+    p = basis.mass / basis.mass.sum()
+    idx = np.random.default_rng(3).choice(mesh.n_vertices, size=10, replace=True, p=p)
+    np.testing.assert_allclose(F, D.heat_kernel(b10, idx, 5e-4 * mesh.area), rtol=1e-12)
+    assert p.max() / p.min() > 2  # the embedded mesh's vertex areas differ: the two readings differ in law
+    Fv, _ = make("hk_k", src, seed=3, points="vertices", t_rel=5e-4)
+    np.testing.assert_array_equal(Fv, make("hk_k", src, seed=3, t_rel=5e-4)[0])  # the default
+    assert not np.allclose(F, Fv)
+    with pytest.raises(ValueError, match="points must be one of"):
+        make("hk_K", src, points="faces")
+    # the readings: every time once with each law, tied families alike
+    for fam in ("hk_k", "hk_K"):
+        r = PF.READINGS[fam]
+        assert r["t=5e-4, x on the surface"] == {"t_rel": 5e-4, "points": "area"}
+        assert sum(o.get("points") == "area" for o in r.values()) == len(PF.HEAT_TIMES)
+    assert PF.READINGS["hk_k"] == PF.READINGS["hk_K"]
