@@ -102,6 +102,11 @@ class Basis:
         return not sp.issparse(self.mass)
 
     @property
+    def lumped_mass(self) -> np.ndarray:
+        """The lumped vertex areas ``(n,)``: the diagonal mass itself, or the row sums of a sparse one."""
+        return self.mass if self.mass_is_diagonal else np.asarray(self.mass.sum(axis=1)).ravel()
+
+    @property
     def area(self) -> float:
         """Total area, the sum of the mass ``A``."""
         return float(self.mass.sum())

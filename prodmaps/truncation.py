@@ -93,7 +93,7 @@ def transfer_gains(C_12, basis_1: Basis, basis_2: Basis, order: int = 2, pairs: 
         V = d[:, None] * V  # directions as solver coefficients
     Ct = extend_fmap(C, basis_1, basis_2, order, pairs)  # (K2, K1)
     img = ext2.evaluate(Ct @ (ext1.expand() @ V))  # (n2, K_u) images of the directions
-    m2 = basis_2.mass if basis_2.mass_is_diagonal else np.asarray(basis_2.mass.sum(axis=1)).ravel()
+    m2 = basis_2.lumped_mass
     norms = np.sqrt(np.einsum("ij,ij->j", img, m2[:, None] * img))  # (K_u,)
     with np.errstate(divide="ignore", invalid="ignore"):
         gain = np.where(sigma > 0, norms / np.where(sigma > 0, sigma, 1.0), np.inf)

@@ -263,8 +263,7 @@ def _random_points(ctx, rng, m: int, points: str) -> np.ndarray:
         return _random_vertices(rng, ctx["mesh"].n_vertices, m)
     if points != "area":
         raise ValueError(f"points must be one of {HEAT_POINTS}, got {points!r}")
-    basis = ctx["basis"]
-    mass = basis.mass if basis.mass_is_diagonal else np.asarray(basis.mass.sum(axis=1)).ravel()  # (n,) lumped
+    mass = ctx["basis"].lumped_mass  # (n,)
     return rng.choice(mass.shape[0], size=m, replace=True, p=mass / mass.sum())
 
 
@@ -375,8 +374,7 @@ def _gen_indicator(ctx, rng, m, *, min_frac: float = 0.1, max_frac: float = 0.5,
     if not 0 < min_frac <= max_frac < 1:
         raise ValueError(f"need 0 < min_frac <= max_frac < 1, got {min_frac}, {max_frac}")
     mesh = ctx["mesh"]
-    mass = ctx["basis"].mass
-    mass = mass if ctx["basis"].mass_is_diagonal else np.asarray(mass.sum(axis=1)).ravel()
+    mass = ctx["basis"].lumped_mass  # (n,)
     src = _random_vertices(rng, mesh.n_vertices, m)
     frac = rng.uniform(min_frac, max_frac, size=m)
     D = distances(mesh, src, method=method)  # (m, n)

@@ -403,7 +403,7 @@ def _ridge_eps_blocks(r: dict | None) -> list:
             text += (f" HKS, Approach A's approximation ({cell}, published {pub:.2f}): the textbook HKS gives "
                      f"{min(tb.values()):.3f} to {max(tb.values()):.3f} over the ε tried")
             near = min(tb, key=lambda e: abs(tb[e] - pub))
-            if abs(tb[near] - pub) > WITHIN:
+            if not within_published(tb[near] - pub):
                 text += ", none within ±0.02 of the published value"
             else:
                 text += f", within ±0.02 of it at ε = {near} ({tb[near]:.3f})"

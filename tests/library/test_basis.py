@@ -271,3 +271,16 @@ def test_cholesky_route_chosen_by_size_and_its_fallbacks(human_0, monkeypatch):
         eigensolver.smallest_eigenpairs(W, A, 8, solver="cholesky")
     with pytest.raises(ValueError, match="solver must be one of"):
         eigensolver.smallest_eigenpairs(W, A, 8, solver="lu")
+
+
+def test_lumped_mass_is_the_diagonal_or_the_row_sums():
+    from prodmaps.mesh import icosphere
+
+    lumped = pm.eigenbasis(icosphere(2), 6)
+    full = pm.eigenbasis(icosphere(2), 6, mass="full")
+    assert lumped.mass_is_diagonal and not full.mass_is_diagonal
+    assert lumped.lumped_mass is lumped.mass  # no copy
+    np.testing.assert_allclose(full.lumped_mass, np.asarray(full.mass.sum(axis=1)).ravel(), rtol=0, atol=0)
+    assert full.lumped_mass.shape == (full.n,)
+    # the FEM mass's row sums are the barycentric lumped areas
+    np.testing.assert_allclose(full.lumped_mass, lumped.mass, rtol=1e-12)
