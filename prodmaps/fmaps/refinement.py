@@ -10,35 +10,11 @@ import numpy as np
 from ..basis import Basis
 from ..checks import check_fmap
 from ..p2p import from_fmap
+from ..progress import progress_bar
 
 __all__ = ["zoomout"]
 
 PROGRESS_MIN_WORK = 2e10  # progress=None: a bar when Σ n1·n2·k over the steps exceeds this (long runs)
-
-
-def _progress(total: int, enabled: bool, stream=None):
-    """A tqdm bar on ``stream`` (stderr) when tqdm is installed, plain lines otherwise; ``None`` if off."""
-    import sys
-
-    if not enabled:
-        return None
-    stream = sys.stderr if stream is None else stream
-    try:
-        from tqdm import tqdm
-
-        return tqdm(total=total, desc="zoomout", unit="step", file=stream, dynamic_ncols=True)
-    except ImportError:
-        class _Lines:
-            n = 0
-
-            def update(self, k=1):
-                self.n += k
-                print(f"zoomout: step {self.n}/{total}", file=stream, flush=True)
-
-            def close(self):
-                pass
-
-        return _Lines()
 
 
 def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return_p2p: bool = False,
@@ -78,22 +54,16 @@ def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return
     if int(step) < 1:
         raise ValueError(f"step must be >= 1, got {step}")
     n_steps = 1 + max(-(-(K1 - k1) // int(step)), -(-(K2 - k2) // int(step)))  # conversions done
-    if progress is None:
-        import sys
-
-        work = float(basis_1.n) * basis_2.n * max(K1, K2) * n_steps
-        progress = work > PROGRESS_MIN_WORK and getattr(sys.stderr, "isatty", lambda: False)()
-    bar = _progress(n_steps, bool(progress))
+    work = float(basis_1.n) * basis_2.n * max(K1, K2) * n_steps
+    bar = progress_bar(n_steps, "zoomout", progress=progress, work=work, min_work=PROGRESS_MIN_WORK)
     p2p = None
     while True:
         p2p = from_fmap(C, basis_1, basis_2, method="std")
-        if bar is not None:
-            bar.update(1)
+        bar.update(1)
         done = k1 == K1 and k2 == K2  # then one last conversion at the final size: C comes from a point map
         k1, k2 = min(k1 + step, K1), min(k2 + step, K2)
         C = basis_2.truncate(k2).project(basis_1.vecs[p2p, :k1])  # (k2, k1)
         if done:
             break
-    if bar is not None:
-        bar.close()
+    bar.close()
     return (C, p2p) if return_p2p else C
