@@ -370,6 +370,10 @@ def eigenbasis(mesh, k: int, kind: str | None = None, mass: str = "lumped", *, s
                          f"{'points' if cloud else 'vertices'}: need 1 <= k < {n} (k counts the constant; the "
                          "paper's k_M = 9 is k = 10)")
     if not cloud:
+        lone = np.setdiff1d(np.arange(n), mesh.faces)
+        if lone.size:  # a mesh built with validate=False
+            raise MeshError(f"eigenbasis: {lone.size} vertices have no area (first {lone[:5].tolist()}): they belong "
+                            "to no face; drop them with pm.mesh.remove_unreferenced_vertices(vertices, faces)")
         ncomp, labels = face_components(n, mesh.faces)
         if ncomp > 1:  # a mesh loaded with validate=False: the constant is not the only zero mode
             sizes = sorted(np.bincount(labels).tolist(), reverse=True)[:5]

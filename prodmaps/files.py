@@ -131,8 +131,9 @@ def write_checked_npz(path, fmt: str, arrays: dict, metadata: dict) -> Path:
     """Write ``arrays`` and ``metadata`` to ``path`` (an ``.npz``, exactly that name), atomically.
 
     The metadata record gains ``format`` (``fmt``, e.g. ``"prodmaps.basis"``), ``archive_version``,
-    ``prodmaps_version`` and ``checksum`` (:func:`arrays_checksum`). Arrays are stored as given
-    (no compression, so loads are bit-exact and fast). Returns the path.
+    ``prodmaps_version`` and ``checksum`` (:func:`arrays_checksum`). Arrays are stored as given,
+    memory order included (no compression: loads are bit-exact and fast, and a loaded array
+    meets the same BLAS kernels as the saved one). Returns the path.
     """
     import numpy as np
 
@@ -141,7 +142,7 @@ def write_checked_npz(path, fmt: str, arrays: dict, metadata: dict) -> Path:
         raise ValueError(f"{path}: is a folder; give a file name (e.g. ending in .npz)")
     meta = dict(metadata, format=fmt, archive_version=ARCHIVE_VERSION, prodmaps_version=library_version(),
                 checksum=arrays_checksum(arrays))
-    payload = {name: np.ascontiguousarray(a) for name, a in arrays.items()}
+    payload = {name: np.asarray(a) for name, a in arrays.items()}  # memory order kept (C or Fortran)
     payload[_META] = np.array(json.dumps(meta, sort_keys=True))
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:  # a file object: numpy would append .npz to a name without it
@@ -165,9 +166,10 @@ def read_checked_npz(path, fmt: str, hint: dict | None = None) -> tuple[dict, di
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such file")
     try:
-        with np.load(path, allow_pickle=False) as z:
-            if not isinstance(z, np.lib.npyio.NpzFile):
-                raise ValueError("a single .npy array, not a prodmaps archive")
+        z = np.load(path, allow_pickle=False)
+        if not isinstance(z, np.lib.npyio.NpzFile):
+            raise ValueError("a single .npy array, not a prodmaps archive")
+        with z:
             arrays = {name: z[name] for name in z.files}
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
         raise ValueError(f"{path}: not a prodmaps {fmt} file (cannot be read as an .npz archive: {exc})") from None

@@ -318,9 +318,12 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14, *
     ncomp, labels = face_components(n, f)
     if ncomp > 1:
         sizes = sorted(np.bincount(labels).tolist(), reverse=True)[:5]
+        n_merge = int(np.sum(coincident_vertices(v, coincident_tol) != np.arange(n)))
+        soup = (f"; {n_merge} vertices coincide with another (a triangle soup or cut seams?): "
+                "prodmaps.mesh.repair(vertices, faces) merges them first") if n_merge else ""
         raise MeshError(f"several connected components: {ncomp} (sizes {sizes}); use "
                         "prodmaps.mesh.largest_component(vertices, faces), or load the file with "
-                        "pm.io.load_mesh_repaired(path)")
+                        "pm.io.load_mesh_repaired(path)" + soup)
     if warn:
         for message in _suspicious(v, f, coincident_tol):
             warnings.warn(message, MeshWarning, stacklevel=4)
@@ -482,6 +485,12 @@ def triangulate_polygons(faces) -> tuple[np.ndarray, np.ndarray]:
     return tri, rows.astype(np.int64)
 
 
+def _first(a: np.ndarray):
+    """The first element of ``a`` as a Python object (so that its repr is ``'0'``, not ``np.str_('0')``)."""
+    x = a.ravel()[0]
+    return x.item() if isinstance(x, np.generic) else x
+
+
 def _numeric_arrays(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     """``(vertices float64 copy, faces as given)``, or a :class:`MeshError` for text, objects or ragged lists."""
     try:
@@ -491,12 +500,12 @@ def _numeric_arrays(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
                         "triangulate them with prodmaps.mesh.triangulate_polygons(faces)") from None
     if f.size and f.dtype.kind not in "biuf":
         what = "text" if f.dtype.kind in "US" else f"dtype {f.dtype}"
-        raise MeshError(f"face indices must be integers; got {what} (e.g. {f.ravel()[0]!r}): convert them with "
+        raise MeshError(f"face indices must be integers; got {what} (e.g. {_first(f)!r}): convert them with "
                         "np.asarray(faces, dtype=np.int64)")
     v = np.asarray(vertices)
     if v.size and v.dtype.kind not in "biuf":
         what = "text" if v.dtype.kind in "US" else f"dtype {v.dtype}"
-        raise MeshError(f"vertex coordinates must be numbers; got {what} (e.g. {v.ravel()[0]!r}): convert them with "
+        raise MeshError(f"vertex coordinates must be numbers; got {what} (e.g. {_first(v)!r}): convert them with "
                         "np.asarray(vertices, dtype=np.float64)")
     return np.array(v, dtype=np.float64, order="C", copy=True), f
 

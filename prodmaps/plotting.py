@@ -135,7 +135,7 @@ def auto_camera(points, window_size=(512, 512), *, view_angle: float = 30.0, axe
     >>> import numpy as np
     >>> P = np.random.default_rng(0).normal(size=(500, 3)) * [1.0, 5.0, 0.2]  # long along y, thin along z
     >>> cam = auto_camera(P)
-    >>> np.round(np.abs(cam.up), 3).tolist(), bool(abs(cam.position[2]) > 5)  # y upright, seen along z
+    >>> np.round(np.abs(cam.up), 1).tolist(), bool(abs(cam.position[2]) > 5)  # y upright, seen along z
     ([0.0, 1.0, 0.0], True)
     """
     P = np.asarray(points, dtype=np.float64)
@@ -185,13 +185,13 @@ def map_colors(points) -> np.ndarray:
     --------
     >>> import numpy as np
     >>> c = map_colors(np.random.default_rng(0).normal(size=(100, 3)))
-    >>> c.shape, float(c.min()) >= 0.1, float(c.max()) <= 0.9
-    ((100, 3), True, True)
+    >>> c.shape, float(c.min()), float(c.max())
+    ((100, 3), 0.1, 0.9)
     """
     P = np.asarray(points, dtype=np.float64)
     coords = (P - P.mean(0)) @ _principal_axes(P).T  # (n, 3)
     lo, hi = coords.min(0), coords.max(0)
-    return 0.1 + 0.8 * (coords - lo) / np.where(hi > lo, hi - lo, 1.0)
+    return np.clip(0.1 + 0.8 * (coords - lo) / np.where(hi > lo, hi - lo, 1.0), 0.1, 0.9)
 
 
 def _pv_shape(points, faces):
