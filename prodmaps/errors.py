@@ -58,8 +58,8 @@ class MeshWarning(UserWarning):
     """A mesh that loads but is probably not what was meant; the message names the repair.
 
     Warned by :func:`prodmaps.mesh.validate` (so by :class:`prodmaps.Mesh` and
-    :func:`prodmaps.load_mesh`) for coincident vertices (a seam or a triangle soup: the surface
-    is cut there), bowtie vertices and inconsistently oriented faces, and by
+    :func:`prodmaps.load_mesh`) for coincident boundary vertices (a seam or a triangle soup: the
+    surface is cut there), bowtie vertices and inconsistently oriented faces, and by
     :func:`prodmaps.load_mesh` when it triangulates polygons.
 
     Examples

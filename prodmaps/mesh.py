@@ -8,8 +8,9 @@ Conventions
   duplicate faces, no unreferenced vertices, only manifold edges (each edge in at most
   two faces) and exactly one connected component.
 * Validation also **warns** (:class:`prodmaps.MeshWarning`) about what loads but is probably not
-  meant: vertices that coincide within ``COINCIDENT_TOL`` of the bounding-box diagonal (a seam or
-  a triangle soup: the surface is cut there, and its spectrum is that of the cut surface), bowtie
+  meant: boundary vertices that coincide within ``COINCIDENT_TOL`` of the bounding-box diagonal (a
+  seam or a triangle soup: the surface is cut there, and its spectrum is that of the cut surface;
+  coincident vertices inside a closed surface, two sheets touching at a point, are harmless), bowtie
   vertices (separate fans of faces meeting at one vertex) and inconsistently oriented faces
   (harmless to the Laplacian, which uses angles and areas only, but not to normals, curvature,
   SHOT, AWFT or cross fields). Each warning names its repair.
@@ -42,11 +43,10 @@ from .pointcloud import PointCloud
 __all__ = ["Mesh", "MeshError", "NeedsFacesError", "MeshWarning", "COINCIDENT_TOL", "validate", "face_areas",
            "face_normals", "face_mean_ratio", "face_radius_ratio", "vertex_normals", "check_mesh",
            "check_vertex_indices", "edges", "boundary_edges", "graph_components", "face_components",
-           "mean_edge_length", "needs_faces", "coincident_vertices", "bowtie_vertices", "misoriented_edges",
-           "triangulate_polygons",
-           "largest_component", "remove_unreferenced_vertices", "remove_degenerate_faces", "remove_duplicate_faces",
-           "merge_vertices", "split_bowtie_vertices", "orient_faces", "RepairReport", "repair",
-           "subdivide_midpoint", "icosphere", "ellipsoid"]
+           "mean_edge_length", "needs_faces", "coincident_vertices", "boundary_vertices", "bowtie_vertices",
+           "misoriented_edges", "triangulate_polygons", "largest_component", "remove_unreferenced_vertices",
+           "remove_degenerate_faces", "remove_duplicate_faces", "merge_vertices", "split_bowtie_vertices",
+           "orient_faces", "RepairReport", "repair", "subdivide_midpoint", "icosphere", "ellipsoid"]
 
 COINCIDENT_TOL = 1e-7
 """Vertices closer than this fraction of the bounding-box diagonal count as one point (merged by the repair)."""
@@ -259,8 +259,8 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14, *
     ``area_tol`` is relative to the squared bounding-box diagonal: a face whose area is below
     ``area_tol * diag**2`` counts as degenerate. With ``warn``, a valid mesh is also checked for
     what loads but is probably not meant, each a :class:`prodmaps.MeshWarning` naming its repair
-    (module doc): vertices within ``coincident_tol`` of the bounding-box diagonal of each other
-    (:func:`coincident_vertices`), bowtie vertices (:func:`bowtie_vertices`), inconsistently
+    (module doc): boundary vertices within ``coincident_tol`` of the bounding-box diagonal of each
+    other (:func:`coincident_vertices`), bowtie vertices (:func:`bowtie_vertices`), inconsistently
     oriented faces (:func:`misoriented_edges`).
     """
     v = np.asarray(vertices)
@@ -339,13 +339,14 @@ def _non_manifold(bad: np.ndarray) -> MeshError:
 def _suspicious(v: np.ndarray, f: np.ndarray, coincident_tol: float) -> list[str]:
     """The :class:`MeshWarning` messages of a valid mesh (module doc): coincident, bowtie, misoriented."""
     out = []
-    rep = coincident_vertices(v, coincident_tol)
+    rep = coincident_vertices(v, coincident_tol, among=boundary_vertices(f))
     n_merge = int(np.sum(rep != np.arange(v.shape[0])))
     if n_merge:
-        out.append(f"{n_merge} vertices coincide with another vertex (within {coincident_tol:g} of the bounding-box "
-                   "diagonal): the surface is cut there (a duplicated seam or a triangle soup), so its spectrum is "
-                   "that of the cut surface; merge them with prodmaps.mesh.merge_vertices(vertices, faces) or "
-                   "prodmaps.mesh.repair(vertices, faces), or load the file with pm.io.load_mesh_repaired(path)")
+        out.append(f"{n_merge} boundary vertices coincide with another one (within {coincident_tol:g} of the "
+                   "bounding-box diagonal): the surface is cut there (a duplicated seam or a triangle soup), so its "
+                   "spectrum is that of the cut surface; merge them with prodmaps.mesh.merge_vertices(vertices, "
+                   "faces) or prodmaps.mesh.repair(vertices, faces), or load the file with "
+                   "pm.io.load_mesh_repaired(path)")
     bow = bowtie_vertices(f, v.shape[0])
     if bow.size:
         out.append(f"{bow.size} bowtie vertices (first {bow[:5].tolist()}): separate fans of faces meet at one vertex "
@@ -361,12 +362,13 @@ def _suspicious(v: np.ndarray, f: np.ndarray, coincident_tol: float) -> list[str
     return out
 
 
-def coincident_vertices(vertices: np.ndarray, tol: float = COINCIDENT_TOL) -> np.ndarray:
+def coincident_vertices(vertices: np.ndarray, tol: float = COINCIDENT_TOL, among=None) -> np.ndarray:
     """For every vertex the smallest index of the vertices that coincide with it, ``(n,)`` int64.
 
     Two vertices coincide when they are closer than ``tol`` times the bounding-box diagonal (at
     least exactly equal, when the diagonal is 0); coincidence is made transitive (chains of close
-    vertices form one group). A vertex that coincides with no other maps to itself.
+    vertices form one group). A vertex that coincides with no other maps to itself. ``among``
+    (vertex indices) restricts the search to those vertices (the others map to themselves).
 
     Examples
     --------
@@ -376,16 +378,26 @@ def coincident_vertices(vertices: np.ndarray, tol: float = COINCIDENT_TOL) -> np
     """
     v = np.asarray(vertices, dtype=np.float64)
     n = v.shape[0]
+    out = np.arange(n, dtype=np.int64)
     if n == 0:
-        return np.zeros(0, dtype=np.int64)
+        return out
+    idx = out if among is None else np.unique(np.asarray(among, dtype=np.int64))
+    if idx.size < 2:
+        return out
     diag = float(np.linalg.norm(v.max(0) - v.min(0)))
-    pairs = cKDTree(v).query_pairs(float(tol) * diag, output_type="ndarray")  # (p, 2)
+    pairs = cKDTree(v[idx]).query_pairs(float(tol) * diag, output_type="ndarray")  # (p, 2) positions in idx
     if pairs.shape[0] == 0:
-        return np.arange(n, dtype=np.int64)
-    _, labels = graph_components(n, pairs[:, 0], pairs[:, 1])
+        return out
+    _, labels = graph_components(idx.size, pairs[:, 0], pairs[:, 1])
     first = np.full(labels.max() + 1, n, dtype=np.int64)
-    np.minimum.at(first, labels, np.arange(n))
-    return first[labels]
+    np.minimum.at(first, labels, idx)
+    out[idx] = first[labels]
+    return out
+
+
+def boundary_vertices(faces: np.ndarray) -> np.ndarray:
+    """The vertices on boundary edges (edges of one face), sorted ``(b,)`` int64: where a surface is cut or open."""
+    return np.unique(boundary_edges(np.asarray(faces))).astype(np.int64)
 
 
 def _corner_fans(faces: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -649,14 +661,18 @@ def largest_component(vertices, faces):
     return remove_unreferenced_vertices(v, f[keep])
 
 
-def merge_vertices(vertices, faces, tol: float = COINCIDENT_TOL):
-    """Merge vertices closer than ``tol`` times the bounding-box diagonal (:func:`coincident_vertices`).
+def merge_vertices(vertices, faces, tol: float = COINCIDENT_TOL, *, boundary_only: bool = True):
+    """Merge coincident vertices on the boundary (closer than ``tol`` times the bounding-box diagonal).
 
     Each group keeps its vertex of smallest index (its position unchanged) and the faces are
     re-indexed; a duplicated seam or a triangle soup (every face with its own three vertices, as
-    STL files hold) becomes the connected surface. Faces that collapse are left for
-    :func:`remove_degenerate_faces`. Returns ``(vertices, faces, kept)``; a mesh without coincident
-    vertices comes back unchanged (``kept`` the identity).
+    STL files hold) becomes the connected surface. Only vertices on boundary edges are merged
+    (``boundary_only``, default): that is where a seam or a soup cuts the surface; coincident
+    vertices inside a closed surface (two sheets touching at one point, as some remeshers leave:
+    each copy has its own fan of faces) are left alone, since merging them would only make a
+    bowtie vertex. ``boundary_only=False`` merges every group (:func:`coincident_vertices`). Faces
+    that collapse are left for :func:`remove_degenerate_faces`. Returns ``(vertices, faces, kept)``;
+    a mesh without such vertices comes back unchanged (``kept`` the identity).
 
     Examples
     --------
@@ -670,7 +686,7 @@ def merge_vertices(vertices, faces, tol: float = COINCIDENT_TOL):
     """
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
-    rep = coincident_vertices(v, tol)
+    rep = coincident_vertices(v, tol, among=boundary_vertices(f) if boundary_only else None)
     kept = np.flatnonzero(rep == np.arange(v.shape[0]))
     new_index = np.full(v.shape[0], -1, dtype=np.int64)
     new_index[kept] = np.arange(kept.size)
@@ -827,9 +843,10 @@ def repair(vertices, faces, *, name: str = "", coincident_tol: float | None = CO
            return_report: bool = False):
     """Apply the common repairs in a safe order and return a validated mesh.
 
-    Order: triangulate polygons (fans, :func:`triangulate_polygons`); merge coincident vertices
-    (within ``coincident_tol`` of the bounding-box diagonal, :func:`merge_vertices`; ``None``
-    skips it), so that a duplicated seam or a triangle soup becomes the surface it describes; drop
+    Order: triangulate polygons (fans, :func:`triangulate_polygons`); merge coincident boundary
+    vertices (within ``coincident_tol`` of the bounding-box diagonal, :func:`merge_vertices`;
+    ``None`` skips it), so that a duplicated seam or a triangle soup becomes the surface it
+    describes (coincident vertices inside a closed surface are kept apart); drop
     degenerate faces, then duplicate faces; split bowtie vertices; keep the largest component and
     drop unreferenced vertices; orient the faces consistently. Non-manifold edges are *not*
     repaired (no canonical fix): their error names the way out (the robust Laplacian on the
@@ -888,7 +905,7 @@ def repair(vertices, faces, *, name: str = "", coincident_tol: float | None = CO
     vmap = np.arange(n_in)  # input vertex -> current vertex
     n_merged = 0
     if coincident_tol is not None:
-        rep = coincident_vertices(v, coincident_tol)
+        rep = coincident_vertices(v, coincident_tol, among=boundary_vertices(f))
         v, f, kept_m = merge_vertices(v, f, coincident_tol)
         n_merged = n_in - kept_m.size
         new_index = np.full(n_in, -1, dtype=np.int64)

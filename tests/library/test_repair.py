@@ -68,7 +68,7 @@ def test_a_duplicated_seam_warns_and_the_repair_restores_the_sphere(tmp_path):
     path = write_off(tmp_path / "uv.off", V, F)
     mesh, msgs = caught(pm.load_mesh, path)
     assert not mesh.is_closed  # the seam is a boundary: the surface is cut there
-    assert len(msgs) == 1 and msgs[0].startswith(f"{path}: 23 vertices coincide with another vertex")
+    assert len(msgs) == 1 and msgs[0].startswith(f"{path}: 23 boundary vertices coincide with another one")
     assert "prodmaps.mesh.merge_vertices(vertices, faces)" in msgs[0] and "load_mesh_repaired" in msgs[0]
     cut = pm.eigenbasis(mesh, 4).evals[1]
     assert cut < 0.9  # the cut sphere's spectrum (measured 0.77): silently wrong before this warning
@@ -250,3 +250,20 @@ def test_faces_or_vertices_of_the_wrong_kind_raise_a_mesh_error(vertices, faces,
         pm.Mesh(vertices, faces)
     with pytest.raises(pm.MeshError, match=message):
         pmesh.repair(vertices, faces)
+
+
+def test_coincident_vertices_inside_a_closed_surface_are_left_alone():
+    """Two sheets touching at one point (as the remeshed FAUST_r shapes have, 1 to 4 pairs per shape): no cut,
+    so no warning, and the repair keeps both copies (merging would only make a bowtie)."""
+    e = pm.mesh.ellipsoid(2)
+    V = e.vertices.copy()
+    target = int(np.argmax(np.linalg.norm(e.vertices - V[0], axis=1)))  # the far side
+    V[0] = e.vertices[target]  # vertex 0 pulled onto a vertex of the far side: two sheets touch there
+    assert pmesh.coincident_vertices(V)[target] == 0  # they do coincide ...
+    mesh, msgs = caught(pm.Mesh, V, e.faces)
+    assert mesh.is_closed and msgs == []  # ... but the surface is not cut: no warning
+    fixed, kept, report = pmesh.repair(V, e.faces, return_report=True)
+    assert report.vertices_merged == 0 and fixed.n_vertices == 162
+    np.testing.assert_array_equal(kept, np.arange(162))
+    v, f, k = pmesh.merge_vertices(V, e.faces, boundary_only=False)  # asked for: merged (a bowtie)
+    assert v.shape[0] == 161 and pmesh.bowtie_vertices(f).size == 1
