@@ -247,9 +247,9 @@ def face_components(n: int, faces: np.ndarray) -> tuple[int, np.ndarray]:
 
 _REPAIR = ("use prodmaps.mesh.repair(vertices, faces), which drops them and the vertices they leave unreferenced "
            "(or load the file with pm.io.load_mesh_repaired(path))")
-_ROBUST = ("or keep the mesh as it is: pm.load_mesh(path, validate=False) (or pm.Mesh(vertices, faces, "
-           "validate=False)) and build its basis with pm.eigenbasis(mesh, k, kind='robust') (the intrinsic-Delaunay "
-           "Laplacian, defined there)")
+_ROBUST = ("keep the mesh as it is: pm.load_mesh(path, validate=False) (or pm.Mesh(vertices, faces, validate=False)) "
+           "and build its basis with pm.eigenbasis(mesh, k, kind='robust') (the intrinsic-Delaunay Laplacian, "
+           "defined there)")
 
 
 def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14, *,
@@ -306,7 +306,7 @@ def validate(vertices: np.ndarray, faces: np.ndarray, area_tol: float = 1e-14, *
     _, counts = np.unique(fs, axis=0, return_counts=True)
     if np.any(counts > 1):
         raise MeshError(f"duplicate faces: {int(np.sum(counts - 1))} faces repeat another face's vertices; " + _REPAIR
-                        + "; " + _ROBUST)
+                        + "; or " + _ROBUST)
     bad = np.setdiff1d(np.arange(n), f)
     if bad.size:
         raise MeshError(f"unreferenced vertices: {bad.size} vertices belong to no face (first {bad[:5].tolist()}); "
@@ -333,7 +333,7 @@ def _non_manifold(bad: np.ndarray) -> MeshError:
     """The error of non-manifold edges ``bad (b, 2)``, naming the way out."""
     return MeshError(f"non-manifold edges: {bad.shape[0]} edges are shared by more than two faces "
                      f"(first {bad[:3].tolist()}); the cotangent Laplacian is undefined there and no repair splits "
-                     "them canonically: " + _ROBUST)
+                     "them canonically; " + _ROBUST)
 
 
 def _suspicious(v: np.ndarray, f: np.ndarray, coincident_tol: float) -> list[str]:
