@@ -281,7 +281,9 @@ def read_mesh_arrays(path) -> tuple[np.ndarray, np.ndarray]:
     ext = path.suffix.lower()
     readers = {".ply": _read_ply, ".off": _read_off, ".obj": _read_obj}
     if ext not in readers:
-        raise MeshError(f"{path}: unsupported format {ext!r}; use .ply, .off or .obj")
+        cloud = (f"; a {ext} file holds points without faces, a point cloud: load it with pm.load_point_cloud(path)"
+                 if ext in POINT_CLOUD_SUFFIXES else "")
+        raise MeshError(f"{path}: unsupported format {ext!r}; use .ply, .off or .obj" + cloud)
     try:
         with open(path, "rb") as fh:
             return readers[ext](fh)

@@ -156,6 +156,9 @@ def test_load_mesh_on_a_cloud_names_load_point_cloud(tmp_path, suffix):
             load(path)  # load_mesh_repaired used to crash: "attempt to get argmax of an empty sequence"
         assert str(info.value).startswith(f"{path}: ")
     assert pm.load_point_cloud(path).n_points == 30
+    np.savetxt(tmp_path / "points.xyz", P)
+    with pytest.raises(pm.MeshError, match=r"unsupported format '\.xyz'.*a point cloud: .*pm\.load_point_cloud"):
+        pm.load_mesh(tmp_path / "points.xyz")
     with pytest.raises(pm.MeshError, match="no faces.*pm.PointCloud"):
         pm.mesh.repair(P, np.zeros((0, 3), dtype=int))
 
