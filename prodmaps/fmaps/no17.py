@@ -343,6 +343,8 @@ def fit_no17(basis_1: Basis, basis_2: Basis, descr_1: np.ndarray, descr_2: np.nd
         For descriptors of the wrong shape or not finite, zero descriptor columns, weights that
         are negative or sum to zero, and unknown ``lap``, ``normalize``, ``init`` or ``solver``.
 
+    Notes
+    -----
     Units: the energy is built and minimised on both shapes scaled to unit area
     (:meth:`prodmaps.Basis.scaled`), and the map of the given bases is returned
     (``sqrt(area_2/area_1)`` times the unit-area map), so scaling either mesh changes nothing but
