@@ -53,7 +53,7 @@ from . import (  # noqa: F401
                truncation,
 )
 from .approx import ApproximationOperator, approximate, approximation_operator
-from .basis import Basis, eigenbasis, fourier_basis, load_basis
+from .basis import Basis, eigenbases, eigenbasis, fourier_basis, load_basis
 from .errors import MeshError, MeshWarning, NeedsFacesError
 from .io import load_mesh, load_point_cloud, save_mesh
 from .mapping import extend_fmap, fmap_from_p2p
@@ -73,7 +73,7 @@ from .transfers import (
 
 __all__ = [
     "Mesh", "MeshError", "MeshWarning", "NeedsFacesError", "PointCloud", "load_mesh", "load_point_cloud", "save_mesh",
-    "laplacian", "Basis", "eigenbasis", "fourier_basis", "load_basis", "ProductBasis", "product_basis",
+    "laplacian", "Basis", "eigenbasis", "eigenbases", "fourier_basis", "load_basis", "ProductBasis", "product_basis",
     "ApproximationOperator", "approximate", "approximation_operator", "extend_fmap", "fmap_from_p2p",
     "transfer_operator", "TransferOperator", "transfer", "save_map", "load_map", "area_fraction_curve",
     "relative_error", "plot", "plot_map",

@@ -419,15 +419,31 @@ def eigenbases(meshes, k: int, kind: str | None = None, mass: str = "lumped", *,
                solver: str = "auto", progress: bool | None = None) -> list:
     """:func:`eigenbasis` of several meshes or point clouds, in ``jobs`` worker processes.
 
-    ``kind``, ``mass`` and ``solver`` as in :func:`eigenbasis`. ``jobs`` defaults to one per
-    shape, at most the number of CPUs; ``jobs=1`` runs in this process. ``progress``: a bar of one
-    step per shape (``True``), none (``False``), or on large problems (``Σ n·k >
-    PROGRESS_MIN_WORK``) when stderr is a terminal (``None``, default).
-
     The sparse LU factorisation and the triangular solves of shift-invert Lanczos run on one core,
     so the eigenbases of a pair of large meshes take about the time of one on a 2-core machine
     (``docs/benchmarks.md``). Each basis is what :func:`eigenbasis` returns for that shape (same
     solver, same arrays; the test compares them bit for bit).
+
+    Parameters
+    ----------
+    meshes : iterable of Mesh or PointCloud
+    k, kind, mass, solver : as in :func:`eigenbasis` (the same for every shape).
+    jobs : worker processes; default one per shape, at most the number of CPUs; ``1`` runs in
+        this process.
+    progress : a bar of one step per shape (``True``), none (``False``), or on large problems
+        (``Σ n·k > PROGRESS_MIN_WORK``) when stderr is a terminal (``None``, default).
+
+    Returns
+    -------
+    list of Basis
+        In the order of ``meshes``.
+
+    Raises
+    ------
+    TypeError
+        If a shape is neither a mesh nor a point cloud.
+    ValueError
+        For a bad ``jobs`` or ``k`` (and what :func:`eigenbasis` raises for a shape).
 
     Examples
     --------
