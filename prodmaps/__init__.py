@@ -20,7 +20,7 @@ No module shares its name with a function: ``pm.transfer``, ``pm.transfer_operat
 :mod:`prodmaps.operators`. Importing prodmaps loads numpy and scipy only.
 """
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 from . import (  # noqa: F401
                approx,
@@ -30,7 +30,6 @@ from . import (  # noqa: F401
                conventions,
                curvature,
                datasets,
-               default_transfer,
                descriptors,
                eigensolver,
                fields,
@@ -44,6 +43,7 @@ from . import (  # noqa: F401
                operators,
                p2p,
                products,
+               progress,
                sampling,
                transfers,
                truncation,
@@ -58,7 +58,6 @@ from .operators import laplacian
 from .products import ProductBasis, product_basis
 from .transfers import (
                TransferOperator,
-               safe_transfer,  # noqa: F401 (deprecated, not in __all__: one more release)
                transfer,
                transfer_operator,
 )

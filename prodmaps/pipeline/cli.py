@@ -72,7 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--diff-dir", help="where side-by-side images go (default RUN_DIR/diff)")
 
     c = sub.add_parser("claims", help="print the verdicts of the claims ledger on a results folder",
-                       description="Judge every claim of prodmaps/experiments/claims.toml on the runs in a "
+                       description="Judge every claim of prodmaps/experiments/shared/claims.toml on the runs in a "
                                    "results folder (e.g. results/paper) and print the table.")
     c.add_argument("results_dir", nargs="?", default="results/paper", help="e.g. results/paper (default)")
     c.add_argument("--json", action="store_true", help="print the verdicts as JSON")
@@ -156,7 +156,7 @@ def _cmd_reproduce(a) -> int:
     except ValueError:  # no project (RegistryError): nothing to keep relative to
         root = None
     overrides = execute.absolute_param_files(registry.parse_params(a.param), root)
-    from ..experiments.parallel import default_workers
+    from ..experiments.shared.parallel import default_workers
 
     default_workers()  # a bad PRODMAPS_WORKERS is refused here, not in every notebook that computes pairs
     if a.dataset is not None:
@@ -242,7 +242,7 @@ def _cmd_diff(a) -> int:
 def _cmd_claims(a) -> int:
     import json
 
-    from ..experiments import claims
+    from ..experiments.shared import claims
 
     _check_results_folder(Path(a.results_dir), {r for c in claims.load_ledger().values() for r in c.runs})
     verdicts = claims.evaluate_folder(a.results_dir)

@@ -67,7 +67,7 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
     notebook with the traceback is still written, and rendered as HTML). ``timeout`` is per
     cell, in seconds. With ``html`` the executed notebook is also written as ``executed.html``.
     The kernel is stopped at once after the last cell (a graceful shutdown waits seconds for
-    the worker processes of :mod:`prodmaps.experiments.parallel`). ``shown_out_dir`` replaces
+    the worker processes of :mod:`prodmaps.experiments.shared.parallel`). ``shown_out_dir`` replaces
     ``out_dir`` in the executed notebook's injected parameters cell (the batch runner executes
     into a temporary folder and shows the run's own folder), and in papermill's metadata, whose
     ``input_path`` becomes ``shown_notebook`` when given.

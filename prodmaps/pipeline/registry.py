@@ -8,7 +8,7 @@ Every run is an entry of ``paper/runs.toml`` (another file through ``$PRODMAPS_R
     reproduces = "Figure 4"
     title = "Coordinate reconstruction, k = 9..69"                  # optional
     claims = ["fig04.products_improve"]                             # optional: ledger entries judged on it
-    report = "prodmaps.experiments.default_study"                   # optional: the module owning its report section
+    report = "prodmaps.experiments.study_default_transfer"          # optional: the module owning its report section
     dataset_figures = true                                          # optional: its figures in every dataset's section
     [runs.fig04.params.smoke]        # the smoke profile's values of the notebook's knobs
     ks = [9, 19]
@@ -154,7 +154,7 @@ def load_registry(path=None) -> dict[str, Run]:
               f"claims must be a list of claim ids of the ledger, got {claims!r}")
         report = entry.get("report", "")
         _need(where, isinstance(report, str) and (report == "" or _MODULE_RE.match(report)),
-              f"report must name a module (\"prodmaps.experiments.default_study\"), got {report!r}")
+              f"report must name a module (\"prodmaps.experiments.study_default_transfer\"), got {report!r}")
         _need(where, isinstance(entry.get("dataset_figures", False), bool), "dataset_figures must be true or false")
         nb = Path(entry["notebook"])
         out[name] = Run(

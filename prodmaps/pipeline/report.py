@@ -4,7 +4,7 @@
 ``prodmaps reproduce`` (``results.json``, PNGs, ``manifest.json``, ``executed.html``) and writes,
 in this order:
 
-1. **Claims**: one row per entry of the claims ledger (:mod:`prodmaps.experiments.claims`) — the
+1. **Claims**: one row per entry of the claims ledger (:mod:`prodmaps.experiments.shared.claims`) — the
    verdict computed from the results, whether the rule holds at the paper's settings, with the
    threshold rule and with the library's default transfer, one line of evidence, and links to the
    notebook (executed, as HTML) that decides it; table claims also per pair kind (intra / inter).
@@ -16,7 +16,7 @@ in this order:
 4. **Runs**: status, time, figures and links; the per-value tables in an appendix. Every other
    number stays in the runs' ``results.json``.
 
-How a notebook reports table values: :mod:`prodmaps.experiments.published`.
+How a notebook reports table values: :mod:`prodmaps.experiments.shared.published`.
 """
 
 from __future__ import annotations
@@ -32,10 +32,10 @@ import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..experiments import claims as ledger
-from ..experiments import compare
-from ..experiments import published as pub
-from ..experiments.published import PUBLISHED_CSV, TABLE_KEYS, load_published, match_entries
+from ..experiments.shared import claims as ledger
+from ..experiments.shared import compare
+from ..experiments.shared import published as pub
+from ..experiments.shared.published import PUBLISHED_CSV, TABLE_KEYS, load_published, match_entries
 from ..files import atomic_path, read_json
 from .execute import git_commit, package_versions
 from .registry import RegistryError, load_registry, project_root
@@ -252,7 +252,7 @@ SYSTEMATIC_DIFFERENCES = [
     "(`python -m prodmaps.prepare faust ...`); when prepared, their runs have their own verdict column and section.",
     "**Function families.** Section 5.1 gives no parameters for its families; the tables use the readings "
     "that reproduce the published standard columns, the control no product method touches "
-    "(`study_family_readings`, `prodmaps.experiments.families.PUBLISHED_READINGS`): heat kernels hk k and "
+    "(`study_family_readings`, `prodmaps.experiments.shared.families.PUBLISHED_READINGS`): heat kernels hk k and "
     "hk K at one time, t = 5e-4·area (the text defines them as the same kernels under two truncations), "
     "Random with U[0, 1] coefficients on the ordered extended basis of unit-area "
     "eigenfunctions, indicators of balls of U[0.3, 0.5] of the area, SHOT of radius 0.05·sqrt(area). "
@@ -263,7 +263,7 @@ SYSTEMATIC_DIFFERENCES = [
     "**AWFT** takes the parameters of the demo its authors released with their AWFT code (200 "
     "eigenpairs, anisotropies 100 and 300 at four angles plus the isotropic operator, low-pass windows "
     "τ = 0.002 and 0.05, the signals geometry vectors 3 and 4, shape index, Fiedler vector and constant; "
-    "`prodmaps.experiments.families.AWFT_RELEASE`), the reading the standard column chooses; this "
+    "`prodmaps.experiments.shared.families.AWFT_RELEASE`), the reading the standard column chooses; this "
     "project's curvature smoothing stands in for the release's.",
     "**Approach A's ε** is not in the paper: fixed before measuring (ridge 1e-6 σ_max², lasso 1e-4), so "
     "our A behaves like B.",
@@ -315,7 +315,7 @@ def _claims_section(d: "_Doc", verdicts, results_dir: Path, base: Path, others: 
     for ds, k in kept.items():
         d.counts(f"On {DATASET_NAMES.get(ds, ds)} (kept from the report published at commit `{k.commit}`)",
                  {v: sum(1 for c in k.column.values() if _verdict_of(c) == v) for v in ledger.VERDICTS})
-    d.p("One row per entry of the claims ledger (`prodmaps/experiments/claims.toml`). The verdict is "
+    d.p("One row per entry of the claims ledger (`prodmaps/experiments/shared/claims.toml`). The verdict is "
         "computed from the runs' numbers by the entry's rule: **holds** at the paper's settings, **holds "
         "with the threshold rule** (Approach B with `select_rtol(method=\"gain\")`, no ground truth) but not "
         "at the paper's, **does not hold**, **not demonstrable in this setting** (the entry's oracle, e.g. the "

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import prodmaps as pm
-from prodmaps.experiments.pointmaps import point_map_recovery
-from prodmaps.experiments.reconstruction import lmh_reconstruction
+from prodmaps.experiments.fig10_lmh import lmh_reconstruction
+from prodmaps.experiments.fig12_13_p2p import point_map_recovery
 from prodmaps.mesh import icosphere
 
 

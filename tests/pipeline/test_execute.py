@@ -28,7 +28,7 @@ fail = False
 
 TINY_BODY = """import numpy as np
 from PIL import Image
-from prodmaps.experiments import results as nbr
+from prodmaps.experiments.shared import results as nbr
 if fail:
     raise RuntimeError("injected failure for the test")
 rng = np.random.default_rng(seed)
@@ -235,7 +235,7 @@ def test_registry_outside_the_project_reaches_the_kernels_run_parameters(tmp_pat
     # knobs with run_parameters, which must read the registry given on the command line
     write_notebook(tmp_path / "own.ipynb",
                    'profile = "smoke"\nout_dir = "results/own"\nknob = None\n',
-                   "from prodmaps.experiments import results as nbr\n"
+                   "from prodmaps.experiments.shared import results as nbr\n"
                    "from prodmaps.pipeline import registry\n"
                    'P = registry.run_parameters("own_run", profile, globals())\n'
                    'nbr.write_results(out_dir, {"knob_twice": 2 * P["knob"]}, P)\n')
@@ -258,7 +258,7 @@ def test_relative_cache_and_data_folders_are_the_invoking_folders_not_the_projec
     (tmp_path / "project" / "paper").mkdir(parents=True)
     write_notebook(tmp_path / "project" / "own.ipynb",
                    'profile = "smoke"\nout_dir = "results/own"\n',
-                   "import os\nfrom prodmaps.experiments import results as nbr\n"
+                   "import os\nfrom prodmaps.experiments.shared import results as nbr\n"
                    "nbr.write_results(out_dir, {k: os.path.abspath(os.environ[k]) for k in "
                    "('PRODMAPS_CACHE', 'PRODMAPS_DATA')}, {})\n")
     reg = tmp_path / "project" / "paper" / "runs.toml"
@@ -409,8 +409,8 @@ def test_repeated_only_adds_runs(project, capsys):
 
 def test_library_hash_covers_importable_code_not_the_pipeline():
     files = {p.relative_to(hashing._PACKAGE).as_posix() for p in hashing.library_files()}
-    assert {"mapping.py", "experiments/protocol.py", "experiments/claims.toml",
-            "experiments/published_tables.csv"} <= files
+    assert {"mapping.py", "experiments/shared/protocol.py", "experiments/shared/claims.toml",
+            "experiments/shared/published_tables.csv"} <= files
     assert not [f for f in files if f.startswith(("pipeline/", "data/"))]
 
 
@@ -421,7 +421,7 @@ def test_executed_notebook_is_kept_as_html(project, capsys):
     assert rc == 0 and "tiny done" in html and "<html" in html.lower()
 
 
-FIGURE_BODY = """from prodmaps.experiments import results as nbr
+FIGURE_BODY = """from prodmaps.experiments.shared import results as nbr
 plt = nbr.setup_matplotlib()
 fig, ax = plt.subplots(figsize=(2, 1.5))
 ax.plot([0, 1, 2], [0, 1, 0])
@@ -480,7 +480,7 @@ def test_records_of_a_run_outside_the_project_hold_no_machine_path(project, tmp_
 
 
 def test_setup_matplotlib_outside_a_kernel_is_agg():
-    code = ("from prodmaps.experiments.results import setup_matplotlib; import matplotlib; "
+    code = ("from prodmaps.experiments.shared.results import setup_matplotlib; import matplotlib; "
             "setup_matplotlib(); print(matplotlib.get_backend())")
     r = subprocess.run([PY, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and r.stdout.strip().lower() == "agg", r.stderr
@@ -549,7 +549,7 @@ def test_a_fractional_timeout_runs_and_a_cell_timeout_is_named_in_the_summary(tm
     (tmp_path / "paper").mkdir()
     write_notebook(tmp_path / "own.ipynb",
                    'profile = "smoke"\nout_dir = "results/own"\nnap = 0.0\n',
-                   "import time\nfrom prodmaps.experiments import results as nbr\ntime.sleep(nap)\n"
+                   "import time\nfrom prodmaps.experiments.shared import results as nbr\ntime.sleep(nap)\n"
                    "nbr.write_results(out_dir, {'nap': nap}, {})\n")
     reg = tmp_path / "paper" / "runs.toml"
     reg.write_text('[runs.own]\nnotebook = "own.ipynb"\n[runs.own.params.smoke]\n')

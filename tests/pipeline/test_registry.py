@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from prodmaps.experiments.claims import load_ledger
+from prodmaps.experiments.shared.claims import load_ledger
 from prodmaps.pipeline import registry
 from prodmaps.pipeline.notebooks import declared_parameters, parameters_cell
 from prodmaps.pipeline.registry import (

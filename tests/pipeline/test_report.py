@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from prodmaps.experiments.claims import VERDICTS, load_ledger
-from prodmaps.experiments.published import load_published, published_values
+from prodmaps.experiments.shared.claims import VERDICTS, load_ledger
+from prodmaps.experiments.shared.published import load_published, published_values
 from prodmaps.pipeline import execute
 from prodmaps.pipeline.registry import load_registry
 from prodmaps.pipeline.report import build_report, collect_runs
@@ -46,7 +46,7 @@ table = "T1"
 [runs.study_truncation]
 notebook = "notebooks/study.ipynb"
 reproduces = "Study"
-report = "prodmaps.experiments.truncation_study"
+report = "prodmaps.experiments.study_truncation"
 """
 
 FAMS = ("hk k", "HKS", "XYZ")
