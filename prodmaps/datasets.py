@@ -1,7 +1,9 @@
 """Shape datasets: a registry with shape ids, pairs and dense ground-truth point maps.
 
-Datasets (:func:`names`; an unprepared one raises :class:`DatasetNotPreparedError` saying how to get it)
+Datasets
 --------
+:func:`names`; an unprepared one raises :class:`DatasetNotPreparedError` saying how to get it.
+
 ``anny_humans``     shipped (CC0): 6 synthetic subjects x 10 poses, 5002 vertices, one triangulation,
                     ids ``anny_XXX`` (subject ``XXX // 10``), plus variants of other connectivity.
 ``faust``           MPI-FAUST training registrations ``tr_reg_XXX`` (6890 vertices, one triangulation).
