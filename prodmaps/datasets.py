@@ -4,13 +4,13 @@ Datasets
 --------
 :func:`names`; an unprepared one raises :class:`DatasetNotPreparedError` saying how to get it.
 
-``anny_humans``     shipped (CC0): 6 synthetic subjects x 10 poses, 5002 vertices, one triangulation,
-                    ids ``anny_XXX`` (subject ``XXX // 10``), plus variants of other connectivity.
-``faust``           MPI-FAUST training registrations ``tr_reg_XXX`` (6890 vertices, one triangulation).
-``tosca``           TOSCA high-resolution ``<class><i>``, one triangulation per class.
-``faust_r``         the 100 FAUST shapes each remeshed to ~5k vertices (FAUST_r), subject ``XXX // 10``;
-``tosca_r``         76 TOSCA shapes of 8 classes, each remeshed (TOSCA_r); ``tosca_r_noniso``: 24 more
-                    (gorilla, man, woman), all three from ``llorz/SGA18_orientation_BCICP_dataset``.
+* ``anny_humans``: shipped (CC0), 6 synthetic subjects x 10 poses, 5002 vertices, one triangulation,
+  ids ``anny_XXX`` (subject ``XXX // 10``), plus variants of other connectivity;
+* ``faust``: MPI-FAUST training registrations ``tr_reg_XXX`` (6890 vertices, one triangulation);
+* ``tosca``: TOSCA high-resolution ``<class><i>``, one triangulation per class;
+* ``faust_r``: the 100 FAUST shapes each remeshed to ~5k vertices (FAUST_r), subject ``XXX // 10``;
+  ``tosca_r``: 76 TOSCA shapes of 8 classes, each remeshed (TOSCA_r); ``tosca_r_noniso``: 24 more
+  (gorilla, man, woman); all three from ``llorz/SGA18_orientation_BCICP_dataset``.
 
 Where: ``$PRODMAPS_DATA/<name>`` if set and holding ``shapes/``, else the package's own copy
 (``anny_humans``), else ``<data_root()>/<name>`` (default ``~/.local/share/prodmaps``). Layout, written
