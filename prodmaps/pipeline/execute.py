@@ -377,8 +377,9 @@ def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, ov
     tasks = []
     for n in dict.fromkeys(names):
         run = runs[n]
-        params = run.parameters(profile)
-        _check_declared(run, params, f"registry parameters (params.{profile})")
+        params = run.parameters(profile, dataset)
+        _check_declared(run, params, f"registry parameters (params.{profile}"
+                        + (f" and datasets.{dataset})" if dataset in run.datasets else ")"))
         if dataset is not None:
             params["dataset"] = dataset
         for k, v in (overrides or {}).items():  # a default of None leaves the kind to the registry's value
@@ -387,7 +388,7 @@ def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, ov
                 _check_value(n, k, v, ref, f"its value in params.{profile} is {ref!r}",
                              f"the registry's params.{profile}.{k} = {ref!r} ({type(ref).__name__})")
         params.update(overrides or {})
-        _check_declared(run, {k: v for k, v in params.items() if k not in run.parameters(profile)},
+        _check_declared(run, {k: v for k, v in params.items() if k not in run.parameters(profile, dataset)},
                         "parameters")
         params["profile"] = profile
         ds = params.get("dataset") or (parameter_default(run.notebook, "dataset") if run.notebook.is_file() else None)
