@@ -2,7 +2,8 @@
 
 Conventions: ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` ``(k_N + 1, k_M + 1)``; ``k_M``, ``k_N`` are the paper's
 counts (non-constant functions); the reference on the target is the pull-back ``f[p2p_21]``.
-The function: :func:`prodmaps.experiments.shared.composite.composite_function`.
+The function: :func:`prodmaps.experiments.shared.anatomy.composite_function` (a human, or a
+four-legged animal as the paper's cat).
 """
 
 from __future__ import annotations
@@ -18,24 +19,27 @@ from ..mapping import fmap_from_p2p
 from ..metrics import relative_error
 from ..operators import laplacian
 from ..transfers import transfer_operator
-from .shared.composite import composite_function
+from .shared.anatomy import composite_function
 
 __all__ = ["function_transfer"]
 
 
 def function_transfer(dataset: str, source_id: str, target_id: str, sizes, *, rtol: float = PAPER_RTOL,
-                      rtol_compare=(), pairs_convention: str = "ordered", verbose: bool = True) -> dict:
+                      rtol_compare=(), pairs_convention: str = "ordered", composite: str = "human", frame=None,
+                      length_scale="metres", verbose: bool = True) -> dict:
     """Figure 7: the composite function approximated on the source and transferred to the target.
 
     For every ``(k_M, k_N)`` in ``sizes``: approximation and transfer errors (std / products with
     Approach B at ``rtol``), the transfer of each part alone, and products at the ``rtol_compare``
-    thresholds. Returns ``{"results": ..., "meshes": (m1, m2), "f": (n1,), "g_true": (n2,),
+    thresholds. The function: ``composite`` (``"human"`` or ``"quadruped"``) in the dataset's
+    ``frame`` with ``length_scale`` (:func:`prodmaps.experiments.shared.anatomy.composite_function`).
+    Returns ``{"results": ..., "meshes": (m1, m2), "f": (n1,), "g_true": (n2,),
     "fields": {key: (approx_std, approx_prod, transfer_std, transfer_prod, transfer_default)}}``.
     """
     mesh_1 = datasets.load_shape(dataset, source_id)
     mesh_2 = datasets.load_shape(dataset, target_id)
     p2p_21 = datasets.ground_truth(dataset, source_id, target_id)  # (n2,) target -> source
-    f, parts, anchors = composite_function(mesh_1)  # (n1,)
+    f, parts, anchors = composite_function(mesh_1, composite, frame=frame, scale=length_scale)  # (n1,)
     g_true = f[p2p_21]  # (n2,) ground-truth transfer
     mass_1 = laplacian(mesh_1)[1]
     support = {k: round(float(mass_1[np.abs(v) > 1e-3].sum() / mass_1.sum()), 3) for k, v in parts.items()}

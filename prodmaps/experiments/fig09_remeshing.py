@@ -2,7 +2,10 @@
 
 Conventions: ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` ``(k_N + 1, k_M + 1)``; ``k_M``, ``k_N`` are the paper's
 counts (non-constant functions); the reference on the target is the pull-back ``f[p2p_21]``.
-The function: :func:`prodmaps.experiments.shared.composite.composite_function`.
+The function: :func:`prodmaps.experiments.shared.anatomy.composite_function`. A target is a
+variant id of ``dataset`` (a remesh made by ``prepare variants``, ground truth through its base
+shape) or ``"<dataset>:<id>"``, a shape of another dataset in the same correspondence group (an
+original FAUST registration to its FAUST_r remesh, :func:`prodmaps.datasets.ground_truth_between`).
 """
 
 from __future__ import annotations
@@ -15,33 +18,42 @@ from ..basis import eigenbasis
 from ..mapping import fmap_from_p2p
 from ..metrics import relative_error
 from ..transfers import transfer
+from .shared.anatomy import composite_function
 from .shared.compare import outcome
-from .shared.composite import composite_function
 
 __all__ = ["remeshing_transfer"]
 
 
 def remeshing_transfer(dataset: str, targets, sizes, *, source_ids=None, laplacians=("cotan", "robust"),
-                       rtol: float = PAPER_RTOL, pairs_convention: str = "ordered", verbose: bool = True) -> dict:
+                       rtol: float = PAPER_RTOL, pairs_convention: str = "ordered", frame=None,
+                       length_scale="metres", verbose: bool = True) -> dict:
     """Figure 9: the composite function transferred onto meshes with another connectivity.
 
-    Each target (a variant id) gets the regular family mesh ``source_ids[i]`` (default its base
-    shape) as source; the same transfer onto the regular mesh of the target's shape is the
-    stability reference. Both shapes of a pair use the same Laplacian. Returns
+    Each target (a variant id, or ``"<dataset>:<id>"``, module doc) gets the regular family mesh
+    ``source_ids[i]`` (default its base shape; for a target of another dataset, the shape of
+    ``dataset`` with the same id) as source; the same transfer onto the regular mesh of the
+    target's shape (for another dataset's shape: the source itself) is the stability reference.
+    Both shapes of a pair use the same Laplacian. The function: the human composite in the
+    dataset's ``frame`` with ``length_scale``. Returns
     ``{"results": {errors, summary, pairs}, "cases": [...], "fields": {(target, lap, kM, kN): (std, prod)}}``.
     """
+    where = [_target(dataset, t) for t in targets]  # (dataset, id) of each target
     if source_ids is None:
-        source_ids = [datasets.base_shape(dataset, t) for t in targets]
+        source_ids = [datasets.base_shape(dataset, t) if ds == dataset else t for ds, t in where]
     if len(source_ids) != len(targets):
         raise ValueError("source_ids must list one source per target")
     cases = []
-    for src, tgt in zip(source_ids, targets):
-        m1, m2 = datasets.load_shape(dataset, src), datasets.load_shape(dataset, tgt)
-        base = datasets.base_shape(dataset, tgt)
-        f, _, _ = composite_function(m1)  # (n1,) defined on the regular source
+    for src, tgt, (ds2, id2) in zip(source_ids, targets, where):
+        m1, m2 = datasets.load_shape(dataset, src), datasets.load_shape(ds2, id2)
+        f, _, _ = composite_function(m1, frame=frame, scale=length_scale)  # (n1,) defined on the regular source
+        if ds2 == dataset:
+            base = datasets.base_shape(dataset, tgt)
+            p2p_21 = datasets.ground_truth(dataset, src, tgt)  # (n2,) variant vertex -> source vertex
+        else:
+            base = src  # the same pose in another triangulation: the source is the regular mesh
+            p2p_21 = datasets.ground_truth_between((dataset, src), (ds2, id2))
         cases.append({"source": src, "target": tgt, "base": base, "m1": m1, "m2": m2,
-                      "m_ref": datasets.load_shape(dataset, base), "f": f,
-                      "p2p_21": datasets.ground_truth(dataset, src, tgt),  # (n2,) variant vertex -> source vertex
+                      "m_ref": datasets.load_shape(dataset, base), "f": f, "p2p_21": p2p_21,
                       "p2p_ref": datasets.ground_truth(dataset, src, base)})
     k1_max, k2_max = max(a for a, _ in sizes) + 1, max(b for _, b in sizes) + 1
     errors, fields = {}, {}
@@ -75,3 +87,9 @@ def remeshing_transfer(dataset: str, targets, sizes, *, source_ids=None, laplaci
     results = {"error_definition": "sqrt(int (f-g)^2)/sqrt(int g^2), area-weighted on the target",
                "pairs": [f"{c['source']}->{c['target']}" for c in cases], "errors": errors, "summary": summary}
     return {"results": results, "cases": cases, "fields": fields, "source_ids": source_ids}
+
+
+def _target(dataset: str, target: str) -> tuple[str, str]:
+    """``(dataset, id)`` of a target: ``"<dataset>:<id>"`` names another dataset's shape, else ``dataset``'s."""
+    ds, sep, sid = str(target).partition(":")
+    return (ds, sid) if sep else (dataset, str(target))

@@ -12,34 +12,30 @@ import numpy as np
 
 from ..approx import PAPER_RTOL
 from ..basis import eigenbasis
-from ..checks import renamed_keywords
+from .shared.anatomy import body_coordinates
 from .shared.reconstruction import COORDINATE_ERROR, coordinate_errors, extended_reconstruction
 
 __all__ = ["lmh_reconstruction"]
 
 
-def lmh_reconstruction(mesh, *, mh_dim: int | None = None, global_dim: int | None = None,
-                       local_dim: int | None = None, region_top_fraction: float, mu_region: float, mu_orth: float,
-                       pairs: str = "ordered", rtol: float = PAPER_RTOL, k_mh: int | None = None,
-                       k_global: int | None = None, k_local: int | None = None) -> dict:
+def lmh_reconstruction(mesh, *, mh_dim: int, global_dim: int, local_dim: int, region_top_fraction: float,
+                       mu_region: float, mu_orth: float, pairs: str = "ordered", rtol: float = PAPER_RTOL,
+                       frame=None) -> dict:
     """Figure 10: coordinates in MH and in MH + LMH, each without and with products.
 
     MH: the first ``mh_dim`` eigenfunctions (constant included); MH + LMH: the first
     ``global_dim`` eigenfunctions (constant included) plus ``local_dim`` localized harmonics of
-    the top ``region_top_fraction`` of the height. Errors on the whole surface and in the region.
-    ``k_mh``, ``k_global``, ``k_local``: the old names of ``mh_dim``, ``global_dim``,
-    ``local_dim`` (deprecated: they warn and give the same numbers).
+    the top ``region_top_fraction`` of the height (``up`` of the body frame ``frame``,
+    :func:`prodmaps.experiments.shared.anatomy.body_coordinates`: the mesh's own z by default).
+    Errors on the whole surface and in the region.
 
     Returns ``{"results": ..., "region": (n,) bool, "recon": {"MH"|"LMH": (X_std, X_prod)}}``.
     """
     from .. import lmh
 
-    mh_dim, global_dim, local_dim = renamed_keywords(
-        "lmh_reconstruction", {"mh_dim": mh_dim, "global_dim": global_dim, "local_dim": local_dim},
-        {"k_mh": k_mh, "k_global": k_global, "k_local": k_local})
     X = mesh.vertices
-    z = X[:, 2]
-    region = z > z.max() - region_top_fraction * (z.max() - z.min())  # (n,) the head (z is up)
+    z = body_coordinates(X, frame)[:, 2]  # up
+    region = z > z.max() - region_top_fraction * (z.max() - z.min())  # (n,) the head
     mh = eigenbasis(mesh, max(mh_dim, global_dim))
     lmh_basis = lmh.lmh_basis(mesh, region, local_dim, global_basis=mh.truncate(global_dim),
                               mu_region=mu_region, mu_orth=mu_orth)

@@ -28,7 +28,6 @@ import zlib
 import numpy as np
 
 from .. import datasets, geodesics
-from ..checks import renamed_keywords
 from ..mapping import fmap_from_p2p
 from ..p2p import from_fmap
 from .shared.compare import count_outcomes
@@ -52,24 +51,19 @@ def subject_pairs(dataset: str, subject, n_pairs=None, seed: int = 0) -> list:
     return [all_pairs[i] for i in sel]
 
 
-def point_map_recovery(store: ShapeStore, pairs, *, target_dim: int | None = None, source_dim: int | None = None,
-                       maps=("gt", "no17"), n_eval=None, no17_k_descr: int = 128, thresholds_max: float = 0.25,
-                       seed: int = 0, verbose: bool = True, workers: int | None = None, k_target: int | None = None,
-                       k_source: int | None = None) -> dict:
+def point_map_recovery(store: ShapeStore, pairs, *, target_dim: int, source_dim: int, maps=("gt", "no17"),
+                       n_eval=None, no17_k_descr: int = 128, thresholds_max: float = 0.25, seed: int = 0,
+                       verbose: bool = True, workers: int | None = None) -> dict:
     """Run Figures 12/13 (module doc); returns ``{"results": ..., "timing": ...}``.
 
     ``target_dim``, ``source_dim``: the rows and columns of ``C_12``, basis columns with the
     constant (the paper's ``k_N + 1``, ``k_M + 1``); the results keep them as
-    ``map_size.k_target`` / ``map_size.k_source`` (the baselines' keys). ``k_target``,
-    ``k_source``: their old names (deprecated: they warn and give the same numbers).
+    ``map_size.k_target`` / ``map_size.k_source`` (the baselines' keys).
     ``workers``: processes computing the pairs (:func:`prodmaps.experiments.shared.parallel.map_tasks`;
     the pairs of one source shape go to one worker, which keeps its geodesic rows); the evaluated
     vertices are drawn here, one seeded draw per source shape (:func:`evaluation_vertices`), so the
     numbers depend neither on ``workers`` nor on the pairs' order.
     """
-    target_dim, source_dim = renamed_keywords(
-        "point_map_recovery", {"target_dim": target_dim, "source_dim": source_dim},
-        {"k_target": k_target, "k_source": k_source}, "basis columns with the constant")
     if set(maps) - {"gt", "no17"}:
         raise ValueError(f"maps must be a subset of ['gt', 'no17'], got {list(maps)}")
     errs = {m: {c: [] for c in CONVERSIONS} for m in maps}  # per pair: (n_eval,) arrays
