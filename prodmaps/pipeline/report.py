@@ -49,6 +49,7 @@ from .registry import RegistryError, project_root, registry_path
 from .report_data import (
     CRITERIA,
     DATASET_NAMES,
+    LEDGER_FILE,
     TABLE_KEYS,
     DatasetReport,
     collect_runs,
@@ -67,7 +68,6 @@ __all__ = ["TEXT_FILES", "ReportSettings", "ReportInputs", "read_inputs", "build
 TEXT_FILES = ("title.md", "claims.md", "tables.md", "systematic_differences.md")
 _PACKAGES = ("numpy", "scipy", "matplotlib", "pyvista", "vtk", "pymeshlab", "potpourri3d",
              "robust-laplacian", "papermill", "nbclient", "ipykernel", "dask", "distributed")
-_LEDGER_FILE = "prodmaps/experiments/claims.toml"
 
 
 @dataclass(frozen=True)
@@ -358,7 +358,7 @@ def build_document(inputs: ReportInputs, settings: ReportSettings, base) -> Docu
     """The report (see the module doc) as a :class:`.document.Document`, its links relative to ``base``."""
     base = Path(base).resolve()
     folder = _text_folder(settings)
-    values = dict(CRITERIA, ledger_file=_LEDGER_FILE, provenance=_provenance(inputs, settings))
+    values = dict(CRITERIA, ledger_file=LEDGER_FILE, provenance=_provenance(inputs, settings))
 
     def text(name):
         return report_text(folder, name, **values)

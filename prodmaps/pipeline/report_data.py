@@ -18,7 +18,7 @@ figures), which the main results' Runs and Figures sections show.
 The experiments modules the report needs (the claims ledger, the comparison rules, the published
 tables) are imported here, in one block, and nowhere else in the report's modules: the names the
 other modules use are re-exported below (:data:`VERDICTS`, :data:`TABLE_KEYS`, :data:`CRITERIA`,
-:func:`load_claims`, :func:`load_published_rows`, :func:`match_published`).
+:data:`LEDGER_FILE`, :func:`load_claims`, :func:`load_published_rows`, :func:`match_published`).
 """
 
 from __future__ import annotations
@@ -36,10 +36,10 @@ from ..files import atomic_path, read_json
 from .execute import DEFAULT_DATASET
 from .registry import load_registry
 
-__all__ = ["DATASET_NAMES", "DATA_FOLDER", "VERDICTS", "TABLE_KEYS", "CRITERIA", "BEAT_METHODS", "RunInfo",
-           "collect_runs", "table_entries", "run_dataset", "overridden_parameters", "other_datasets", "ClaimResult",
-           "claim_results", "TableSummary", "table_summaries", "Figure", "Study", "DatasetReport", "dataset_report",
-           "load_claims", "load_published_rows", "match_published"]
+__all__ = ["DATASET_NAMES", "DATA_FOLDER", "VERDICTS", "TABLE_KEYS", "CRITERIA", "LEDGER_FILE", "BEAT_METHODS",
+           "RunInfo", "collect_runs", "table_entries", "run_dataset", "overridden_parameters", "other_datasets",
+           "ClaimResult", "claim_results", "TableSummary", "table_summaries", "Figure", "Study", "DatasetReport",
+           "dataset_report", "load_claims", "load_published_rows", "match_published"]
 
 DATASET_NAMES = {"anny_humans": "embedded humans", "faust": "FAUST", "tosca": "TOSCA"}  # as the report names them
 DATA_FOLDER = "report_data"  # beside the committed report: report_data/<dataset>.json
@@ -50,6 +50,7 @@ TABLE_KEYS = pub.TABLE_KEYS
 BEAT_METHODS = ("our_B", "our_B_gainrule", "our_default")  # the paper's B, the gain rule, the default
 CRITERIA = {"within": pub.WITHIN, "draw_z": pub.DRAW_Z, "rounding_rel": compare.ROUNDING_REL,
             "tie_rel": compare.TIE_REL}  # the numbers the report's text states (placeholders of paper/report_text)
+LEDGER_FILE = Path(ledger.LEDGER).resolve().relative_to(Path(__file__).resolve().parents[2]).as_posix()  # as shown
 load_claims = ledger.load_ledger
 match_published = pub.match_entries
 

@@ -517,7 +517,7 @@ def test_a_float_for_an_integer_parameter_is_refused_naming_the_parameter_and_it
     out = tmp_path / "o"  # the command line: refused before anything runs
     assert cli.main(["reproduce", "--only", "fig02", "-p", "n_samples=2.5", "--out", str(out), "--no-progress"]) == 2
     err = capsys.readouterr().err
-    assert "parameter n_samples=2.5" in err and "expects an integer (e.g. -p 'n_samples=512')" in err
+    assert "parameter n_samples=2.5" in err and "expects an integer (e.g. -p 'n_samples=2048')" in err
     assert not out.exists()
 
 
