@@ -10,6 +10,8 @@ from __future__ import annotations
 import os
 import time
 
+from ..experiments.shared.parallel import WORKERS_ENV
+
 __all__ = ["thread_env", "run_pool", "run_dask", "SchedulerError"]
 
 
@@ -50,8 +52,6 @@ def thread_env(jobs: int) -> dict:
     """
     if jobs <= 1:
         return {}
-    from ..experiments.shared.parallel import WORKERS_ENV
-
     n = str(max(1, (os.cpu_count() or 1) // jobs))
     names = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", WORKERS_ENV)
     return {k: n for k in names if not os.environ.get(k)}

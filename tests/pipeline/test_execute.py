@@ -499,6 +499,41 @@ def test_a_value_that_does_not_parse_or_has_the_wrong_type_is_refused_up_front()
     assert execute.plan_runs(runs, profile="smoke", only=["fig04"], overrides={"seed": 3})[0]["params"]["seed"] == 3
 
 
+
+def test_a_float_for_an_integer_parameter_is_refused_naming_the_parameter_and_its_type(tmp_path, capsys):
+    # fig02's n_samples is None in the notebook and 512 in the registry: 2.5 used to reach the notebook and fail
+    # with a message about k (fourier_basis: k must be in [1, n//2])
+    runs = rp.load_registry()
+    with pytest.raises(execute.ParameterError, match=r"n_samples=2\.5 \(float\) does not match the type of the "
+                       r"registry's params\.smoke\.n_samples = 512 \(int\): n_samples expects an integer"):
+        execute.plan_runs(runs, profile="smoke", only=["fig02"], overrides={"n_samples": 2.5})
+    with pytest.raises(execute.ParameterError, match="n_samples expects an integer"):
+        execute.plan_runs(runs, profile="smoke", only=["fig02"], overrides={"n_samples": 2.0})
+    with pytest.raises(execute.ParameterError, match=r"k_values expects a list of integers"):
+        execute.plan_runs(runs, profile="paper", only=["fig03"], overrides={"k_values": [4, 8.5]})
+    assert execute.plan_runs(runs, profile="smoke", only=["fig02"], overrides={"n_samples": 4096})[0]["params"][
+        "n_samples"] == 4096
+    assert execute.plan_runs(runs, profile="smoke", only=["tab01"], overrides={"rtol": 1})[0]["params"]["rtol"] == 1
+    out = tmp_path / "o"  # the command line: refused before anything runs
+    assert cli.main(["reproduce", "--only", "fig02", "-p", "n_samples=2.5", "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "parameter n_samples=2.5" in err and "expects an integer (e.g. -p 'n_samples=2048')" in err
+    assert not out.exists()
+
+
+def test_reproduce_without_the_notebooks_extra_names_the_extra_to_install(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "papermill", None)  # a library-only install: papermill is not there
+    out = tmp_path / "o"
+    assert cli.main(["reproduce", "--only", "fig02", "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "needs papermill" in err and "pip install 'prodmaps[notebooks]'" in err and not out.exists()
+    assert cli.main(["reproduce", "--list"]) == 0  # listing the runs needs no notebook tools
+    # a missing optional package met later (matplotlib for an image diff, dask for a scheduler) names its extra
+    assert "pip install 'prodmaps[dask]'" in execute.install_hint(ModuleNotFoundError("No module named 'dask'",
+                                                                                       name="dask"))
+    assert execute.install_hint(ModuleNotFoundError("No module named 'x'", name="x")) == "No module named 'x'"
+
+
 # ----------------------------------------------------------------------------- command-line rough edges
 def test_version_flag(capsys):
     with pytest.raises(SystemExit) as e:
@@ -607,3 +642,14 @@ def test_the_cli_module_runs_as_a_script():
     p = subprocess.run([sys.executable, "-m", "prodmaps.pipeline.cli", "reproduce", "--only", "nope", "--no-progress"],
                        capture_output=True, text=True)
     assert p.returncode == 2 and "nope" in p.stderr and "NameError" not in p.stderr
+
+
+def test_importing_the_command_line_loads_no_notebook_tool_plotting_or_dask():
+    # the pipeline's own modules are imported at module level; the heavy optional packages only where used
+    heavy = ("papermill", "nbclient", "nbformat", "nbconvert", "ipykernel", "dask", "distributed", "tqdm", "matplotlib",
+             "PIL", "pyvista", "vtk")
+    code = ("import sys, prodmaps.pipeline.cli\n"
+            f"print([m for m in sys.modules if m.split('.')[0] in {heavy!r}])\n")
+    r = subprocess.run([PY, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "[]", r.stdout
