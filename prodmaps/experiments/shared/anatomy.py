@@ -4,9 +4,9 @@ Anchors are found from coordinates in the **body frame**: ``x`` the body's left,
 (it faces ``-y``), ``z`` up, the origin on the body's mid-plane. The embedded humans and TOSCA's
 animals are stored in that frame; a dataset in another frame names the rotation from its
 coordinates to the body frame (:data:`FRAMES`, e.g. FAUST: up ``+y``, facing ``-z``), and its
-coordinates are then taken from the centre of their bounding box (FAUST_r sits in a unit box). Rotations keep distances, so geodesic
-distances and the functions' values do not depend on the frame; only which vertex is "left" or
-"up" does. Lengths are in the mesh's units times ``length_scale`` (the human function was written
+coordinates are then taken from the centre of their bounding box (FAUST_r sits in a unit box).
+Rotations keep distances, so geodesic distances do not depend on the frame; only which vertex is
+"left" or "up" does. Lengths are in the mesh's units times ``length_scale`` (the human function was written
 in metres for a ~1.7 m body; :func:`length_scale` gives the factor for a shape in other units).
 """
 
