@@ -39,8 +39,8 @@ from ..approx import PAPER_RTOL
 from .shared.protocol import PAPER_COLUMNS, ProtocolSettings, approach_a_label, family_means, run_protocol
 from .shared.published import WITHIN, published_values, score_cells, within_published
 
-__all__ = ["READINGS", "GT_TABLES", "RIDGE_EPS", "NORM_EPS", "ofp_rtol", "run", "ridge_eps",
-           "best_reading", "explain_cell", "report_blocks"]
+__all__ = ["READINGS", "LIBRARY_READING", "GT_TABLES", "RIDGE_EPS", "NORM_EPS", "ofp_rtol", "run", "ridge_eps",
+           "best_reading", "reading_summary", "explain_cell", "report_blocks"]
 
 READINGS = {
     "metres": {"normalization": "area", "rtol": PAPER_RTOL},
@@ -50,6 +50,8 @@ READINGS = {
     "unit product columns": {"normalization": "columns", "rtol": PAPER_RTOL},
     "OFP threshold, metres": {"normalization": "area", "rtol": "ofp"},
 }
+LIBRARY_READING = "unit Euclidean eigenvectors"
+"""The reading of :data:`READINGS` the library uses (:data:`prodmaps.approx.DEFAULT_NORMALIZATION`)."""
 GT_TABLES = {"T1": [(9, 9)], "T3": [(6, 7), (27, 35)], "T5": [(29, 29)], "T6": [(29, 39)]}
 RIDGE_EPS = (1e-6, 3e-6, 1e-5, 3e-5, 1e-4, 3e-4)  # Approach A's ε, relative to σ_max²; 1e-6 is the tables'
 NORM_EPS = (1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1)  # Equation 4 as printed (norms): ε relative to σ_max
@@ -241,6 +243,26 @@ def best_reading(scores: dict, method: str = "our_B") -> str | None:
     """The reading with the most reproduced ``method`` cells (ties: the smaller mean |diff|)."""
     cand = [(*_fit(v[method]), name) for name, v in scores.items() if method in v]
     return max(cand)[2] if cand else None
+
+
+def reading_summary(results: dict) -> list[dict]:
+    """Approach B's normalisation as frozen in the library, scored on this run's data without choosing again.
+
+    One row (the fields of :func:`prodmaps.experiments.study_family_readings.reading_summary`):
+    the library's reading (:data:`LIBRARY_READING`, chosen on FAUST's eight registrations by the
+    published Approach B cells, which no control column judges), its cells within ±0.02 here, and
+    the reading this data would choose (:func:`best_reading`). No standard errors are kept, so
+    ``within_noise`` is None.
+    """
+    scores = results.get("scores", {})
+    frozen = scores.get(LIBRARY_READING, {}).get("our_B")
+    if frozen is None:
+        return []
+    tables = ", ".join(results.get("tables", {}))
+    return [{"reading": "Approach B's normalisation", "alternatives": len(scores),
+             "cells": f"{frozen['cells']} published Approach B cells ({tables})", "frozen": LIBRARY_READING,
+             "cells_n": frozen["cells"], "within": frozen["within"], "within_noise": None,
+             "choice_here": best_reading(scores), "agrees": best_reading(scores) == LIBRARY_READING}]
 
 
 def _best_eps(r: dict) -> str | None:

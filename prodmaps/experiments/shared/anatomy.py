@@ -16,8 +16,8 @@ import numpy as np
 
 from ...geodesics import distances
 
-__all__ = ["FRAMES", "HUMAN_AREA", "body_frame", "body_coordinates", "body_transform", "length_scale", "human_composite",
-           "quadruped_composite", "composite_function", "COMPOSITES"]
+__all__ = ["FRAMES", "HUMAN_AREA", "body_frame", "body_coordinates", "body_transform", "length_scale",
+           "human_composite", "quadruped_composite", "composite_function", "COMPOSITES"]
 
 FRAMES = {
     "body": ((1, 0, 0), (0, 1, 0), (0, 0, 1)),  # the embedded humans, TOSCA's animals
