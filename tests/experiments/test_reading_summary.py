@@ -55,4 +55,5 @@ def test_normalisation_and_recipe_and_heat_time_rows():
     comp["summary"]["a"]["mean_abs"], comp["summary"]["b"]["mean_abs"] = 0.03, 0.001
     comp["summary"]["gt"]["mean_abs"] = 0.0
     row = study_no17.reading_summary({"comparison": comp, "default_recipe": "a"})[0]
-    assert (row["within"], row["cells_n"], row["choice_here"], row["agrees"], row["alternatives"]) == (1, 2, "b", False, 2)
+    got = (row["within"], row["cells_n"], row["choice_here"], row["agrees"], row["alternatives"])
+    assert got == (1, 2, "b", False, 2)
