@@ -67,7 +67,7 @@ def compare_no17(shape_1, shape_2, k1: int = 30, k2: int = 40, repeat: int = 3) 
 
 def compare_no17_recipe(shape_1, shape_2, recipe_name: str | None = None, k1: int = 30, k2: int = 40,
                         repeat: int = 3) -> dict:
-    """Time the fit of the paper profiles' recipe (default :data:`prodmaps.experiments.maps.DEFAULT_RECIPE`)
+    """Time the fit of the paper profiles' recipe (default :data:`prodmaps.experiments.shared.maps.DEFAULT_RECIPE`)
     against pyFM's ``fit`` of the same energy; the refinement (ICP) is not part of either fit.
 
     The meshes are scaled to unit area first (prodmaps fits on unit-area shapes), descriptors are
@@ -78,7 +78,7 @@ def compare_no17_recipe(shape_1, shape_2, recipe_name: str | None = None, k1: in
     from pyFM.functional import FunctionalMapping
     from pyFM.mesh import TriMesh
 
-    from prodmaps.experiments import maps
+    from prodmaps.experiments.shared import maps
 
     rec = maps.recipe(recipe_name or maps.DEFAULT_RECIPE)
     if rec.normalize != "frobenius" or rec.lap != "eigdiff":

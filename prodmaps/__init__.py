@@ -20,7 +20,7 @@ No module shares its name with a function: ``pm.transfer``, ``pm.transfer_operat
 :mod:`prodmaps.operators`. Importing prodmaps loads numpy and scipy only.
 """
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 from . import (  # noqa: F401
                approx,
@@ -30,7 +30,6 @@ from . import (  # noqa: F401
                conventions,
                curvature,
                datasets,
-               default_transfer,
                descriptors,
                eigensolver,
                errors,
@@ -47,6 +46,7 @@ from . import (  # noqa: F401
                plotting,
                pointcloud,
                products,
+               progress,
                sampling,
                storage,
                transfers,
@@ -66,7 +66,6 @@ from .products import ProductBasis, product_basis
 from .storage import load_map, save_map
 from .transfers import (
                TransferOperator,
-               safe_transfer,  # noqa: F401 (deprecated, not in __all__: one more release)
                transfer,
                transfer_operator,
 )

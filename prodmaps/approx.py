@@ -69,6 +69,7 @@ The default is :data:`DEFAULT_NORMALIZATION`.
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,12 +79,15 @@ from .basis import Basis
 from .checks import check_functions
 
 __all__ = ["ApproximationOperator", "approximation_operator", "approximate", "column_weights", "gram_eigenpairs",
-           "is_extended", "NORMALIZATIONS", "DEFAULT_NORMALIZATION", "RIDGE_PENALTIES"]
+           "is_extended", "NORMALIZATIONS", "DEFAULT_NORMALIZATION", "PAPER_RTOL", "RIDGE_PENALTIES",
+           "operator_parameters"]
 
 METHODS = ("std", "svd", "ridge", "lasso")
 RIDGE_PENALTIES = ("squared", "norm")  # Approach A, p = 2: ||·||² + ε σ_max² ||a||², or Equation 4's norms
 NORMALIZATIONS = ("euclidean", "unit_area", "columns", "area")
 DEFAULT_NORMALIZATION = "euclidean"  # the reading that reproduces the paper (study_normalization)
+PAPER_RTOL = 1e-3
+"""The paper's Approach B threshold (Section 4.2): singular values below ``PAPER_RTOL · σ_max`` are dropped."""
 
 
 def is_extended(basis) -> bool:
@@ -256,7 +260,25 @@ class ApproximationOperator:
         return self.basis.evaluate(a) if is_extended(self.basis) else self.basis.vecs @ a
 
 
-def approximation_operator(basis, method: str = "svd", *, rtol: float = 1e-3, eps: float = 1e-4,
+def operator_parameters(**params) -> dict:
+    """Every keyword of :func:`approximation_operator`, ``params`` over its defaults (``normalization`` resolved).
+
+    Two calls with the same result (one naming a default, one not) get the same dictionary, the key
+    of the cached operators (:meth:`prodmaps.ProductBasis.operator`). Unknown names raise ``TypeError``.
+
+    >>> operator_parameters(rtol=1e-2)["rtol"], operator_parameters()["normalization"]
+    (0.01, 'euclidean')
+    """
+    unknown = set(params) - set(_OPERATOR_DEFAULTS)
+    if unknown:
+        raise TypeError(f"approximation_operator() got unexpected keyword arguments {sorted(unknown)}")
+    full = {**_OPERATOR_DEFAULTS, **params}
+    if full["normalization"] is None:
+        full["normalization"] = DEFAULT_NORMALIZATION
+    return full
+
+
+def approximation_operator(basis, method: str = "svd", *, rtol: float = PAPER_RTOL, eps: float = 1e-4,
                            route: str = "auto", tol: float = 1e-6, max_iter: int = 5000,
                            normalization: str | None = None, penalty: str = "squared") -> ApproximationOperator:
     """Build the approximation operator of ``basis`` for ``method`` (see module doc).
@@ -576,3 +598,7 @@ def approximate(F, basis, method: str = "svd", **params) -> np.ndarray:
     """
     op = basis.operator(method, **params) if is_extended(basis) else approximation_operator(basis, method, **params)
     return op.coefficients(F)
+
+
+_OPERATOR_DEFAULTS = {name: p.default for name, p in inspect.signature(approximation_operator).parameters.items()
+                      if p.kind is inspect.Parameter.KEYWORD_ONLY}

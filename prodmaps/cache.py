@@ -12,7 +12,7 @@ value depends on, e.g. ``("product_basis", k, order, pairs)``, held by the (froz
 
 Bounds: ``max_entries`` entries (least recently used evicted first) and, optionally,
 ``max_bytes`` of numpy arrays (sizes are estimated from ``nbytes``). Nothing is cached on disk
-here; the experiments layer (:mod:`prodmaps.experiments.store`) has the on-disk cache.
+here; the experiments layer (:mod:`prodmaps.experiments.shared.store`) has the on-disk cache.
 """
 
 from __future__ import annotations

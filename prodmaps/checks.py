@@ -15,15 +15,13 @@ a point map ``p2p_21`` is ``(n2,)`` with values in ``[0, n1)``.
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import scipy.sparse as sp
 
 from .basis import Basis
 from .mesh import check_vertex_indices
 
-__all__ = ["check_basis", "check_functions", "check_fmap", "check_p2p", "check_symmetry_order", "renamed_keywords"]
+__all__ = ["check_basis", "check_functions", "check_fmap", "check_p2p", "check_symmetry_order"]
 
 
 def check_basis(basis, name: str = "basis") -> Basis:
@@ -153,32 +151,3 @@ def check_symmetry_order(N) -> int:
     if not isinstance(N, (int, np.integer)) or N < 1:
         raise ValueError(f"N (the symmetry order, 4 for crosses) must be a positive integer; got {N!r}")
     return int(N)
-
-
-def renamed_keywords(func: str, new: dict, old: dict, note: str = "") -> tuple:
-    """The values of the keywords ``new`` (name: value), given under them or under their ``old`` names.
-
-    ``old`` holds the deprecated names in the order of ``new``: they warn (``DeprecationWarning``)
-    and give the same values. Mixing old and new names, or leaving a value unset, is a
-    ``TypeError``; ``note`` (what the values mean) ends the latter's message.
-
-    Examples
-    --------
-    >>> renamed_keywords("f", {"dim": 4}, {"k": None})
-    (4,)
-    >>> renamed_keywords("f", {"dim": 4}, {"k": 4})
-    Traceback (most recent call last):
-    ...
-    TypeError: f: give dim, not also the old k
-    """
-    if any(v is not None for v in old.values()):
-        if any(v is not None for v in new.values()):
-            raise TypeError(f"{func}: give {', '.join(new)}, not also the old {', '.join(old)}")
-        warnings.warn(f"{func}({'=, '.join(old)}=) is deprecated: use {'=, '.join(new)}= (the same numbers)",
-                      DeprecationWarning, stacklevel=3)
-        new = dict(zip(new, old.values()))
-    if any(v is None for v in new.values()):
-        *first, last = new
-        names = f"{', '.join(first)} and {last}" if first else last
-        raise TypeError(f"{func} needs {names}" + (f" ({note})" if note else ""))
-    return tuple(new.values())

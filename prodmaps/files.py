@@ -98,13 +98,14 @@ def read_json(path, default=None):
 
 
 def library_version() -> str:
-    """The installed prodmaps version (package metadata), or ``"unknown"`` when it is not installed."""
-    from importlib.metadata import PackageNotFoundError, version
+    """The version of the prodmaps package this module belongs to (``prodmaps.__version__``).
 
-    try:
-        return version("prodmaps")
-    except PackageNotFoundError:  # pragma: no cover - a source tree on sys.path
-        return "unknown"
+    Read from the package object, which is always imported before its modules (an import here
+    would close a cycle: the package imports this module).
+    """
+    import sys
+
+    return str(getattr(sys.modules.get(__package__ or "prodmaps"), "__version__", "unknown"))
 
 
 def arrays_checksum(arrays: dict) -> str:

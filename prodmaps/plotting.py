@@ -3,7 +3,7 @@
 Off-screen rendering with pyvista/VTK (optional dependency, imported on the first picture), made
 to repeat: anti-aliasing off, fixed window size, no random lighting, a camera computed from the
 geometry only. :func:`render` is the one home for drawing a mesh or a cloud with a given camera
-(the notebooks' renderer, :mod:`prodmaps.experiments.render`, draws through it).
+(the notebooks' renderer, :mod:`prodmaps.experiments.shared.render`, draws through it).
 
 * The automatic camera (:func:`auto_camera`) looks along the shape's axis of least extent (the
   principal axis of smallest variance of its points, so the silhouette is the widest) with the

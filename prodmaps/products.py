@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from .approx import approximation_operator, mass_gram
+from .approx import approximation_operator, mass_gram, operator_parameters
 from .basis import Basis
 from .cache import Cache
 
@@ -308,7 +308,8 @@ class ProductBasis:
 
     def operator(self, method: str = "svd", **params):
         """A cached reusable approximation operator (see :func:`prodmaps.approx.approximation_operator`)."""
-        key = ("operator", method, tuple(sorted(params.items())))
+        # keyed by every parameter, defaults filled in: asking with or without a default value is one operator
+        key = ("operator", method, tuple(sorted(operator_parameters(**params).items())))
         return self.cache.get(key, lambda: approximation_operator(self, method=method, **params))
 
     def __repr__(self) -> str:

@@ -1,131 +1,57 @@
-"""Function transfer: one family of operators, built once per map and applied to many functions.
+"""Function transfer: one registry of methods, each an operator built once per map and applied to many functions.
 
-``T = pm.transfer_operator(C_12, basis_1, basis_2, method=...)`` builds everything that depends
-only on the map and the bases (the source's approximation operator, the extended map ``C~`` and
-the target's extended basis, or the default rule's filtered directions); ``T(F)`` (or
-``T.apply(F)``) then transfers any number of functions, ``(n1,)`` or the columns of
-``(n1, m)``, to shape 2. ``pm.transfer(F, C_12, basis_1, basis_2, method=...)`` is that
-operator applied once.
+``T = pm.transfer_operator(C_12, basis_1, basis_2, method, **params)`` builds what depends only on
+the map and the bases; ``T(F)`` transfers any number of functions, ``(n1,)`` or the columns of
+``(n1, m)``, to shape 2; ``T.approximate(F)`` is the approximation on shape 1 that the transfer
+carries. ``pm.transfer(F, C_12, basis_1, basis_2, method, **params)`` is that operator applied once.
 
-Conventions (bases, ``k``, ``C_12`` ``(k2, k1)``, ``C~``): :mod:`prodmaps.conventions`; by Lemma 2,
-``B2 C~ a`` is the exact pointwise product of the transferred basis functions for *any* ``C``.
+Conventions (:mod:`prodmaps.conventions`): bases A-orthonormal with the constant first, ``k``
+counts the constant, ``C_12`` is ``(k2, k1)`` and maps coefficients on shape 1 to shape 2. By
+Lemma 2, ``B2 C~ a`` is the exact pointwise product of the transferred basis functions for *any* ``C``.
 
-Methods, each with its own keyword parameters (:data:`PARAMETERS`)
--------------------------------------------------------------------
-``"std"`` (no parameters)
-    The standard transfer ``Φ2 C_12 Φ1ᵀ A1 F``: A-orthogonal projection, then the map.
-``"default"`` (``g0``, ``p``, ``l0``, ``e0``, ``floor``, ``h_min``; :data:`DEFAULT_RULE`)
-    **The library's default extended transfer** (:class:`DefaultTransfer`, the rule below): the
-    standard transfer plus the product directions the map carries faithfully, tested without
-    ground truth. Never changes what the standard transfer carries and reduces to it exactly when
-    no direction passes. Pairwise products (order 2); the unique and ordered products span the
-    same space, so it has no ``order``/``pairs``.
-``"svd"`` (``order=2``, ``pairs="ordered"``, ``rtol=1e-3``, ``route``, ``normalization``)
-    **The paper's Approach B**: ``B2 C~ a`` with ``a`` the truncated-SVD coefficients of ``F`` in
-    the source's extended basis; ``rtol=1e-3`` with the ordered pairs is the paper's exactly.
-``"ridge"``, ``"lasso"`` (``order``, ``pairs``, ``eps``, ``normalization``; ``penalty``; ``tol``, ``max_iter``)
-    **The paper's Approach A** (p = 2, p = 1): ``B2 C~ a`` with ``a`` the penalised fit; the ridge
-    also takes ``penalty`` (``"norm"``: Equation 4 as printed), the lasso ``tol`` and ``max_iter``.
+The registry (:data:`REGISTRY`, name -> :class:`TransferMethod`: operator class, parameters with
+their defaults, summary) is the one vocabulary of the package: the tables' columns, the studies
+and :mod:`prodmaps.fields` name their transfers by registry entry and parameters.
 
-The solver parameters are those of :func:`prodmaps.approx.approximation_operator` (where they are
-defined); a parameter of another method raises ``TypeError``.
+========== ============================================================================================
+``std``      the standard transfer ``Φ2 C_12 Φ1ᵀ A1 F`` (no parameters)
+``default``  the library's default extended transfer (:class:`DefaultTransfer`; the rule and its
+             measurements: ``docs/guide/default_transfer.md``); never changes what ``std`` carries
+``svd``      the paper's Approach B, ``B2 C~ a`` with truncated-SVD coefficients; ``rtol=PAPER_RTOL``
+             with ``pairs="ordered"`` is the paper's exactly
+``ridge``    the paper's Approach A, p = 2 (``penalty="norm"``: Equation 4 as printed)
+``lasso``    the paper's Approach A, p = 1 (FISTA)
+``svd_gain`` Approach B with ``rtol`` chosen from the map by the gain rule (:func:`prodmaps.truncation.select_rtol`)
+``p2p``      the map converted to a point map (nearest neighbours, :func:`prodmaps.p2p.from_fmap`), ``F`` pulled back
+========== ============================================================================================
 
-Old spellings (deprecated for one release: they warn, name the new spelling, give the same numbers)
-----------------------------------------------------------------------------------------------------
-* ``transfer(F, C, b1, b2, "prod")`` and ``safe_transfer(F, C, b1, b2)``:
-  ``transfer(F, C, b1, b2, "default")``;
-* ``transfer(..., "prod", rtol=r, order=o, pairs=p)`` (``approx`` None or ``"svd"``):
-  ``transfer(..., "svd", rtol=r, order=o, pairs=p)``;
-* ``transfer(..., "prod", approx="ridge", eps=e)`` (or ``"lasso"``): ``transfer(..., "ridge", eps=e)``;
-* ``prodmaps.default_transfer.safe_operator(C, b1, b2, **rule)``:
-  ``transfer_operator(C, b1, b2, "default", **rule)``; ``default_transfer.SafeTransfer`` and
-  ``DEFAULTS``: :class:`DefaultTransfer` and :data:`DEFAULT_RULE`.
-
-The default rule
-----------------
-The paper's Approach B (fixed threshold ``rtol = 1e-3`` on the singular values of the extended
-basis) keeps every singular direction above the threshold, including directions of the source
-whose products nearly cancel there; a truncated or computed ``C`` does not preserve products
-exactly, the cancellation is lost on the target and such directions are amplified (how many
-the threshold keeps depends on the normalisation of the basis, :mod:`prodmaps.approx`). The
-default needs no threshold and no normalisation (measurements: ``docs/guide/default_transfer.md``).
-
-The rule (two-stage, gain- and leak-filtered fit; only ``f``, ``C_12`` and the two bases):
-
-Notation: ``Φ1`` ``(n1, k1)``; ``P1`` ``(n1, Kp)`` the products ``φ_l φ_m``, ``1 <= l <= m < k1``
-(multisets, ``Kp = k(k+1)/2``); ``Ψ = Φ2 C_12`` ``(n2, k1)`` the transferred basis functions and
-``Z = [ψ_l ψ_m]`` ``(n2, Kp)`` their products — by Lemma 2, ``B2 C~ [x; b] = Ψ x + Z b`` exactly,
-for any ``C``.
-
-1. **Standard stage**: ``a0 = Φ1ᵀ A1 f``; the residual ``r = f - Φ1 a0`` is A1-orthogonal to
-   span Φ1. The standard transfer is ``Ψ a0``.
-2. **Residual stage**: the products made A1-orthogonal to span Φ1, ``Q = P1 - Φ1 H`` with
-   ``H = Φ1ᵀ A1 P1``; their Gram ``S = QᵀA1Q = G_PP - HᵀH`` comes from the source's cached product
-   Gram (the one Approach B builds). ``S = V diag(σ²) Vᵀ``: direction ``i`` has source function
-   ``Q v_i`` (area norm ``σ_i``) and target image ``y_i = (Z - Ψ H) v_i``.
-3. **Three tests per direction, no ground truth** (``Π`` the A2-projection on
-   ``range(Ψ) = Φ2 range(C)``, the span of the standard transfer):
-
-   * leak ``λ_i = ||Π y_i||_A2 / ||y_i||_A2``: a point map sends functions A1-orthogonal to
-     span Φ1 (as ``Q v_i`` is) to functions nearly orthogonal to the image of span Φ1; a map that
-     is not multiplicative can keep norms yet move products into that image ("moves products to
-     the wrong place"). That part ``Π y_i`` is error by this argument and is removed: the
-     direction's image is ``y'_i = (I - Π) y_i``;
-   * transfer gain ``γ_i = ||y'_i||_A2 / (ρ σ_i)``, ``ρ = sqrt(area_2 / area_1)`` (a near-isometric
-     point map scales L2 norms by ``ρ``, so ``γ_i ≈ 1`` for a map that preserves products);
-   * truncation error ``ê_i``: even the exact projection of a point map carries only the part of
-     each ``φ_l∘T`` inside ``span Φ2``; the products of these truncated images miss
-     ``ψ_l e_m + e_l ψ_m`` (``e_l`` the lost part). ``C`` itself tells how much is lost:
-     for a near-isometric point map ``CᵀC ≈ ρ² I``, and the row defect
-     ``δ_l = ||(I - CᵀC/ρ²) e_l||`` (:func:`isometry_defect`; ``||e_l||²/ρ²`` for an exact
-     projection, plus whatever noise or a non-point map adds) gives the model
-     ``ê_i² = Σ_(l,m) V_(lm),i² (δ_l + δ_m) ||φ_l φ_m||²_A1 / σ_i²``: directions that are
-     near-cancellations of products (small ``σ_i``) amplify the truncation error.
-
-   Filter factors ``h_i = 1/(1 + (γ_i/g0)^p) · 1/(1 + (λ_i/l0)^p) · 1/(1 + (ê_i/e0)²)`` (the
-   last is the Wiener factor of an image with relative error ``ê_i/e0``), directions with
-   ``σ_i <= floor · σ_max`` (numerically dependent products) dropped.
-4. ``g = Ψ a0 + Σ_i h_i y'_i (v_iᵀ q) / σ_i²`` with ``q = Qᵀ A1 r = P1ᵀ A1 f - Hᵀ a0``.
-
-By construction: every ``h_i = 0`` gives exactly the standard transfer; the products add
-nothing inside the standard transfer's span (``Π g = Ψ a0`` exactly, for any filter: what the
-standard transfer carries is never changed); each kept direction adds at most
-``h_i γ_i ρ |u_iᵀ√A1 r|`` (``h γ <= 0.91 g0`` for ``p = 8``) and ``Σ (u_iᵀ√A1 r)² <= ||r||²``, so
-the added part is bounded by about ``g0 ρ ||r||`` times the coherence of the images. Measured,
-not guaranteed: that the added part *reduces* the error (it needs the kept images to be right).
-
-Cost: one ``Kp x Kp`` symmetric eigendecomposition (as Approach B) on the source, reusing the
-product Gram, plus ``Z`` and ``Y = (Z - ΨH) V`` on the target (``n2 · Kp · r`` flops) per map. The
-operator is built once per ``(C_12, basis_1, basis_2)`` and applied to any number of functions.
+A parameter a method does not take raises ``TypeError`` naming the methods it belongs to. Adding a
+method is one :class:`TransferOperator` subclass and one :func:`register` line (``docs/guide/developers.md``).
 """
 
 from __future__ import annotations
 
-import warnings
+from dataclasses import dataclass, field
+from types import MappingProxyType
 
 import numpy as np
 import scipy.linalg as sla
 
+from .approx import PAPER_RTOL
 from .basis import Basis
 from .checks import check_fmap, check_functions
 from .files import sha256_bytes
 from .mapping import extend_fmap
+from .p2p import from_fmap
 from .products import check_pairs, evaluate_products, product_basis, unique_solver_gram
+from .truncation import DEFAULT_CANDIDATES, select_rtol
 
-__all__ = ["TransferOperator", "StandardTransfer", "DefaultTransfer", "ExtendedTransfer", "transfer_operator",
-           "transfer", "isometry_defect", "safe_transfer", "METHODS", "PARAMETERS", "DEFAULT_RULE"]
+__all__ = ["TransferOperator", "StandardTransfer", "DefaultTransfer", "ExtendedTransfer", "ApproachBTransfer",
+           "RidgeTransfer", "LassoTransfer", "GainRuleTransfer", "PointMapTransfer", "TransferMethod", "REGISTRY",
+           "register", "transfer_operator", "transfer", "isometry_defect", "PAPER_RTOL", "DEFAULT_RULE"]
 
-METHODS = ("std", "default", "svd", "ridge", "lasso")
-DEFAULT_RULE = {"g0": 1.5, "p": 8, "l0": 0.5, "e0": 0.4, "floor": 1e-3, "h_min": 1e-4}
+DEFAULT_RULE = MappingProxyType({"g0": 1.5, "p": 8, "l0": 0.5, "e0": 0.4, "floor": 1e-3, "h_min": 1e-4})
 """The default rule's parameters and their values (see :class:`DefaultTransfer`)."""
-PARAMETERS = {
-    "std": (),
-    "default": tuple(DEFAULT_RULE),
-    "svd": ("order", "pairs", "rtol", "route", "normalization"),
-    "ridge": ("order", "pairs", "eps", "normalization", "penalty"),
-    "lasso": ("order", "pairs", "eps", "tol", "max_iter", "normalization"),
-}
-"""The keyword parameters each method takes (any other raises ``TypeError``)."""
 
 # the product images are formed in one piece up to this size, else by blocks of rows (same
 # arithmetic per row; the block sums of the norms differ from one sum at rounding level)
@@ -172,25 +98,20 @@ def isometry_defect(C_12: np.ndarray, area_ratio: float = 1.0) -> np.ndarray:
     return np.linalg.norm(D, axis=1)
 
 
-def _not_a_parameter(method: str, names) -> str:
-    """The message for parameters ``names`` that ``method`` does not take."""
-    names = sorted(names)
-    owners = {n: [m for m in METHODS if n in PARAMETERS[m]] for n in names}
-    where = "; ".join(f"{n!r} is a parameter of {', '.join(repr(m) for m in ms)}" if ms else f"{n!r} is no method's"
-                      for n, ms in owners.items())
-    takes = ", ".join(PARAMETERS[method]) or "none"
-    return f"method={method!r} takes no parameter {', '.join(map(repr, names))} (its parameters: {takes}); {where}"
-
-
 class TransferOperator:
     """A transfer from shape 1 to shape 2, built once for ``(C_12, basis_1, basis_2)`` (module doc).
 
-    Build with :func:`transfer_operator`. ``op(F)`` (or ``op.apply(F)``) transfers ``F``
-    ``(n1,)``/``(n1, m)`` to shape 2, ``(n2,)``/``(n2, m)``; the columns of ``F`` are independent,
-    so transferring ``F`` in parts gives the same columns (to rounding; the lasso's iterations stop
-    when every column meets its tolerance, so there to that tolerance). ``op.approximate(F)`` is the
-    approximation of ``F`` on shape 1 that the transfer carries. ``method`` and ``params`` (the
-    method's parameters as given) say what was built; ``C`` is the validated ``(k2, k1)`` map.
+    Build with :func:`transfer_operator` (or ``cls.build``). ``op(F)`` (or ``op.apply(F)``)
+    transfers ``F`` ``(n1,)``/``(n1, m)`` to shape 2, ``(n2,)``/``(n2, m)``; the columns of ``F``
+    are independent, so transferring ``F`` in parts gives the same columns (to rounding; the
+    lasso's iterations stop when every column meets its tolerance, so there to that tolerance).
+    ``op.approximate(F)`` is the approximation of ``F`` on shape 1 that the transfer carries.
+    ``method`` and ``params`` (every parameter, defaults filled in) say what was built; ``C`` is
+    the validated ``(k2, k1)`` map.
+
+    A subclass implements ``__init__(C_12, basis_1, basis_2, **params)`` (calling
+    ``super().__init__(C_12, basis_1, basis_2, params)``), :meth:`apply` and :meth:`approximate`,
+    and is registered with :func:`register`.
 
     Raises
     ------
@@ -215,6 +136,11 @@ class TransferOperator:
     def __init__(self, C_12, basis_1: Basis, basis_2: Basis, params: dict):
         self.C = check_fmap(C_12, basis_1, basis_2)  # (k2, k1)
         self.basis_1, self.basis_2, self.params = basis_1, basis_2, dict(params)
+
+    @classmethod
+    def build(cls, C_12, basis_1: Basis, basis_2: Basis, **params) -> TransferOperator:
+        """The operator for these inputs (a subclass may return a cached one)."""
+        return cls(C_12, basis_1, basis_2, **params)
 
     def apply(self, F) -> np.ndarray:
         """The transfer of ``F`` ``(n1,)``/``(n1, m)`` to shape 2, ``(n2,)``/``(n2, m)``."""
@@ -266,23 +192,14 @@ class StandardTransfer(TransferOperator):
 
 
 class ExtendedTransfer(TransferOperator):
-    """``method="svd"`` (Approach B), ``"ridge"`` or ``"lasso"`` (Approach A): ``B2 C~ a``.
+    """``B2 C~ a``: the extended transfers (Approaches A and B); ``solver`` names the fit of ``a``.
 
     ``a`` ``(K1,)``/``(K1, m)`` are the coefficients of ``F`` in the source's extended basis
     (:attr:`extended_basis_1`, ``order`` and ``pairs`` of :func:`prodmaps.product_basis`) by the
-    approximation operator :attr:`approximation` (cached on that basis,
-    :meth:`prodmaps.ProductBasis.operator`); :attr:`extended_map` is ``C~`` ``(K2, K1)`` and
-    :attr:`extended_basis_2` the target's extended basis. All are built here, once.
-
-    Parameters
-    ----------
-    C_12 : (k2, k1) array_like
-    basis_1, basis_2 : Basis
-    method : ``"svd"`` | ``"ridge"`` | ``"lasso"``
-    order, pairs : the extended bases (the paper's: 2, ``"ordered"``).
-    **solver
-        The approximation's parameters (:data:`PARAMETERS`; defined by
-        :func:`prodmaps.approx.approximation_operator`); ``"svd"`` uses ``rtol=1e-3`` unless given.
+    approximation operator :attr:`approximation` (``solver`` with the solver parameters, defined by
+    :func:`prodmaps.approx.approximation_operator`, cached on that basis); :attr:`extended_map`
+    is ``C~`` ``(K2, K1)`` and :attr:`extended_basis_2` the target's extended basis. All are built
+    here, once. Subclasses: :class:`ApproachBTransfer`, :class:`RidgeTransfer`, :class:`LassoTransfer`.
 
     Examples
     --------
@@ -295,38 +212,135 @@ class ExtendedTransfer(TransferOperator):
     ((31, 31), 'ridge')
     """
 
-    def __init__(self, C_12, basis_1: Basis, basis_2: Basis, method: str = "svd", *, order: int = 2,
-                 pairs: str = "ordered", **solver):
-        if method not in ("svd", "ridge", "lasso"):
-            raise ValueError(f"ExtendedTransfer's method is 'svd', 'ridge' or 'lasso', got {method!r}")
-        unknown = set(solver) - set(PARAMETERS[method])
-        if unknown:
-            raise TypeError(_not_a_parameter(method, unknown))
-        if method == "svd" and "rtol" not in solver:
-            solver["rtol"] = 1e-3  # the paper's threshold
+    solver: str = ""
+
+    def __init__(self, C_12, basis_1: Basis, basis_2: Basis, *, order: int, pairs: str, **solver):
         super().__init__(C_12, basis_1, basis_2, {"order": order, "pairs": pairs, **solver})
         check_pairs(pairs)
-        self.method = method
         self.extended_basis_1 = product_basis(basis_1, order, pairs)
         self.extended_basis_2 = product_basis(basis_2, order, pairs)
-        self.approximation = self.extended_basis_1.operator(method, **solver)
+        self.approximation = self.extended_basis_1.operator(self.solver, **solver)
         self.extended_map = extend_fmap(self.C, basis_1, basis_2, order, pairs)  # (K2, K1)
 
     def coefficients(self, F) -> np.ndarray:
         """The coefficients ``a`` ``(K1,)``/``(K1, m)`` of ``F`` in :attr:`extended_basis_1`."""
         return self.approximation.coefficients(check_functions(F, self.basis_1.n))
 
+    def transfer_coefficients(self, a) -> np.ndarray:
+        """``B2 C~ a``: the target function of source coefficients ``a`` ``(K1,)``/``(K1, m)`` (Lemma 2)."""
+        return self.extended_basis_2.evaluate(self.extended_map @ np.asarray(a, dtype=np.float64))
+
     def apply(self, F) -> np.ndarray:
         """``B2 C~ a``: the transfer of ``F`` to shape 2 (:meth:`TransferOperator.apply`)."""
-        return self.extended_basis_2.evaluate(self.extended_map @ self.coefficients(F))
+        return self.transfer_coefficients(self.coefficients(F))
 
     def approximate(self, F) -> np.ndarray:
         """``B1 a``: the fit of ``F`` in the source's extended basis."""
         return self.extended_basis_1.evaluate(self.coefficients(F))
 
 
+class ApproachBTransfer(ExtendedTransfer):
+    """``method="svd"``: the paper's Approach B (truncated SVD at ``rtol``, relative to ``σ_max``).
+
+    ``rank`` is the number of singular directions kept.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> b = pm.eigenbasis(ellipsoid(2), 6)
+    >>> op = pm.transfer_operator(np.eye(6), b, b, "svd")  # rtol = PAPER_RTOL, ordered pairs: the paper's
+    >>> op.params["rtol"] == PAPER_RTOL, op.rank <= op.extended_basis_1.K
+    (True, True)
+    """
+
+    method = solver = "svd"
+
+    @property
+    def rank(self) -> int:
+        """Number of singular directions kept by the truncation."""
+        return int(self.approximation.rank)
+
+
+class RidgeTransfer(ExtendedTransfer):
+    """``method="ridge"``: the paper's Approach A with p = 2 (``eps`` relative to ``σ_max²``; ``penalty``)."""
+
+    method = solver = "ridge"
+
+
+class LassoTransfer(ExtendedTransfer):
+    """``method="lasso"``: the paper's Approach A with p = 1 (FISTA; ``eps``, ``tol``, ``max_iter``)."""
+
+    method = solver = "lasso"
+
+
+class GainRuleTransfer(ApproachBTransfer):
+    """``method="svd_gain"``: Approach B at the ``rtol`` the gain rule picks from the map (no ground truth).
+
+    ``rtol`` is the largest candidate whose kept directions have transfer gains below ``max_gain``
+    (:func:`prodmaps.truncation.select_rtol` with ``method="gain"``); :attr:`rtol` holds it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> b = pm.eigenbasis(ellipsoid(2), 6)
+    >>> op = pm.transfer_operator(np.eye(6), b, b, "svd_gain")
+    >>> op.rtol in op.params["candidates"]
+    True
+    """
+
+    method = "svd_gain"
+
+    def __init__(self, C_12, basis_1: Basis, basis_2: Basis, *, order: int, pairs: str, max_gain: float,
+                 candidates, normalization=None, route: str = "auto"):
+        C = check_fmap(C_12, basis_1, basis_2)
+        self.rtol = float(select_rtol(basis_1, method="gain", C_12=C, basis_2=basis_2, candidates=candidates,
+                                      max_gain=max_gain, order=order, pairs=pairs, normalization=normalization))
+        super().__init__(C, basis_1, basis_2, order=order, pairs=pairs, rtol=self.rtol, route=route,
+                         normalization=normalization)
+        self.params = {"order": order, "pairs": pairs, "max_gain": max_gain, "candidates": candidates,
+                       "normalization": normalization, "route": route}
+
+
+class PointMapTransfer(TransferOperator):
+    """``method="p2p"``: ``C_12`` converted to a point map, then ``F`` pulled back (Section 5.1's remark).
+
+    The point map is the standard conversion (:func:`prodmaps.p2p.from_fmap`, nearest neighbours
+    of the spectral embeddings), :attr:`p2p_21` ``(n2,)``; ``op(F) = F[p2p_21]``. The point map is
+    read from the standard embedding, so :meth:`approximate` is the standard projection.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> mesh = ellipsoid(2)
+    >>> b = pm.eigenbasis(mesh, 10)
+    >>> op = pm.transfer_operator(pm.fmap_from_p2p(np.arange(b.n), b, b), b, b, "p2p")
+    >>> bool(np.array_equal(op(mesh.vertices), mesh.vertices[op.p2p_21]))
+    True
+    """
+
+    method = "p2p"
+
+    def __init__(self, C_12, basis_1: Basis, basis_2: Basis):
+        super().__init__(C_12, basis_1, basis_2, {})
+        self.p2p_21 = from_fmap(self.C, basis_1, basis_2, "std")  # (n2,)
+
+    def apply(self, F) -> np.ndarray:
+        """``F[p2p_21]``: ``F`` pulled back through the point map."""
+        return check_functions(F, self.basis_1.n)[self.p2p_21]
+
+    def approximate(self, F) -> np.ndarray:
+        """``Φ1 Φ1ᵀ A1 F``: the standard projection (the embedding the point map is read from)."""
+        return self.basis_1.vecs @ self.basis_1.project(check_functions(F, self.basis_1.n))
+
+
 class DefaultTransfer(TransferOperator):
-    """``method="default"``: the library's default extended transfer (module doc, "The default rule").
+    """``method="default"``: the library's default extended transfer (the rule: ``docs/guide/default_transfer.md``).
 
     ``op(F)`` transfers ``F`` ``(n1,)``/``(n1, m)`` to shape 2; ``op.approximate(F)`` is the
     corresponding approximation on shape 1; ``op.coefficients(F)`` the coefficients in the
@@ -340,8 +354,8 @@ class DefaultTransfer(TransferOperator):
         cut at 1.5 times the area-ratio-corrected norm a point map would give).
     l0 : leak scale (default 0.5; ``None`` switches the leak test off).
     e0 : scale of the truncation test (default 0.4; ``None`` switches it off): the expected relative
-        error ``ê_i`` of direction ``i``'s image (module doc, from :func:`isometry_defect`) enters as
-        ``1/(1 + (ê_i/e0)²)``.
+        error ``ê_i`` of direction ``i``'s image (from :func:`isometry_defect`; the guide) enters
+        as ``1/(1 + (ê_i/e0)²)``.
     floor : directions with ``σ_i <= floor · σ_max`` of the residual Gram are ignored (1e-3: never a
         direction the paper's threshold would drop).
     h_min : directions with ``h_i < h_min`` are not stored (cost only).
@@ -441,6 +455,13 @@ class DefaultTransfer(TransferOperator):
         # the removed parts Π y_i = Φ2 Uc T_i = Φ2 C d_i with d_i = C⁺ Uc T_i = V_c Σ_c⁻¹ T_i (same SVD)
         self._D = np.ascontiguousarray((Vt[rk].T / s[rk]) @ T[:, keep])  # (k1, r_kept)
 
+    @classmethod
+    def build(cls, C_12, basis_1: Basis, basis_2: Basis, **params) -> DefaultTransfer:
+        """The operator, cached on the source's extended basis (keyed by ``C_12``, ``basis_2`` and ``params``)."""
+        C = check_fmap(C_12, basis_1, basis_2)
+        ext_u = product_basis(basis_1, 2, "unique")
+        return ext_u.cache.get(_default_key(C, basis_2, params), lambda: cls(C, basis_1, basis_2, **params))
+
     @property
     def rank(self) -> int:
         """Number of product directions kept (``h_i >= h_min``)."""
@@ -456,7 +477,7 @@ class DefaultTransfer(TransferOperator):
         return F.ndim == 1, a0, self._W.T @ q  # (r_kept, m) filtered direction coefficients
 
     def apply(self, F) -> np.ndarray:
-        """The standard transfer plus the filtered product directions (module doc, step 4)."""
+        """The standard transfer plus the filtered product directions (``docs/guide/default_transfer.md``, step 4)."""
         one, a0, c = self._stages(F)
         g = self._Psi @ a0 + self._Y @ c
         return g[:, 0] if one else g
@@ -486,6 +507,73 @@ def _default_key(C: np.ndarray, basis_2: Basis, params: dict) -> tuple:
     return ("default_transfer", digest, tuple(sorted(params.items())))
 
 
+@dataclass(frozen=True)
+class TransferMethod:
+    """One entry of :data:`REGISTRY`: a transfer method's operator class, parameters and summary.
+
+    ``operator.build(C_12, basis_1, basis_2, **parameters)`` builds it; ``parameters`` maps every
+    parameter the method takes to its default (read-only).
+    """
+
+    name: str
+    operator: type
+    parameters: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    summary: str = ""
+
+
+REGISTRY: dict[str, TransferMethod] = {}
+"""The transfer methods by name (module doc): ``REGISTRY[name].parameters`` are their defaults."""
+
+
+def register(name: str, operator: type, parameters: dict | None = None, summary: str = "") -> TransferMethod:
+    """Add a transfer method to :data:`REGISTRY`; returns its entry.
+
+    ``operator`` is a :class:`TransferOperator` subclass whose ``__init__`` takes ``(C_12, basis_1,
+    basis_2, **parameters)``; ``parameters`` maps every parameter it takes to its default.
+
+    Examples
+    --------
+    >>> class Zero(TransferOperator):
+    ...     method = "zero"
+    ...     def __init__(self, C_12, basis_1, basis_2):
+    ...         super().__init__(C_12, basis_1, basis_2, {})
+    ...     def apply(self, F):
+    ...         return np.zeros((self.basis_2.n,) + np.shape(F)[1:])
+    >>> register("zero", Zero, {}, "nothing at all").name
+    'zero'
+    >>> del REGISTRY["zero"]
+    """
+    if not (isinstance(operator, type) and issubclass(operator, TransferOperator)):
+        raise TypeError(f"operator must be a TransferOperator subclass, got {operator!r}")
+    entry = TransferMethod(str(name), operator, MappingProxyType(dict(parameters or {})), summary)
+    REGISTRY[entry.name] = entry
+    return entry
+
+
+register("std", StandardTransfer, {}, "the standard transfer: A-orthogonal projection, then the map")
+register("default", DefaultTransfer, DEFAULT_RULE, "the library's default extended transfer (no threshold)")
+register("svd", ApproachBTransfer, {"order": 2, "pairs": "ordered", "rtol": PAPER_RTOL, "route": "auto",
+                                    "normalization": None}, "the paper's Approach B (truncated SVD)")
+register("ridge", RidgeTransfer, {"order": 2, "pairs": "ordered", "eps": 1e-4, "penalty": "squared",
+                                  "normalization": None}, "the paper's Approach A, p = 2")
+register("lasso", LassoTransfer, {"order": 2, "pairs": "ordered", "eps": 1e-4, "tol": 1e-6, "max_iter": 5000,
+                                  "normalization": None}, "the paper's Approach A, p = 1")
+register("svd_gain", GainRuleTransfer, {"order": 2, "pairs": "ordered", "max_gain": 2.0,
+                                        "candidates": DEFAULT_CANDIDATES, "normalization": None, "route": "auto"},
+         "Approach B at the threshold the gain rule picks from the map")
+register("p2p", PointMapTransfer, {}, "the map converted to a point map, the function pulled back")
+
+
+def _not_a_parameter(method: str, names) -> str:
+    """The message for parameters ``names`` that ``method`` does not take."""
+    names = sorted(names)
+    owners = {n: [m for m, e in REGISTRY.items() if n in e.parameters] for n in names}
+    where = "; ".join(f"{n!r} is a parameter of {', '.join(repr(m) for m in ms)}" if ms else f"{n!r} is no method's"
+                      for n, ms in owners.items())
+    takes = ", ".join(REGISTRY[method].parameters) or "none"
+    return f"method={method!r} takes no parameter {', '.join(map(repr, names))} (its parameters: {takes}); {where}"
+
+
 def transfer_operator(C_12, basis_1: Basis, basis_2: Basis, method: str = "std", **params) -> TransferOperator:
     """The transfer operator of ``method`` for ``(C_12, basis_1, basis_2)``, built once (module doc).
 
@@ -498,11 +586,11 @@ def transfer_operator(C_12, basis_1: Basis, basis_2: Basis, method: str = "std",
         is densified.
     basis_1, basis_2 : Basis
         Bases on shape 1 (``n1`` points, ``k1`` columns) and shape 2 (``n2``, ``k2``).
-    method : ``"std"`` (default) | ``"default"`` | ``"svd"`` | ``"ridge"`` | ``"lasso"``
-        The standard transfer; the library's default extended transfer; the paper's Approach B;
-        Approach A (p = 2, p = 1).
+    method : str
+        A name of :data:`REGISTRY` (module doc): ``"std"`` (default), ``"default"``, ``"svd"``
+        (the paper's Approach B), ``"ridge"``, ``"lasso"`` (Approach A), ``"svd_gain"``, ``"p2p"``.
     **params
-        The method's own parameters, :data:`PARAMETERS` (``"default"``: the rule's :data:`DEFAULT_RULE`).
+        The method's own parameters; defaults ``REGISTRY[method].parameters``.
 
     Returns
     -------
@@ -538,21 +626,13 @@ def transfer_operator(C_12, basis_1: Basis, basis_2: Basis, method: str = "std",
     ...
     TypeError: method='svd' takes no parameter 'g0' (its parameters: ...); 'g0' is a parameter of 'default'
     """
-    if method not in METHODS:
-        hint = (" (method='prod' is transfer()'s deprecated spelling: 'default' without a threshold, 'svd' with rtol, "
-                "'ridge'/'lasso' for approx=...)" if method == "prod" else "")
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}{hint}")
-    unknown = set(params) - set(PARAMETERS[method])
+    entry = REGISTRY.get(method) if isinstance(method, str) else None
+    if entry is None:
+        raise ValueError(f"method must be one of {tuple(REGISTRY)}, got {method!r}")
+    unknown = set(params) - set(entry.parameters)
     if unknown:
         raise TypeError(_not_a_parameter(method, unknown))
-    if method == "std":
-        return StandardTransfer(C_12, basis_1, basis_2)
-    if method == "default":
-        C = check_fmap(C_12, basis_1, basis_2)
-        full = {**DEFAULT_RULE, **params}
-        ext_u = product_basis(basis_1, 2, "unique")
-        return ext_u.cache.get(_default_key(C, basis_2, full), lambda: DefaultTransfer(C, basis_1, basis_2, **full))
-    return ExtendedTransfer(C_12, basis_1, basis_2, method, **params)
+    return entry.operator.build(C_12, basis_1, basis_2, **{**entry.parameters, **params})
 
 
 def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", **params) -> np.ndarray:
@@ -570,12 +650,10 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", **par
         Functional map from ``basis_1`` to ``basis_2``.
     basis_1, basis_2 : Basis
         Bases on shape 1 (``n1`` points, ``k1`` columns) and shape 2 (``n2``, ``k2``).
-    method : ``"std"`` (default) | ``"default"`` | ``"svd"`` | ``"ridge"`` | ``"lasso"``
-        As in :func:`transfer_operator`. The old ``"prod"`` (with ``rtol``, ``approx``, ``order``,
-        ``pairs`` and the rule's parameters) still works, with a ``DeprecationWarning`` that names
-        the new spelling (module doc).
+    method : str
+        A name of :data:`REGISTRY`, as in :func:`transfer_operator`.
     **params
-        The method's own parameters (:data:`PARAMETERS`).
+        The method's own parameters (``REGISTRY[method].parameters``).
 
     Returns
     -------
@@ -608,77 +686,4 @@ def transfer(F, C_12, basis_1: Basis, basis_2: Basis, method: str = "std", **par
     >>> bool(errors[1] < errors[0] and errors[2] < errors[0])  # products help on a product
     True
     """
-    if method == "prod":
-        method, params = _prod_spelling(params)
-    elif "approx" in params:
-        raise TypeError(f"approx= belongs to the deprecated method='prod'; pass method='svd', 'ridge' or 'lasso' "
-                        f"(got method={method!r})")
     return transfer_operator(C_12, basis_1, basis_2, method, **params)(F)
-
-
-_SOLVER_KEYWORDS = ("rtol", "eps", "route", "tol", "max_iter", "normalization")  # approximation_operator's
-
-
-def _prod_spelling(params: dict) -> tuple[str, dict]:
-    """The new method and parameters of ``transfer(..., method="prod", **params)``, with a warning.
-
-    The old meaning: without ``rtol`` and ``approx`` the default rule (``order=2``; ``pairs``
-    checked, then unused); else Approach B (``approx`` None or ``"svd"``, ``rtol=1e-3`` unless
-    given) or Approach A (``approx="ridge"``/``"lasso"``), where the solver keywords the method
-    does not use were accepted and had no effect (they are dropped: the same numbers).
-    """
-    params = dict(params)
-    approx, rtol = params.pop("approx", None), params.pop("rtol", None)
-    order, pairs = params.pop("order", 2), params.pop("pairs", "ordered")
-    check_pairs(pairs)
-    if rtol is None and approx is None:
-        if order != 2:
-            raise ValueError("the default extended transfer uses pairwise products (order=2); pass rtol=... "
-                             "for the paper's Approach B with higher orders")
-        unknown = set(params) - set(DEFAULT_RULE)
-        if unknown:
-            raise TypeError(f"unknown parameters {sorted(unknown)} for the default extended transfer "
-                            f"(allowed: {sorted(DEFAULT_RULE)}); pass rtol=... for Approach B")
-        new, new_params = "default", params
-    else:
-        new = approx or "svd"
-        if new not in ("svd", "ridge", "lasso"):
-            raise ValueError(f"approx must be 'svd', 'ridge' or 'lasso', got {approx!r}")
-        if new == "svd":
-            rtol = 1e-3 if rtol is None else rtol
-        elif rtol is not None:
-            raise TypeError(f"rtol is Approach B's threshold; approx={approx!r} takes eps=...")
-        unused = {k for k in params if k in _SOLVER_KEYWORDS and k not in PARAMETERS[new]}
-        new_params = {"order": order, "pairs": pairs, **({"rtol": rtol} if new == "svd" else {}),
-                      **{k: v for k, v in params.items() if k not in unused}}
-    shown = ", ".join(f"{k}={v!r}" for k, v in new_params.items())
-    warnings.warn(f"transfer(..., method='prod') is deprecated: use transfer(..., method={new!r}"
-                  f"{', ' + shown if shown else ''}) (the same numbers), or transfer_operator(C_12, basis_1, basis_2, "
-                  f"{new!r}, ...) to build it once", DeprecationWarning, stacklevel=3)
-    return new, new_params
-
-
-def safe_transfer(F, C_12, basis_1: Basis, basis_2: Basis, **params) -> np.ndarray:
-    """Deprecated: ``transfer(F, C_12, basis_1, basis_2, method="default", **params)``.
-
-    Warns (``DeprecationWarning``) and gives the same numbers; ``pairs`` is accepted and unused,
-    as before.
-
-    Examples
-    --------
-    >>> import warnings
-    >>> import numpy as np
-    >>> import prodmaps as pm
-    >>> from prodmaps.mesh import ellipsoid
-    >>> b = pm.eigenbasis(ellipsoid(2), 6)
-    >>> f = b.vecs[:, 1] * b.vecs[:, 2]
-    >>> with warnings.catch_warnings():
-    ...     warnings.simplefilter("ignore", DeprecationWarning)
-    ...     old = pm.safe_transfer(f, np.eye(6), b, b)
-    >>> bool(np.array_equal(old, pm.transfer(f, np.eye(6), b, b, "default")))
-    True
-    """
-    warnings.warn("safe_transfer(F, C_12, basis_1, basis_2, ...) is deprecated: use transfer(F, C_12, basis_1, "
-                  "basis_2, method='default', ...) (the same numbers)", DeprecationWarning, stacklevel=2)
-    params.pop("pairs", None)
-    return transfer_operator(C_12, basis_1, basis_2, "default", **params)(F)

@@ -20,7 +20,7 @@ subpackage implements the pieces on plain arrays:
 
 What follows [ACBCO17] and what is this package's own: the Figure 14 notebook and
 :mod:`.consistency`'s module doc; the experiment and its figures:
-:mod:`prodmaps.experiments.crossfields` and :mod:`prodmaps.experiments.crossfield_plots`.
+:mod:`prodmaps.experiments.fig14_quad_transfer.crossfields` and :mod:`prodmaps.experiments.fig14_quad_transfer.plots`.
 
 Conventions (the maps' and bases': :mod:`prodmaps.conventions`): face frames ``(u, v, n)`` with
 ``u`` the unit edge ``F[:,0] -> F[:,1]``; fields are complex per face in those frames; a cross

@@ -26,11 +26,10 @@ through coordinates in an A-orthonormal basis ``Q2`` of it (area inner product):
 * ``"std"``: ``T h = Φ2 C Φ1ᵀ A1 h`` and ``Q2 = Φ2``; the energy is
   ``Σ_j ||C Φ1ᵀA1 Q_{z1}(f_j) - Φ2ᵀA2 Q_{z2}(T f_j)||²``, i.e. ``||C Q_1 - Q_2 C||²`` for the
   ``(k+1, k)`` "operators" ``Q_s`` whose columns are the actions on the test functions.
-* ``"ext"`` (the paper's change): ``T h = B2 C~ a(h)`` with ``a(h)`` the Approach-B
-  coefficients of ``h`` in the extended basis ``B1`` of shape 1 (SVD threshold ``rtol``; the
-  library's operator ``ProductBasis.operator("svd")`` with its unit-Euclidean factors, one
-  truncation for the whole package), ``C~ = extend_fmap(C, ..., pairs="unique")`` ``(K2, K1)``,
-  and ``Q2`` an A-orthonormal basis of the span the same operator keeps in ``B2``:
+* ``"ext"`` (the paper's change): ``T h = B2 C~ a(h)``, the registry's ``"svd"`` transfer
+  (``pm.transfer_operator(C, b1, b2, "svd", pairs="unique", rtol=rtol)``: Approach B's
+  coefficients ``a(h)`` in the extended basis ``B1`` of shape 1, one truncation for the whole
+  package, and ``C~`` ``(K2, K1)``), and ``Q2`` an A-orthonormal basis of the span the same operator keeps in ``B2``:
   ``||C~ Q~_1 - Q~_2 C~||²`` on the extended test functions; products let
   the map carry the high-frequency functions ``Q_z(f_j)``.
 * ``"default"``: ``T h`` is the library's default extended transfer of ``h``
@@ -71,9 +70,9 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..approx import PAPER_RTOL
 from ..basis import Basis
 from ..checks import check_fmap, check_p2p, check_symmetry_order
-from ..mapping import extend_fmap
 from ..products import product_basis
 from ..transfers import transfer_operator
 from .crossfield import aligned_field, connection_laplacian, normalize_field
@@ -198,26 +197,23 @@ def _checked_inputs(basis_1: Basis, basis_2: Basis, fr_1: Frames, fr_2: Frames, 
     return C, b1, b2, tests, p2p_21
 
 
-def images_of_tests(b1: Basis, b2: Basis, C, tests: str, p2p_21=None):
-    """The test functions on shape 1 and their images on shape 2: ``(F1 (n1, J), F2 (n2, J), Ct)``.
+def images_of_tests(b1: Basis, b2: Basis, C, tests: str, p2p_21=None, *, op=None):
+    """The test functions on shape 1 and their images on shape 2: ``(F1 (n1, J), F2 (n2, J))``.
 
     Through ``C`` ``(k2, k1)`` (``Φ2 C`` of the coefficients; for ``tests="products"`` the exact
-    products ``B2 C~``, ``Ct`` the extended map ``(K2, K1)``, else None), or, with ``C`` None,
-    pulled back through ``p2p_21``. ``tests`` as in :func:`consistency_problem`.
+    products ``B2 C~``, by ``op``: the registry's ``"svd"`` transfer on the unique pairs, built
+    here when not given), or, with ``C`` None, pulled back through ``p2p_21``. ``tests`` as in
+    :func:`consistency_problem`.
     """
-    Ct = None
     if tests == "products":
         F1 = product_basis(b1, 2, "unique").matrix[:, 1:]  # (n1, K1-1)
         if C is None:
-            F2 = F1[p2p_21]
-        else:
-            Ct = extend_fmap(C, b1, b2, order=2, pairs="unique")  # (K2, K1)
-            F2 = product_basis(b2, 2, "unique").evaluate(Ct[:, 1:])  # (n2, K1-1) exact products
-    else:
-        Tc = _test_functions(b1.k - 1, tests == "pairs")  # (k1, J)
-        F1 = b1.vecs @ Tc  # (n1, J)
-        F2 = F1[p2p_21] if C is None else b2.vecs @ (C @ Tc)  # (n2, J)
-    return F1, F2, Ct
+            return F1, F1[p2p_21]
+        op = transfer_operator(C, b1, b2, "svd", pairs="unique") if op is None else op
+        return F1, op.transfer_coefficients(np.eye(op.extended_basis_1.K)[:, 1:])  # (n2, K1-1) exact products
+    Tc = _test_functions(b1.k - 1, tests == "pairs")  # (k1, J)
+    F1 = b1.vecs @ Tc  # (n1, J)
+    return F1, (F1[p2p_21] if C is None else b2.vecs @ (C @ Tc))  # (n2, J)
 
 
 def scaled_actions(fr_1: Frames, fr_2: Frames, F1, F2, mass_1, N: int, power):
@@ -234,17 +230,15 @@ def scaled_actions(fr_1: Frames, fr_2: Frames, F1, F2, mass_1, N: int, power):
     return powered_gradients(g1, N, p) * scale, powered_gradients(g2, N, p) * scale
 
 
-def _ext_transfer(C, Ct, b1: Basis, b2: Basis, ext2, proj2: SpanProjector, rtol: float, normalization):
+def _ext_transfer(op, ext2, proj2: SpanProjector):
     """``"ext"``: ``Tr = canonical(C~ a(h))``, ``a(h)`` Approach B's coefficients, and the kept directions' gain."""
-    ext1 = product_basis(b1, 2, "unique")
-    proj1 = span_projector(ext1, rtol, normalization)
-    if Ct is None:
-        Ct = extend_fmap(C, b1, b2, order=2, pairs="unique")  # (K2, K1)
+    ext1 = op.extended_basis_1
+    proj1 = SpanProjector(op.approximation)  # Approach B's operator on the source (the transfer's own)
     P1 = proj1.coefficient_matrix()  # (K1, n1)
-    Tr = proj2.from_basis(Ct @ P1)  # (r, n1)
+    Tr = proj2.from_basis(op.extended_map @ P1)  # (r, n1)
     # transfer gain of the kept source directions (A-norm of B2 C~ q for unit q, no ground
     # truth): ~1 when C~ preserves products there; large when C is far from orthogonal
-    gain = np.sqrt(np.max(b2.mass @ ext2.evaluate(Ct @ proj1.P) ** 2))
+    gain = np.sqrt(np.max(op.basis_2.mass @ op.transfer_coefficients(proj1.P) ** 2))
     return Tr, {"K1": ext1.K, "K2": ext2.K, "rank_1": proj1.rank, "rank_2": proj2.rank, "gain_max": float(gain)}
 
 
@@ -259,10 +253,11 @@ def _default_transfer(C, b1: Basis, b2: Basis, Q2):
     return Tr, {"kept_products": op.rank}
 
 
-def comparison_span(kind: str, C, Ct, b1: Basis, b2: Basis, *, rtol: float, normalization=None, p2p_21=None):
+def comparison_span(kind: str, C, b1: Basis, b2: Basis, *, rtol: float, normalization=None, p2p_21=None, op=None):
     """The span on shape 2 in which the actions are compared, and the transfer of source functions into it.
 
-    Returns ``(Q2 (n2, r), Tr (r, n1), info)``.
+    Returns ``(Q2 (n2, r), Tr (r, n1), info)``. ``op``: the registry's ``"svd"`` transfer of ``C``
+    on the unique pairs at ``rtol`` and ``normalization`` (built here for ``"ext"`` when not given).
 
     ``"std"``: ``Q2 = Φ2``, ``Tr = C Φ1ᵀ A1``; every other kind compares in the span the library's
     Approach B operator keeps in the target's extended basis (one truncation, its normalisation):
@@ -276,7 +271,9 @@ def comparison_span(kind: str, C, Ct, b1: Basis, b2: Basis, *, rtol: float, norm
     proj2: SpanProjector = span_projector(ext2 if ext2 else b2, rtol, normalization)
     Q2 = proj2.Q  # (n2, r)
     if kind == "ext":
-        return (Q2, *_ext_transfer(C, Ct, b1, b2, ext2, proj2, rtol, normalization))
+        if op is None:
+            op = transfer_operator(C, b1, b2, "svd", pairs="unique", rtol=rtol, normalization=normalization)
+        return (Q2, *_ext_transfer(op, ext2, proj2))
     if kind == "default":
         Tr, info = _default_transfer(C, b1, b2, Q2)
         return Q2, Tr, {"rank_2": proj2.rank, **info}
@@ -287,7 +284,7 @@ def comparison_span(kind: str, C, Ct, b1: Basis, b2: Basis, *, rtol: float, norm
 
 
 def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Basis, C_12=None, *,
-                        kind: str = "ext", N: int = 4, tests: str | None = None, rtol: float = 1e-3,
+                        kind: str = "ext", N: int = 4, tests: str | None = None, rtol: float = PAPER_RTOL,
                         p2p_21=None, span_k: int | None = None, power: float | None = 0.0,
                         normalization: str | None = None) -> ConsistencyProblem:
     """Build the consistency model of a pair of shapes.
@@ -327,9 +324,12 @@ def consistency_problem(fr_1: Frames, basis_1: Basis, fr_2: Frames, basis_2: Bas
     N = check_symmetry_order(N)
     fr_1, fr_2 = as_frames(fr_1), as_frames(fr_2)
     C, b1, b2, tests, p2p_21 = _checked_inputs(basis_1, basis_2, fr_1, fr_2, C_12, kind, tests, p2p_21, span_k)
-    F1, F2, Ct = images_of_tests(b1, b2, C, tests, p2p_21)
+    op = None  # the registry's Approach B transfer (unique pairs), shared by the tests' images and the "ext" span
+    if C is not None and (tests == "products" or kind == "ext"):
+        op = transfer_operator(C, b1, b2, "svd", pairs="unique", rtol=rtol, normalization=normalization)
+    F1, F2 = images_of_tests(b1, b2, C, tests, p2p_21, op=op)
     H1, H2 = scaled_actions(fr_1, fr_2, F1, F2, b1.mass, N, power)
-    Q2, Tr, extra = comparison_span(kind, C, Ct, b1, b2, rtol=rtol, normalization=normalization, p2p_21=p2p_21)
+    Q2, Tr, extra = comparison_span(kind, C, b1, b2, rtol=rtol, normalization=normalization, p2p_21=p2p_21, op=op)
     info = {"k": b1.k - 1, "J": F1.shape[1], "tests": tests, **extra, "r": Q2.shape[1]}
     W1 = face_to_vertex(fr_1).T @ Tr.T  # (m1, r): W1ᵀ h_face = Tr (S1 h_face)
     W2 = face_to_vertex(fr_2).T @ (Q2 * b2.mass[:, None])  # (m2, r): W2ᵀ h_face = Q2ᵀ A2 S2 h_face

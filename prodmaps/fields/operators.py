@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..approx import PAPER_RTOL
 from ..basis import Basis
 from ..products import ProductBasis
 
@@ -92,7 +93,7 @@ class SpanProjector:
         return self.P @ (self.Q * self.mass[:, None]).T
 
 
-def span_projector(basis, rtol: float = 1e-3, normalization: str | None = None) -> SpanProjector:
+def span_projector(basis, rtol: float = PAPER_RTOL, normalization: str | None = None) -> SpanProjector:
     """:class:`SpanProjector` of a :class:`prodmaps.ProductBasis` (or a Basis) at the Approach-B threshold ``rtol``.
 
     Built through the library's cached operator ``basis.operator("svd", ...)``.

@@ -13,6 +13,10 @@ do enter the hashes.
 :mod:`.schedulers`  this process, a local process pool, or a Dask cluster
 :mod:`.baselines`   the committed smoke baselines
 :mod:`.diffing`     numbers with per-key tolerances, images by pixel RMS
-:mod:`.report`      ``paper/REPORT.md`` / ``.html``
-:mod:`.cli`         ``prodmaps reproduce | diff | report | claims``
+:mod:`.report_data` the report's data: one :class:`~.report_data.DatasetReport` per dataset (results or JSON)
+:mod:`.report`      the report's document from that data and ``paper/report_text/``; ``build_report``
+:mod:`.document`    the document model, rendered to Markdown and HTML
+:mod:`.publishing`  a complete paper run into the committed ``paper/REPORT.md`` / ``.html``
+:mod:`.gallery`     the documentation site's gallery and report page
+:mod:`.cli`         ``prodmaps reproduce | diff | report | publish | claims``
 """

@@ -9,6 +9,7 @@ Examples::
     prodmaps reproduce --scheduler tcp://host:8786       # one task per run on a Dask cluster
     prodmaps reproduce --profile smoke --update-baselines   # refresh paper/baselines/smoke/
     prodmaps diff results/smoke/fig03 paper/baselines/smoke/fig03
+    prodmaps diff results/smoke paper/baselines/smoke   # every run; a profile folder against one run folder: that run
     prodmaps report results/paper                        # results/paper/REPORT.md and .html
     prodmaps publish                                     # results/paper -> the committed paper/REPORT.md
     prodmaps claims results/paper                        # the verdicts of the claims ledger
@@ -20,9 +21,19 @@ Exit status: 0 on success; 1 if a run failed or a diff found drift; 2 for usage 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import sys
 import time
 from pathlib import Path
+
+from .. import __version__, datasets
+from ..experiments.shared import claims
+from ..experiments.shared.parallel import default_workers
+from . import baselines, execute, registry
+from .diffing import DEFAULT_PNG_THRESHOLD, diff_runs
+from .publishing import publish
+from .report import ReportSettings, build_report
 
 __all__ = ["main", "build_parser"]
 
@@ -101,10 +112,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _version() -> str:
-    from .. import __version__
-    from .execute import package_versions
-
-    return package_versions(["prodmaps"]).get("prodmaps", __version__)  # a source tree: not installed
+    return execute.package_versions(["prodmaps"]).get("prodmaps", __version__)  # a source tree: not installed
 
 
 def _positive_seconds(text: str) -> float:
@@ -129,8 +137,6 @@ def _png_threshold(text: str) -> float:
 
 def _check_dataset(name: str) -> None:
     """Refuse an unknown or unprepared dataset before anything runs (and before any folder is made)."""
-    from .. import datasets
-
     if name not in datasets.names():
         raise ValueError(f"unknown dataset {name!r}; registered datasets: {', '.join(datasets.names())}")
     if name not in datasets.prepared():
@@ -139,8 +145,6 @@ def _check_dataset(name: str) -> None:
 
 
 def _cmd_reproduce(a) -> int:
-    from . import baselines, execute, registry
-
     if a.list:
         root = registry.project_root(a.registry)
         for name, run in registry.load_registry(a.registry).items():
@@ -155,9 +159,8 @@ def _cmd_reproduce(a) -> int:
         root = registry.project_root(a.registry)
     except ValueError:  # no project (RegistryError): nothing to keep relative to
         root = None
+    execute.require_modules("prodmaps reproduce")  # a library-only install: name the extra, before anything runs
     overrides = execute.absolute_param_files(registry.parse_params(a.param), root)
-    from ..experiments.parallel import default_workers
-
     default_workers()  # a bad PRODMAPS_WORKERS is refused here, not in every notebook that computes pairs
     if a.dataset is not None:
         _check_dataset(a.dataset)
@@ -180,13 +183,11 @@ def _cmd_reproduce(a) -> int:
         done = baselines.update_baselines(results, dest)
         print(f"baselines updated for {len(done)} run(s) in {dest}: {' '.join(done)}")
     if not a.no_report:
-        from .report import build_report
-
         main_root = execute.profile_folder(a.out, a.profile)  # the embedded data's runs; other datasets beside
         if not main_root.is_dir():
             main_root = out_root
         md = Path(a.report) if a.report else main_root / "REPORT.md"
-        md, html = build_report(main_root, md, registry=a.registry, copy_figures=a.copy_figures)
+        md, html = build_report(main_root, md, ReportSettings(registry=a.registry, copy_figures=a.copy_figures))
         print(f"report: {md} and {html}")
         if a.profile == "paper":
             print("the committed paper/REPORT.md is unchanged; publish this run with `make publish` "
@@ -194,20 +195,48 @@ def _cmd_reproduce(a) -> int:
     return 1 if any(r.status == "failed" for r in results) else 0
 
 
+def _is_run_folder(folder: Path) -> bool:
+    return (folder / "results.json").is_file()
+
+
+def _is_profile_folder(folder: Path) -> bool:
+    return folder.is_dir() and not _is_run_folder(folder) and any(folder.glob("*/results.json"))
+
+
+def _pair_folders(new: Path, base: Path, run: str | None) -> tuple[Path, Path]:
+    """One run's folders: a profile folder (``results/smoke``) given against a run folder, or with ``--run``.
+
+    ``results/smoke paper/baselines/smoke/fig02`` compares ``results/smoke/fig02`` with that baseline,
+    ``results/smoke/fig02 paper/baselines/smoke`` with ``paper/baselines/smoke/fig02``; two profile
+    folders and ``--run NAME`` compare that run of each. Anything else is returned as given.
+    """
+    def pick(profile: Path, name: str, side: str) -> Path:
+        if not _is_run_folder(profile / name):
+            have = sorted(p.parent.name for p in profile.glob("*/results.json"))
+            raise FileNotFoundError(f"{profile} is a profile folder without the run {name!r} ({side}; it holds "
+                                    f"{', '.join(have)}): pass two run folders (e.g. {profile / have[0]}), or two "
+                                    "profile folders to compare every run")
+        return profile / name
+
+    if _is_profile_folder(new) and (_is_run_folder(base) or (run and _is_profile_folder(base))):
+        name = run or base.resolve().name
+        return pick(new, name, "the results"), base if _is_run_folder(base) else pick(base, name, "the baselines")
+    if _is_run_folder(new) and _is_profile_folder(base):
+        return new, pick(base, run or new.resolve().name, "the baselines")
+    return new, base
+
+
 def _cmd_diff(a) -> int:
-    import os
-
-    from .diffing import DEFAULT_PNG_THRESHOLD, diff_runs
-    from .registry import RUNS_ENV, RegistryError, load_registry
-
     try:
-        runs = load_registry(a.registry)
-    except RegistryError as exc:
-        if a.registry or os.environ.get(RUNS_ENV):  # a registry the user named must be read, not skipped
+        runs = registry.load_registry(a.registry)
+    except registry.RegistryError as exc:
+        if a.registry or os.environ.get(registry.RUNS_ENV):  # a registry the user named must be read, not skipped
             raise
         print(f"prodmaps diff: note: {exc}; comparing with the default tolerances", file=sys.stderr)
         runs = {}
-    new, base = Path(a.run_dir), Path(a.baseline_dir)
+    new, base = _pair_folders(Path(a.run_dir), Path(a.baseline_dir), a.run)
+    if (new, base) != (Path(a.run_dir), Path(a.baseline_dir)):
+        print(f"prodmaps diff: comparing the run folder {new} with {base}", file=sys.stderr)
     thr = DEFAULT_PNG_THRESHOLD if a.png_threshold is None else a.png_threshold
     if not (new / "results.json").is_file() and new.is_dir() and not a.run:  # two profile folders
         names = sorted(p.parent.name for p in new.glob("*/results.json"))
@@ -233,17 +262,13 @@ def _cmd_diff(a) -> int:
     name = a.run or base.resolve().name
     if a.run and name not in runs:
         raise ValueError(f"run {a.run!r} is not in the registry")
-    rep = diff_runs(a.run_dir, a.baseline_dir, runs[name].tolerances if name in runs else {}, png_threshold=thr,
+    rep = diff_runs(new, base, runs[name].tolerances if name in runs else {}, png_threshold=thr,
                     diff_dir=a.diff_dir)
     print(rep.to_markdown())
     return 0 if rep.ok else 1
 
 
 def _cmd_claims(a) -> int:
-    import json
-
-    from ..experiments import claims
-
     _check_results_folder(Path(a.results_dir), {r for c in claims.load_ledger().values() for r in c.runs})
     verdicts = claims.evaluate_folder(a.results_dir)
     if a.json:
@@ -266,21 +291,16 @@ def _check_results_folder(folder: Path, runs) -> None:
 
 
 def _cmd_report(a) -> int:
-    from . import registry
-    from .report import build_report
-
     folder = Path(a.results_dir)
     _check_results_folder(folder, set(registry.load_registry(a.registry)))
     out = a.out if a.out is not None else folder / "REPORT.md"  # beside the results; paper/: `publish`
-    md, html = build_report(a.results_dir, out, registry=a.registry, published=a.published,
-                            copy_figures=a.copy_figures)
+    md, html = build_report(a.results_dir, out, ReportSettings(registry=a.registry, published=a.published,
+                                                             copy_figures=a.copy_figures))
     print(f"report: {md} and {html}")
     return 0
 
 
 def _cmd_publish(a) -> int:
-    from .report import publish
-
     md, html, problems = publish(a.results_dir, registry=a.registry, allow_partial=a.allow_partial,
                                  published=a.published)
     print(f"published: {md} and {html} (figures in {md.parent / 'report_figures'})")
@@ -296,7 +316,10 @@ def main(argv=None) -> int:
     try:
         return {"reproduce": _cmd_reproduce, "diff": _cmd_diff, "report": _cmd_report,
                 "claims": _cmd_claims, "publish": _cmd_publish}[a.command](a)
-    except (ValueError, FileNotFoundError, ModuleNotFoundError) as exc:  # incl. RegistryError, ParameterError
+    except ModuleNotFoundError as exc:  # an optional package of an extra (papermill, matplotlib, dask)
+        print(f"prodmaps {a.command}: error: {execute.install_hint(exc)}", file=sys.stderr)
+        return 2
+    except (ValueError, FileNotFoundError) as exc:  # incl. RegistryError, ParameterError
         print(f"prodmaps {a.command}: error: {exc}", file=sys.stderr)
         return 2
 

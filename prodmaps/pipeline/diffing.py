@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..experiments.results import flatten
+from ..experiments.shared.results import flatten
 
 __all__ = ["DEFAULT_RTOL", "DEFAULT_ATOL", "DEFAULT_PNG_THRESHOLD", "DEFAULT_IGNORE", "Finding",
            "DiffReport", "diff_runs", "diff_results", "diff_images", "flatten", "tolerance_for",

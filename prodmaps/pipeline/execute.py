@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime as _dt
+import importlib.util
 import json
 import math
 import os
@@ -47,12 +48,39 @@ from ..files import read_json, sha256_file, swap_into_place
 from .hashing import run_hash
 from .notebooks import declared_parameters, export_html, literal, parameter_default
 from .registry import PROFILES, RUNS_ENV, BareWord, load_registry, project_root, registry_path
+from .schedulers import run_dask, run_pool, thread_env
 
-__all__ = ["RunResult", "run_notebook", "plan_runs", "reproduce", "summary", "ParameterError", "profile_folder"]
+__all__ = ["RunResult", "run_notebook", "plan_runs", "reproduce", "summary", "ParameterError", "profile_folder",
+           "EXTRAS", "install_hint", "require_modules"]
 
 
 class ParameterError(ValueError):
     """A parameter given to a run that its notebook does not declare."""
+
+
+# the optional packages the pipeline imports, by the pyproject extra that installs them
+EXTRAS = {"papermill": "notebooks", "nbclient": "notebooks", "nbformat": "notebooks", "ipykernel": "notebooks",
+          "nbconvert": "notebooks", "nbstripout": "notebooks", "tqdm": "notebooks", "matplotlib": "notebooks",
+          "PIL": "notebooks", "dask": "dask", "distributed": "dask"}
+NOTEBOOK_MODULES = ("papermill", "nbclient", "nbformat", "ipykernel")  # what running a notebook needs
+
+
+def install_hint(exc: ModuleNotFoundError) -> str:
+    """The error of a missing optional package, naming the extra that installs it (``pip install 'prodmaps[x]'``)."""
+    top = (exc.name or "").split(".")[0]
+    extra = EXTRAS.get(top)
+    return (f"{exc}: it comes with the {extra} extra, pip install 'prodmaps[{extra}]' (or `make venv` in a clone)"
+            if extra else str(exc))
+
+
+def require_modules(what: str, modules=NOTEBOOK_MODULES) -> None:
+    """Raise ``ModuleNotFoundError`` naming the extra to install when one of ``modules`` is not installed."""
+    missing = [m for m in modules if importlib.util.find_spec(m) is None]
+    if missing:
+        raise ModuleNotFoundError(
+            f"{what} needs {', '.join(missing)}, not installed here (a library-only install): "
+            f"pip install 'prodmaps[{EXTRAS.get(missing[0], 'notebooks')}]' (or `make venv` in a clone)",
+            name=missing[0])
 
 
 # ------------------------------------------------------------------------------ one notebook
@@ -67,7 +95,7 @@ def run_notebook(notebook, out_dir, params=None, kernel_name: str = "python3", *
     notebook with the traceback is still written, and rendered as HTML). ``timeout`` is per
     cell, in seconds. With ``html`` the executed notebook is also written as ``executed.html``.
     The kernel is stopped at once after the last cell (a graceful shutdown waits seconds for
-    the worker processes of :mod:`prodmaps.experiments.parallel`). ``shown_out_dir`` replaces
+    the worker processes of :mod:`prodmaps.experiments.shared.parallel`). ``shown_out_dir`` replaces
     ``out_dir`` in the executed notebook's injected parameters cell (the batch runner executes
     into a temporary folder and shows the run's own folder), and in papermill's metadata, whose
     ``input_path`` becomes ``shown_notebook`` when given.
@@ -334,15 +362,33 @@ def _check_value(run: str, k: str, v, ref, where: str, ref_kind: str) -> None:
                              f"(-p '{k}=\"{v!s}\"')")
     if not _same_kind(v, ref):
         raise ParameterError(f"run {run!r}: parameter {k}={v!r} ({type(v).__name__}) does not match the type of "
-                             + ref_kind)
+                             + ref_kind + f": {k} expects {_kind(ref)} (e.g. -p '{k}={json.dumps(ref)}')")
+
+
+def _kind(value) -> str:
+    """What a parameter of ``value``'s type expects, in words (``"an integer"``, ``"a list of integers"``)."""
+    if isinstance(value, (list, tuple)):
+        kinds = {_kind(x) for x in value}
+        return "a list" + (f" of {kinds.pop().split(' ', 1)[1]}s" if len(kinds) == 1 else "")
+    return {bool: "a boolean", int: "an integer", float: "a number", str: "a string", dict: "a table"}.get(
+        type(value), f"a {type(value).__name__}")
 
 
 def _same_kind(value, default) -> bool:
-    """Whether ``value`` may replace ``default``: either is None, or both are bool, number, str, list/tuple, dict."""
+    """Whether ``value`` may replace ``default`` (a default, a registry value).
+
+    Either is None, or both are bools, strings, tables, integers or numbers (an integer for a float,
+    never a float for an integer), or lists whose items are each of the kind of a homogeneous default's.
+    """
     if default is None or value is None:
         return True
     if isinstance(default, bool) or isinstance(value, bool):
         return isinstance(default, bool) and isinstance(value, bool)
+    if isinstance(default, int):  # counts, sizes, seeds: 2.5 (or 2.0) is not one
+        return isinstance(value, int)
+    if isinstance(default, (list, tuple)) and isinstance(value, (list, tuple)):
+        kinds = {type(x) for x in default}  # a homogeneous list decides its items' kind
+        return len(kinds) != 1 or not default or all(_same_kind(x, default[0]) for x in value)
     kinds = ((int, float), (str,), (list, tuple), (dict,))
     return any(isinstance(default, k) and isinstance(value, k) for k in kinds)
 
@@ -377,8 +423,9 @@ def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, ov
     tasks = []
     for n in dict.fromkeys(names):
         run = runs[n]
-        params = run.parameters(profile)
-        _check_declared(run, params, f"registry parameters (params.{profile})")
+        params = run.parameters(profile, dataset)
+        _check_declared(run, params, f"registry parameters (params.{profile}"
+                        + (f" and datasets.{dataset})" if dataset in run.datasets else ")"))
         if dataset is not None:
             params["dataset"] = dataset
         for k, v in (overrides or {}).items():  # a default of None leaves the kind to the registry's value
@@ -387,7 +434,7 @@ def plan_runs(runs: dict, *, only=None, profile: str = "paper", dataset=None, ov
                 _check_value(n, k, v, ref, f"its value in params.{profile} is {ref!r}",
                              f"the registry's params.{profile}.{k} = {ref!r} ({type(ref).__name__})")
         params.update(overrides or {})
-        _check_declared(run, {k: v for k, v in params.items() if k not in run.parameters(profile)},
+        _check_declared(run, {k: v for k, v in params.items() if k not in run.parameters(profile, dataset)},
                         "parameters")
         params["profile"] = profile
         ds = params.get("dataset") or (parameter_default(run.notebook, "dataset") if run.notebook.is_file() else None)
@@ -439,8 +486,6 @@ def reproduce(*, registry=None, only=None, profile: str = "paper", dataset=None,
     ``distributed.Client``) sends one task per run to a Dask cluster instead
     (:mod:`prodmaps.pipeline.schedulers`).
     """
-    from .schedulers import run_dask, run_pool, thread_env
-
     own_stream = None
     if stream is None:
         # a duplicate of the terminal's stderr: fd 2 itself is redirected during runs

@@ -22,6 +22,7 @@ import hashlib
 import json
 from pathlib import Path
 
+from .. import datasets
 from ..files import sha256_bytes, sha256_file
 
 __all__ = ["library_hash", "library_files", "data_hash", "run_hash"]
@@ -49,8 +50,6 @@ def data_hash(dataset: str | None) -> str:
     """Cheap fingerprint of a dataset's files: ``SHA256SUMS``, else paths, sizes and times (``"none"`` if none)."""
     if not dataset:
         return "none"
-    from .. import datasets
-
     try:
         d = datasets.dataset_dir(str(dataset))
     except ValueError:  # not a registered dataset name

@@ -8,7 +8,7 @@ Every run is an entry of ``paper/runs.toml`` (another file through ``$PRODMAPS_R
     reproduces = "Figure 4"
     title = "Coordinate reconstruction, k = 9..69"                  # optional
     claims = ["fig04.products_improve"]                             # optional: ledger entries judged on it
-    report = "prodmaps.experiments.default_study"                   # optional: the module owning its report section
+    report = "prodmaps.experiments.study_default_transfer"          # optional: the module owning its report section
     dataset_figures = true                                          # optional: its figures in every dataset's section
     [runs.fig04.params.smoke]        # the smoke profile's values of the notebook's knobs
     ks = [9, 19]
@@ -16,11 +16,15 @@ Every run is an entry of ``paper/runs.toml`` (another file through ``$PRODMAPS_R
     ks = [9, 29, 49, 69]
     [runs.fig04.tolerances]          # optional, for prodmaps.pipeline.diffing (dotted-key globs)
     "results.errors.*" = { rtol = 1e-6, atol = 1e-9 }
+    [runs.fig04.datasets.faust]      # optional: values for one dataset, over every profile's
+    shape_id = "tr_reg_000"
 
 Profiles live here, nowhere else: a knob a notebook declares ``None`` takes the run's
 ``params.<profile>`` value (:func:`run_parameters`; TOML has no null, so a profile leaves out a
-knob that stays ``None``). A knob declared with a value of its own (``dataset``, ``seed``,
-``table``) is set in a table only to choose among the runs that share a notebook (``table``).
+knob that stays ``None``), overridden for a dataset by its ``datasets.<dataset>`` table (the
+data's own values: a shape id, a region's centre in that dataset's frame). A knob declared with a
+value of its own (``dataset``, ``seed``, ``table``) is set in a table only to choose among the runs
+that share a notebook (``table``).
 
 A run with ``report`` has a section of its own in the report: the module's
 ``report_blocks(results, dataset, *, main=True)`` returns it as ``(kind, *args)`` blocks
@@ -55,7 +59,7 @@ REGISTRY = Path("paper") / "runs.toml"
 RUNS_ENV = "PRODMAPS_RUNS"  # another registry file than the project's paper/runs.toml
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _RUN_KEYS = {"notebook", "reproduces", "title", "params", "tolerances", "description", "claims", "report",
-             "dataset_figures"}
+             "dataset_figures", "datasets"}
 _MODULE_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*$")
 
 
@@ -77,10 +81,11 @@ class Run:
     claims: tuple = ()
     report: str = ""  # module with report_blocks(results, dataset, *, main) (see the module doc)
     dataset_figures: bool = False  # its figures shown in every dataset's section of the report
+    datasets: dict = field(default_factory=dict)  # dataset -> values over the profile's
 
-    def parameters(self, profile: str) -> dict:
-        """A copy of this run's parameters under ``profile`` (empty if it sets none)."""
-        return dict(self.params.get(profile, {}))
+    def parameters(self, profile: str, dataset: str | None = None) -> dict:
+        """A copy of this run's parameters under ``profile``, with ``dataset``'s values over them."""
+        return {**self.params.get(profile, {}), **self.datasets.get(dataset, {})}
 
 
 # ------------------------------------------------------------------------------ registry
@@ -154,15 +159,21 @@ def load_registry(path=None) -> dict[str, Run]:
               f"claims must be a list of claim ids of the ledger, got {claims!r}")
         report = entry.get("report", "")
         _need(where, isinstance(report, str) and (report == "" or _MODULE_RE.match(report)),
-              f"report must name a module (\"prodmaps.experiments.default_study\"), got {report!r}")
+              f"report must name a module (\"prodmaps.experiments.study_default_transfer\"), got {report!r}")
         _need(where, isinstance(entry.get("dataset_figures", False), bool), "dataset_figures must be true or false")
+        per_ds = entry.get("datasets", {})
+        _need(where, isinstance(per_ds, dict) and all(isinstance(v, dict) for v in per_ds.values()),
+              f"datasets must be tables [runs.{name}.datasets.<dataset>]")
+        for ds, p in per_ds.items():
+            reserved = {"profile", "out_dir", "dataset"} & set(p)
+            _need(where, not reserved, f"datasets.{ds} must not set {sorted(reserved)}")
         nb = Path(entry["notebook"])
         out[name] = Run(
             name=name, notebook=(nb if nb.is_absolute() else root / nb).resolve(),
             reproduces=str(entry.get("reproduces", "")), title=str(entry.get("title", "")),
             params={k: dict(v) for k, v in params.items()}, tolerances=dict(tol),
             description=str(entry.get("description", "")), claims=tuple(claims), report=report,
-            dataset_figures=entry.get("dataset_figures", False),
+            dataset_figures=entry.get("dataset_figures", False), datasets={k: dict(v) for k, v in per_ds.items()},
         )
     return out
 
@@ -222,7 +233,7 @@ def run_parameters(run: str, profile: str, namespace: dict, *, registry=None) ->
     entry = runs[run]
     if profile not in entry.params:
         raise RegistryError(f"run {run!r} has no params.{profile} table; its profiles: {sorted(entry.params)}")
-    values = entry.parameters(profile)
+    values = entry.parameters(profile, namespace.get("dataset"))
     try:
         declared = parameters_cell(entry.notebook)
     except OSError as exc:

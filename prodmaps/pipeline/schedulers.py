@@ -10,6 +10,8 @@ from __future__ import annotations
 import os
 import time
 
+from ..experiments.shared.parallel import WORKERS_ENV
+
 __all__ = ["thread_env", "run_pool", "run_dask", "SchedulerError"]
 
 
@@ -45,13 +47,11 @@ def _check_reachable(address: str, timeout: float = 5.0) -> None:
 def thread_env(jobs: int) -> dict:
     """With several notebooks at once, cap BLAS threads and worker processes so they do not oversubscribe.
 
-    The workers are the experiments' (``PRODMAPS_WORKERS``, :mod:`prodmaps.experiments.parallel`).
+    The workers are the experiments' (``PRODMAPS_WORKERS``, :mod:`prodmaps.experiments.shared.parallel`).
     A variable the user set is left out: their choice stays.
     """
     if jobs <= 1:
         return {}
-    from ..experiments.parallel import WORKERS_ENV
-
     n = str(max(1, (os.cpu_count() or 1) // jobs))
     names = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", WORKERS_ENV)
     return {k: n for k in names if not os.environ.get(k)}

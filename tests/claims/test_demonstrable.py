@@ -8,7 +8,7 @@ with the oracle and no-map numbers.
 
 import pytest
 
-from prodmaps.experiments import claims
+from prodmaps.experiments.shared import claims
 
 CELLS = ("a|k5", "b|k5", "c|k5")
 

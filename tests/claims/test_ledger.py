@@ -1,15 +1,15 @@
 """Every claim of the ledger, judged on the smoke results, gives the verdict the ledger records.
 
 A change that flips a verdict fails here and has to update ``smoke_verdict`` in
-``prodmaps/experiments/claims.toml`` on purpose (the paper-profile verdicts are in the report).
+``prodmaps/experiments/shared/claims.toml`` on purpose (the paper-profile verdicts are in the report).
 Also: the ledger is well formed, and its rules are calibrated on the paper's own numbers (each
 table claim holds on the published table it quotes, where the paper's table supports it).
 """
 
 import pytest
 
-from prodmaps.experiments import claims
-from prodmaps.experiments.published import load_published
+from prodmaps.experiments.shared import claims
+from prodmaps.experiments.shared.published import load_published
 
 LEDGER = claims.load_ledger()
 

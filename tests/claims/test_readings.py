@@ -2,7 +2,7 @@
 the published one): rows labelled ``"HKS (textbook)"`` never enter the run's verdict, and replace
 ``"HKS"`` in the verdict of their reading."""
 
-from prodmaps.experiments import claims
+from prodmaps.experiments.shared import claims
 
 CLAIM = claims.load_ledger()["tab01.products_improve_transfer"]
 

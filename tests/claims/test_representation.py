@@ -7,8 +7,8 @@ folders) and asserts on their ``results.json``; plus the repeatability of the re
 import numpy as np
 import pytest
 
-from prodmaps.experiments import render
-from prodmaps.experiments.results import read_results, save_figure
+from prodmaps.experiments.shared import render
+from prodmaps.experiments.shared.results import read_results, save_figure
 
 NOTEBOOKS = {
     "fig04": "notebooks/fig04_coordinate_reconstruction.ipynb",

@@ -27,7 +27,7 @@ with computed maps (Tables 2 and 4, Figure 8's transfer curves).
 import numpy as np
 import pytest
 
-from prodmaps.experiments.published import load_published, match_entries
+from prodmaps.experiments.shared.published import load_published, match_entries
 
 pytestmark = pytest.mark.notebook
 

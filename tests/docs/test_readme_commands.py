@@ -13,6 +13,10 @@ code path:
 * the FAUST preparation runs as written on two folders holding fake registrations (FAUST's real
   counts), the FAUST reproduction is checked against the registry and refused cleanly when FAUST
   is not prepared (this machine's data root is replaced by an empty one);
+* ``git clone`` of the remeshed collections writes a fake clone in their layout instead (every
+  shape id, ~5000-vertex spheres, 5000 or 900 samples, no ``maps/``); their preparations run as
+  written on it (a second documented run is refused: the dataset exists), and the cross-dataset
+  snippet runs on them with a fake ``tr_reg_000`` registration added;
 * the pyFM snippets run on stand-ins of pyFM's ``TriMesh`` and ``FunctionalMapping`` (the real
   pyFM is exercised in ``tests/crosscheck``).
 
@@ -109,6 +113,12 @@ STAND_INS = {
     'python: mesh = pm.load_mesh("scan.ply")': "python_scan",
     'python: cloud = pm.load_point_cloud("scan.xyz")': "python_cloud",
     'python: camel = pm.load_mesh("camel-gallop-01.off", validate=False)': "python_camel",
+    "git clone https://github.com/llorz/SGA18_orientation_BCICP_dataset": "sga18_clone",
+    "python -m prodmaps.prepare faust_r --archive SGA18_orientation_BCICP_dataset": "prepare_sga18",
+    "python -m prodmaps.prepare tosca_r --archive SGA18_orientation_BCICP_dataset": "prepare_sga18",
+    "python -m prodmaps.prepare tosca_r_noniso --archive SGA18_orientation_BCICP_dataset": "prepare_sga18",
+    'python: p2p_21 = pm.datasets.ground_truth_between(("faust", "tr_reg_000"), ("faust_r", "tr_reg_000"))':
+        "python_cross",
 }
 
 
@@ -243,6 +253,90 @@ def stand_in_prepare_faust(r: Reader, cmd: str):
     p = r.run([sys.executable, *argv[1:]], cwd=work)
     assert "found 2 of the 100 registrations" in p.stdout, p.stdout
     assert (r.tmp / "data" / "faust" / "manifest.json").is_file()
+
+
+def _fib_sphere(n: int, phase: float = 0.0):
+    from scipy.spatial import ConvexHull
+
+    i = np.arange(n) + 0.5
+    phi, th = np.arccos(1 - 2 * i / n), np.pi * (1 + 5**0.5) * i + phase
+    v = np.column_stack([np.cos(th) * np.sin(phi), np.sin(th) * np.sin(phi), np.cos(phi)])
+    return v, ConvexHull(v).simplices
+
+
+def _off(v, f) -> str:
+    rows = [f"{x:.7f} {y:.7f} {z:.7f}" for x, y, z in v] + [f"3 {a} {b} {c}" for a, b, c in f]
+    return f"OFF\n{len(v)} {len(f)} 0\n" + "\n".join(rows) + "\n"
+
+
+def stand_in_sga18_clone(r: Reader, cmd: str):
+    from scipy.spatial import cKDTree
+
+    from prodmaps.prepare.sga18 import COLLECTIONS
+
+    clone = r.tmp / "clones" / cmd.split("/")[-1]
+    if clone.is_dir():  # documented twice: cloned once
+        return
+    tpl, _ = _fib_sphere(6890)  # the FAUST template (faust_r's sampleID indexes it)
+    sample_tpl = np.random.default_rng(0).choice(6890, size=5000, replace=False)
+    meshes = [_fib_sphere(4990 + 3 * k, phase=0.1 * k) for k in range(3)]  # three triangulations, cycled
+    for name, coll in COLLECTIONS.items():
+        vtx = clone / "Dataset" / coll.folder / "vtx_5k"
+        (vtx / "corres").mkdir(parents=True)
+        dirs = tpl[sample_tpl[:coll.n_samples]]
+        for k, sid in enumerate(coll.ids):
+            v, f = meshes[k % 3]
+            (vtx / f"{sid}.off").write_text(_off(v * (1 + (k % 7) / 10), f))
+            s = cKDTree(v).query(dirs)[1] + 1
+            (vtx / "corres" / f"{sid}.vts").write_text("\n".join(map(str, s)) + "\n")
+        for g in {coll.group_of(sid) for sid in coll.ids}:
+            if coll.template_file(g):
+                (vtx / "corres" / coll.template_file(g)).write_text(
+                    "\n".join(map(str, sample_tpl[:coll.n_samples] + 1)) + "\n")
+        (vtx.parent / "test_pairs.txt").write_text(f"{coll.ids[0]}\t{coll.ids[1]}\n")
+    (clone / "README.md").write_text("# Datasets\n")
+
+
+def stand_in_prepare_sga18(r: Reader, cmd: str):
+    import json
+
+    argv = shlex.split(cmd)
+    assert argv[:3] == ["python", "-m", "prodmaps.prepare"]
+    name, target = argv[3], r.tmp / "data" / argv[3]
+    existed = target.is_dir()
+    p = r.run([sys.executable, *argv[1:]], cwd=r.tmp / "clones", check=not existed)
+    if existed:  # the same command documented twice: the second run is refused, the dataset untouched
+        assert p.returncode == 2 and "already exists; pass --force" in p.stderr, p.stderr
+        return
+    n = {"faust_r": 100, "tosca_r": 76, "tosca_r_noniso": 24}[name]
+    assert f"wrote {n} shapes to {target}" in p.stdout, p.stdout
+    man = json.loads((target / "manifest.json").read_text())
+    assert len(man["shapes"]) == n and man["ground_truth"]["kind"] == "samples"
+
+
+def stand_in_python_cross(r: Reader, text: str):
+    import prodmaps as pm
+
+    v, f = _fib_sphere(6890)  # a fake registration tr_reg_000 beside the fake faust_r
+    (r.tmp / "reg000").mkdir(exist_ok=True)
+    (r.tmp / "reg000" / "tr_reg_000.off").write_text(_off(v, f))
+    r.run([sys.executable, "-m", "prodmaps.prepare", "faust", "--archive", str(r.tmp / "reg000"), "--force"])
+    old = os.environ.get("PRODMAPS_DATA")
+    os.environ["PRODMAPS_DATA"] = r.env["PRODMAPS_DATA"]
+    pm.datasets.clear_cache()
+    try:
+        ns: dict = {}
+        _exec(text, ns, r.tmp)
+        rem = pm.datasets.load_shape("faust_r", "tr_reg_000")
+        tpl = np.loadtxt(r.tmp / "data" / "faust_r" / "samples" / "faust.template.txt", dtype=int)
+        s = pm.datasets.sample_vertices("faust_r", "tr_reg_000")
+        assert ns["p2p_21"].shape == (rem.n_vertices,) and ns["p2p_21"][s[0]] == tpl[0]
+    finally:
+        if old is None:
+            os.environ.pop("PRODMAPS_DATA")
+        else:
+            os.environ["PRODMAPS_DATA"] = old
+        pm.datasets.clear_cache()
 
 
 def stand_in_reproduce_faust(r: Reader, cmd: str):

@@ -1,11 +1,11 @@
-"""The one comparison rule (prodmaps.experiments.compare) and the ledger's rounding band."""
+"""The one comparison rule (prodmaps.experiments.shared.compare) and the ledger's rounding band."""
 
 import math
 
 import numpy as np
 import pytest
 
-from prodmaps.experiments import claims, compare
+from prodmaps.experiments.shared import claims, compare
 
 
 def test_two_equal_errors_are_a_tie_not_a_win():
@@ -74,7 +74,7 @@ def test_the_ledger_compares_measured_numbers_only_through_the_tie_rule():
 
 
 def test_explain_cell_separates_reproduced_data_and_unexplained():
-    from prodmaps.experiments.normalization_study import explain_cell
+    from prodmaps.experiments.study_normalization import explain_cell
 
     assert explain_cell(0.23, 0.257, 0.29, 0.287).startswith("reproduced")
     why = explain_cell(0.09, 0.133, 0.46, 0.566)  # our std is itself 0.106 off: the family differs
@@ -86,7 +86,7 @@ def test_explain_cell_separates_reproduced_data_and_unexplained():
 
 def test_tie_mask_is_is_tie_elementwise():
     """The vectorised rule equals the scalar one on random pairs, at the tie boundary, and at 0."""
-    from prodmaps.experiments import compare as cmp
+    from prodmaps.experiments.shared import compare as cmp
 
     rng = np.random.default_rng(0)
     a = rng.random(2000)
@@ -100,7 +100,7 @@ def test_tie_mask_is_is_tie_elementwise():
 
 # ------------------------------------------------------------------------------ comparisons with the paper
 def test_within_published_and_within_draw_noise():
-    from prodmaps.experiments import published as P
+    from prodmaps.experiments.shared import published as P
 
     assert P.within_published(0.02) and P.within_published(-0.02) and not P.within_published(0.0201)
     band = P.WITHIN + P.DRAW_Z * np.sqrt(2) * 0.01  # 0.0483
@@ -114,7 +114,7 @@ def test_within_published_and_within_draw_noise():
 
 
 def test_table_entries_keep_their_standard_error():
-    from prodmaps.experiments.published import load_published, match_entries, normalize_entry
+    from prodmaps.experiments.shared.published import load_published, match_entries, normalize_entry
 
     e = {"table": 1, "function": "HKS", "stage": "transfer", "method": "std", "value": 0.5, "se": 0.01}
     assert normalize_entry(e)["se"] == 0.01

@@ -1,10 +1,10 @@
-"""The Figure 14 experiment (prodmaps.experiments.crossfields) and its figures."""
+"""The Figure 14 experiment (prodmaps.experiments.fig14_quad_transfer.crossfields) and its figures."""
 
 import numpy as np
 import pytest
 
 import prodmaps as pm
-from prodmaps.experiments import crossfields as cf
+from prodmaps.experiments.fig14_quad_transfer import crossfields as cf
 from prodmaps.mesh import ellipsoid, icosphere
 
 
@@ -31,7 +31,7 @@ def test_plots(small_joint):
     import matplotlib
 
     matplotlib.use("Agg")
-    from prodmaps.experiments.crossfield_plots import joint_figure, plot_cross_field
+    from prodmaps.experiments.fig14_quad_transfer.plots import joint_figure, plot_cross_field
 
     m1, m2, r = small_joint
     z1, _ = r["fields"]["independent"]

@@ -7,7 +7,7 @@ import pytest
 
 import prodmaps as pm
 import prodmaps.descriptors as D
-import prodmaps.experiments.families as PF
+import prodmaps.experiments.shared.families as PF
 from prodmaps.cache import Cache
 from prodmaps.datasets import dataset_dir as ds_dir
 
@@ -249,7 +249,7 @@ def test_readings_are_free_of_the_units(scaled, fam, reading):
 def test_store_draws_each_reading_with_the_familys_seed(tmp_path, monkeypatch):
     """Every reading of a family takes the family's seed (the same random draws), and the store
     keys the functions by their options."""
-    from prodmaps.experiments.store import ShapeStore
+    from prodmaps.experiments.shared.store import ShapeStore
 
     monkeypatch.setenv("PRODMAPS_CACHE", str(tmp_path))
     store = ShapeStore("anny_humans", 30)
@@ -269,7 +269,7 @@ def test_store_draws_each_reading_with_the_familys_seed(tmp_path, monkeypatch):
 
 
 def test_family_readings_choice_ignores_approach_b():
-    from prodmaps.experiments.family_readings import choose
+    from prodmaps.experiments.study_family_readings import choose
 
     def sc(std_within, std_mean, b_within):
         return {"std": {"cells": 8, "within": std_within, "mean_abs": std_mean, "max_abs": 1.0},
@@ -283,7 +283,7 @@ def test_family_readings_choice_ignores_approach_b():
 
 
 def test_tied_families_take_one_reading_chosen_by_their_std_cells_together():
-    from prodmaps.experiments.family_readings import choose, choose_all
+    from prodmaps.experiments.study_family_readings import choose, choose_all
 
     def sc(within, mean, cells=8):
         return {"std": {"cells": cells, "within": within, "mean_abs": mean, "max_abs": 1.0},
@@ -304,8 +304,8 @@ def test_tied_families_take_one_reading_chosen_by_their_std_cells_together():
 
 
 def test_family_readings_study_runs_every_reading_on_the_same_pairs():
-    import prodmaps.experiments.family_readings as FR
-    from prodmaps.experiments.store import ShapeStore
+    import prodmaps.experiments.study_family_readings as FR
+    from prodmaps.experiments.shared.store import ShapeStore
 
     store = ShapeStore("anny_humans", 30, disk_cache=False)
     pairs = [("anny_000", "anny_013")]
@@ -323,8 +323,8 @@ def test_family_readings_study_runs_every_reading_on_the_same_pairs():
 
 
 def test_family_readings_standard_errors_are_those_of_the_per_pair_means():
-    import prodmaps.experiments.family_readings as FR
-    from prodmaps.experiments.store import ShapeStore
+    import prodmaps.experiments.study_family_readings as FR
+    from prodmaps.experiments.shared.store import ShapeStore
 
     assert FR.standard_error([0.5]) is None  # one pair: no spread to measure
     assert FR.standard_error([0.1, 0.3]) == pytest.approx(0.1, abs=1e-15)  # |a - b| / 2 for two values
@@ -342,7 +342,7 @@ def test_family_readings_standard_errors_are_those_of_the_per_pair_means():
 
 
 def test_draw_noise_separates_misses_the_draw_explains_from_the_others():
-    import prodmaps.experiments.family_readings as FR
+    import prodmaps.experiments.study_family_readings as FR
 
     # Table 1 XYZ: published approx std 0.29, transfer std 0.29, transfer our_B 0.23
     errors = {"k9_9": {"approx": {"std": 0.30}, "transfer": {"std": 0.33, "our_B": 0.35}}}

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import prodmaps as pm
-from prodmaps.experiments import howto
+from prodmaps.experiments import howto_own_meshes as howto
 
 
 @pytest.fixture(scope="module")

@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 import prodmaps as pm
-from prodmaps.experiments import maps, no17_study
-from prodmaps.experiments.store import ShapeStore
+from prodmaps.experiments import study_no17 as no17_study
+from prodmaps.experiments.shared import maps
+from prodmaps.experiments.shared.store import ShapeStore
 
 DS = "anny_humans"
 

@@ -3,11 +3,14 @@
 import numpy as np
 import pytest
 
-from prodmaps.experiments import maps, no17_study, parallel, truncation_study
-from prodmaps.experiments.crossfields import figure14_joint_study
-from prodmaps.experiments.pointmaps import point_map_recovery
-from prodmaps.experiments.protocol import ProtocolSettings, run_protocol
-from prodmaps.experiments.store import ShapeStore
+from prodmaps.experiments import fig08_area_curves as fig08
+from prodmaps.experiments import study_no17 as no17_study
+from prodmaps.experiments import study_truncation as truncation_study
+from prodmaps.experiments.fig12_13_p2p import point_map_recovery
+from prodmaps.experiments.fig14_quad_transfer.crossfields import figure14_joint_study
+from prodmaps.experiments.shared import maps, parallel
+from prodmaps.experiments.shared.protocol import PAPER_COLUMNS, ProtocolSettings, run_protocol
+from prodmaps.experiments.shared.store import ShapeStore
 from prodmaps.pipeline.schedulers import thread_env
 
 DS = "anny_humans"
@@ -119,31 +122,30 @@ def store(tmp_path_factory):
 
 
 def test_protocol_errors_do_not_depend_on_the_number_of_workers(store):
-    s = ProtocolSettings(sizes=[(9, 9), (19, 29)], methods=["std", "l2", "B", "default"],
-                         families=["XYZ", "Indicator", "HKS"])
+    s = ProtocolSettings(sizes=[(9, 9), (19, 29)], columns={m: PAPER_COLUMNS[m] for m in (
+        "std", "our_l2", "our_B", "our_default")}, families=["XYZ", "Indicator", "HKS"])
     one = run_protocol(store, PAIRS, s, progress=False, workers=1)
     two = run_protocol(store, PAIRS, s, progress=False, workers=2)
     assert one.pairs == two.pairs == PAIRS and one.cols == two.cols
     for z in s.sizes:
         assert one.map_deviation[z] == two.map_deviation[z] and one.ranks[z] == two.ranks[z]
-        assert len(one.ranks[z]) == len(PAIRS)
+        assert len(one.ranks[z]["our_B"]) == len(PAIRS)
         for st in ("approx", "transfer"):
-            for m in s.methods:
+            for m in s.columns:
                 assert len(one.errors[z][st][m]) == len(PAIRS)
                 for a, b in zip(one.errors[z][st][m], two.errors[z][st][m]):
                     assert np.array_equal(a, b)
 
 
 def test_area_curves_are_measured_in_workers_with_the_same_numbers(store):
-    from prodmaps.experiments.protocol import AreaCurves
-
-    s = ProtocolSettings(sizes=[(9, 9)], methods=["std", "B"], families=["XYZ", "Indicator"])
+    s = ProtocolSettings(sizes=[(9, 9)], columns=fig08.columns(["std", "B"], rtol=1e-3, eps_ridge=1e-6, max_gain=2.0),
+                         families=["XYZ", "Indicator"])
     gamma = np.linspace(0.0, 0.1, 5)
     curves = {}
     for w in (1, 2):
-        c = curves[w] = AreaCurves(gamma, s.families, s.methods)
+        c = curves[w] = fig08.AreaCurves(gamma, s.families, list(s.columns))
         run_protocol(store, PAIRS, s, progress=False, workers=w, collect=c)
-    serial = AreaCurves(gamma, s.families, s.methods)  # a plain callable: called in this process
+    serial = fig08.AreaCurves(gamma, s.families, list(s.columns))  # a plain callable: called in this process
     run_protocol(store, PAIRS, s, progress=False, collect=lambda *a: serial(*a))
     ref = curves[1].mean()
     for other in (curves[2], serial):

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from prodmaps.experiments.pointmaps import evaluation_vertices, point_map_recovery
-from prodmaps.experiments.store import ShapeStore
+from prodmaps.experiments.fig12_13_p2p import evaluation_vertices, point_map_recovery
+from prodmaps.experiments.shared.store import ShapeStore
 
 DS = "anny_humans"
 

@@ -1,4 +1,4 @@
-"""prodmaps.experiments.render: colour maps, camera bounds, the rendering probe, figure grids, off-screen renders."""
+"""The shared renderer: colour maps, camera bounds, the rendering probe, figure grids, off-screen renders."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import matplotlib.figure
 import numpy as np
 import pytest
 
-from prodmaps.experiments import render
-from prodmaps.experiments.render import (
+from prodmaps.experiments.shared import render
+from prodmaps.experiments.shared.render import (
     VIEWS,
     camera_bounds,
     error_colormap,
@@ -261,7 +261,7 @@ def test_headless_render_prints_no_x_server_warning():
     ok, reason = render.probe_rendering()
     if not ok:
         pytest.skip(reason)
-    code = ("import numpy as np\nfrom prodmaps.experiments.render import render_mesh\n"
+    code = ("import numpy as np\nfrom prodmaps.experiments.shared.render import render_mesh\n"
             "from prodmaps.mesh import ellipsoid\nm = ellipsoid(1)\n"
             "img = render_mesh(m.vertices, m.faces, window_size=(40, 60))\nprint(img.shape)\n")
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "VTK_DEFAULT_OPENGL_WINDOW")}

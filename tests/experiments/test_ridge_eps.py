@@ -1,11 +1,11 @@
-"""Approach A at several weights: ``l2@<eps>`` methods of the protocol and the study of the published A column."""
+"""Approach A at several weights: ridge columns of the protocol and the study of the published A column."""
 
 import numpy as np
 import pytest
 
-from prodmaps.experiments import normalization_study as ns
-from prodmaps.experiments.protocol import ProtocolSettings, method_label, run_protocol
-from prodmaps.experiments.store import ShapeStore
+from prodmaps.experiments import study_normalization as ns
+from prodmaps.experiments.shared.protocol import ProtocolSettings, approach_a_label, run_protocol, with_parameters
+from prodmaps.experiments.shared.store import ShapeStore
 
 DS = "anny_humans"
 PAIRS = [("anny_000", "anny_003"), ("anny_003", "anny_011")]
@@ -16,33 +16,39 @@ def store(tmp_path_factory):
     return ShapeStore(DS, 40, cache_folder=tmp_path_factory.mktemp("cache"))
 
 
-def test_l2_at_eps_is_the_ridge_at_that_eps(store):
-    """``l2@<e>`` gives the numbers of ``l2`` with ``eps_ridge = e``, and a larger ε shrinks more."""
+def test_ridge_columns_at_two_weights_are_the_registry_ridge_at_those_weights(store):
+    """Two ridge columns of one run give the numbers of a run with either alone; a larger ε shrinks more."""
     fams = ["XYZ", "HKS", "Random"]
-    at = run_protocol(store, PAIRS, ProtocolSettings(sizes=[(9, 9)], families=fams,
-                                                     methods=["std", "l2@1e-05", "l2@0.001"]), progress=False)
-    ref = run_protocol(store, PAIRS, ProtocolSettings(sizes=[(9, 9)], families=fams, methods=["std", "l2"],
-                                                      eps_ridge=1e-5), progress=False)
+    at = run_protocol(store, PAIRS, ProtocolSettings(sizes=[(9, 9)], families=fams, columns={
+        "std": ("std", {}), "our_l2_eps1e-05": ("ridge", {"eps": 1e-5}), "our_l2_eps0.001": ("ridge", {"eps": 1e-3})}),
+        progress=False)
+    ref = run_protocol(store, PAIRS, ProtocolSettings(sizes=[(9, 9)], families=fams, columns={
+        "std": ("std", {}), "our_l2": ("ridge", {"eps": 1e-5})}), progress=False)
     for st in ("approx", "transfer"):
-        for a, b in zip(at.errors[(9, 9)][st]["l2@1e-05"], ref.errors[(9, 9)][st]["l2"]):
+        for a, b in zip(at.errors[(9, 9)][st]["our_l2_eps1e-05"], ref.errors[(9, 9)][st]["our_l2"]):
             assert np.array_equal(a, b)
-    small = np.concatenate(at.errors[(9, 9)]["approx"]["l2@1e-05"])
-    large = np.concatenate(at.errors[(9, 9)]["approx"]["l2@0.001"])
+    small = np.concatenate(at.errors[(9, 9)]["approx"]["our_l2_eps1e-05"])
+    large = np.concatenate(at.errors[(9, 9)]["approx"]["our_l2_eps0.001"])
     assert small.mean() < large.mean()  # the weight 100x larger fits worse on the source
 
 
-@pytest.mark.parametrize("bad", ["l2@", "l2@x", "l2@-1e-5", "l2@0", "B@0", "B@nan", "l3", "l2n@", "l2n@0"])
-def test_methods_at_a_value_must_name_a_positive_number(bad):
-    with pytest.raises(ValueError, match="l2@<eps>"):
-        ProtocolSettings(sizes=[(9, 9)], methods=["std", bad])
+@pytest.mark.parametrize("columns, match", [
+    ({"our_B": ("svd", {})}, "'std'"),  # no standard column
+    ({"std": ("svd", {})}, "'std'"),  # 'std' must be the standard transfer
+    ({"std": ("std", {}), "x": ("l2", {})}, "method must be one of"),  # the old spelling is no method
+    ({"std": ("std", {}), "x": ("svd", {"eps": 1e-3})}, "takes no parameter"),
+    ({"std": ("std", {}), "x": "svd"}, "must be \\(method, parameters\\)"),
+])
+def test_columns_are_checked_against_the_registry(columns, match):
+    with pytest.raises(ValueError, match=match):
+        ProtocolSettings(sizes=[(9, 9)], columns=columns)
 
 
-def test_method_labels_at_a_weight():
-    assert method_label("l2@3e-05", "T1") == "our_l2_eps3e-05"
-    assert method_label("l2@3e-05", "T6") == "our_A_eps3e-05"
-    assert method_label("B@0.01") == "our_B_rtol0.01"
-    assert method_label("l2n@0.003", "T1") == "our_l2_norm_eps0.003"
-    assert method_label("l2n@0.003", "T5") == "our_A_norm_eps0.003"
+def test_the_approach_a_column_is_named_as_in_the_paper():
+    assert approach_a_label("T1") == approach_a_label(None) == "our_l2"
+    assert approach_a_label("T6") == "our_A"
+    assert with_parameters({"std": ("std", {}), "our_A": ("ridge", {"eps": 1e-6})}, normalization="area") == {
+        "std": ("std", {}), "our_A": ("ridge", {"eps": 1e-6, "normalization": "area"})}
 
 
 def test_ridge_eps_scores_the_published_a_cells_and_both_hks_readings(store):
@@ -95,7 +101,7 @@ def test_ridge_eps_rejects_values_that_share_a_key(store):
 
 
 def test_equation_4_as_printed_is_scored_beside_the_squared_ridge(store):
-    """``norm_eps_values``: Approach A with norms (``l2n@<e>``) in the same runs, its own scores and HKS cells."""
+    """``norm_eps_values``: Approach A with norms (``penalty="norm"``) in the same runs, its own scores and HKS."""
     import prodmaps as pm
 
     r = ns.ridge_eps(store, PAIRS, eps_values=[1e-6], tables={"T1": [(9, 9)], "T6": [(29, 39)]},
@@ -109,14 +115,14 @@ def test_equation_4_as_printed_is_scored_beside_the_squared_ridge(store):
     # the weight grows with ε: the source fits worse
     assert (npen["hks"]["0.001"]["published reading"]["T6 29/39 approx"]
             < npen["hks"]["0.1"]["published reading"]["T6 29/39 approx"])
-    # the protocol's l2n@<e> is the library's operator with penalty="norm"
-    res = run_protocol(store, PAIRS[:1], ProtocolSettings(sizes=[(9, 9)], families=["XYZ"],
-                                                          methods=["std", "l2n@0.001"]), progress=False)
+    # a ridge column with penalty="norm" is the library's operator with penalty="norm"
+    res = run_protocol(store, PAIRS[:1], ProtocolSettings(sizes=[(9, 9)], families=["XYZ"], columns={
+        "std": ("std", {}), "norm": ("ridge", {"eps": 1e-3, "penalty": "norm"})}), progress=False)
     b1 = store.basis(PAIRS[0][0], 10)
     F = store.mesh(PAIRS[0][0]).vertices
     ext = pm.product_basis(b1)
     a = pm.approximation_operator(ext, "ridge", eps=1e-3, penalty="norm").coefficients(F)
-    np.testing.assert_allclose(res.errors[(9, 9)]["approx"]["l2n@0.001"][0],
+    np.testing.assert_allclose(res.errors[(9, 9)]["approx"]["norm"][0],
                                pm.relative_error(ext.evaluate(a), F, b1.mass), rtol=1e-9)
     assert "norm_penalty" not in ns.ridge_eps(store, PAIRS[:1], eps_values=[1e-6], tables={"T1": [(9, 9)]},
                                               families=["XYZ"], norm_eps_values=None, progress=False)

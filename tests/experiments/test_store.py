@@ -5,8 +5,8 @@ import pytest
 
 import prodmaps as pm
 from prodmaps import fmaps
-from prodmaps.experiments import maps
-from prodmaps.experiments.store import DiskCache, ShapeStore, code_fingerprint
+from prodmaps.experiments.shared import maps
+from prodmaps.experiments.shared.store import DiskCache, ShapeStore, code_fingerprint
 
 DS = "anny_humans"
 
@@ -82,7 +82,7 @@ def test_family_functions_are_seeded_by_family_not_by_subset(store):
 def test_families_are_stored_and_equal_a_fresh_draw(store, tmp_path, monkeypatch):
     """Each family is computed once per machine (the tables, Figure 8 and the studies draw the same
     families on the same pairs): read back exactly, keyed by seed, k_M and the store's basis."""
-    from prodmaps.experiments import families as pfam
+    from prodmaps.experiments.shared import families as pfam
 
     seed = pfam.family_seed(0, 3, "Indicator")
     F = store.family("anny_000", "Indicator", k_M=9, seed=seed)

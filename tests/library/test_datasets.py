@@ -21,7 +21,7 @@ def default_root(monkeypatch):
 
 
 def test_registry_and_root(monkeypatch, tmp_path):
-    assert ds.names() == ["anny_humans", "faust", "tosca"]
+    assert ds.names() == ["anny_humans", "faust", "tosca", "faust_r", "tosca_r", "tosca_r_noniso"]
     # the embedded data ship inside the installed package, wherever the repository is
     assert ds.dataset_dir(NAME) == Path(pm.__file__).resolve().parent / "data" / NAME
     monkeypatch.setenv("XDG_DATA_HOME", str(tmp_path / "xdg"))

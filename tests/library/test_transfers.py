@@ -1,6 +1,4 @@
-"""Transfer operators (prodmaps.transfers): the family, the default rule, the old spellings."""
-
-import warnings
+"""Transfer operators (prodmaps.transfers): the registry, its methods, the default rule."""
 
 import numpy as np
 import pytest
@@ -8,7 +6,17 @@ import scipy.sparse as sp
 
 import prodmaps as pm
 from prodmaps.mesh import ellipsoid
-from prodmaps.transfers import DEFAULT_RULE, METHODS, PARAMETERS, DefaultTransfer, isometry_defect
+from prodmaps.p2p import from_fmap
+from prodmaps.transfers import (
+    DEFAULT_RULE,
+    PAPER_RTOL,
+    REGISTRY,
+    DefaultTransfer,
+    PointMapTransfer,
+    isometry_defect,
+    register,
+)
+from prodmaps.truncation import select_rtol
 
 
 @pytest.fixture(scope="module")
@@ -57,14 +65,14 @@ BEFORE = {
               -0.31188461754836083, 0.0914569775302677, 0.6155950839482097, 1.5227054263837396,
               0.006268741147719353, 0.675802983054643, -0.2536836770525563],
 }
-SPELLINGS = [  # (key of BEFORE, old keywords, new method, new keywords)
-    ("std", {"method": "std"}, "std", {}),
-    ("default", {"method": "prod"}, "default", {}),
-    ("svd", {"method": "prod", "rtol": 1e-3}, "svd", {"rtol": 1e-3}),
-    ("svd", {"method": "prod", "approx": "svd"}, "svd", {}),
-    ("svd_unique", {"method": "prod", "rtol": 1e-2, "pairs": "unique"}, "svd", {"rtol": 1e-2, "pairs": "unique"}),
-    ("ridge", {"method": "prod", "approx": "ridge", "eps": 1e-6}, "ridge", {"eps": 1e-6}),
-    ("lasso", {"method": "prod", "approx": "lasso", "eps": 1e-4}, "lasso", {"eps": 1e-4}),
+CASES = [  # (key of BEFORE, method, keywords)
+    ("std", "std", {}),
+    ("default", "default", {}),
+    ("svd", "svd", {"rtol": 1e-3}),
+    ("svd", "svd", {}),  # the paper's threshold is the default
+    ("svd_unique", "svd", {"rtol": 1e-2, "pairs": "unique"}),
+    ("ridge", "ridge", {"eps": 1e-6}),
+    ("lasso", "lasso", {"eps": 1e-4}),
 ]
 
 
@@ -72,70 +80,83 @@ def _reading(G):
     return np.concatenate([np.linalg.norm(G, axis=0), G[[0, 80, 161]].ravel()])
 
 
-@pytest.mark.parametrize("key, old, method, params", SPELLINGS)
-def test_every_method_gives_the_numbers_of_its_old_spelling(small, key, old, method, params):
+@pytest.mark.parametrize("key, method, params", CASES)
+def test_every_method_gives_the_numbers_recorded_before_the_registry(small, key, method, params):
     b1, b2, C, F = small
     new = pm.transfer(F, C, b1, b2, method, **params)
     op = pm.transfer_operator(C, b1, b2, method, **params)
     np.testing.assert_allclose(_reading(new), BEFORE[key], rtol=BEFORE_RTOL, atol=1e-13)
     np.testing.assert_array_equal(op(F), new)
-    if old["method"] == "prod":
-        with pytest.warns(DeprecationWarning, match=f"method={method!r}"):
-            was = pm.transfer(F, C, b1, b2, **old)
-    else:
-        was = pm.transfer(F, C, b1, b2, **old)
-    np.testing.assert_array_equal(was, new)
 
 
-def test_the_old_spellings_warn_and_name_the_new_one(small):
+def test_the_removed_spellings_are_errors(small):
     b1, b2, C, F = small
-    f = F[:, 0]
-    with pytest.warns(DeprecationWarning, match=r"method='svd', order=2, pairs='ordered', rtol=0.01"):
-        pm.transfer(f, C, b1, b2, "prod", rtol=1e-2)
-    with pytest.warns(DeprecationWarning, match=r"method='default', e0=None\)"):
-        pm.transfer(f, C, b1, b2, "prod", e0=None)
-    with pytest.warns(DeprecationWarning, match=r"method='ridge'.*eps=1e-06"):
-        pm.transfer(f, C, b1, b2, "prod", approx="ridge", eps=1e-6, route="svd")  # route: accepted, unused
-    with pytest.warns(DeprecationWarning, match=r"transfer\(F, C_12, basis_1, basis_2, method='default'"):
-        old = pm.safe_transfer(f, C, b1, b2, pairs="ordered")
-    np.testing.assert_array_equal(old, pm.transfer(f, C, b1, b2, "default"))
-    import prodmaps.default_transfer as dt
-
-    with pytest.warns(DeprecationWarning, match="DefaultTransfer"):
-        assert dt.SafeTransfer is DefaultTransfer
-    with pytest.warns(DeprecationWarning, match="DEFAULT_RULE"):
-        assert dt.DEFAULTS == DEFAULT_RULE
-    with pytest.warns(DeprecationWarning, match="transfer_operator"):
-        op = dt.safe_operator(C, b1, b2, pairs="unique")
-    assert op is pm.transfer_operator(C, b1, b2, "default")
-    with warnings.catch_warnings():
-        warnings.simplefilter("error")  # the new spellings are silent
-        pm.transfer(f, C, b1, b2, "svd", rtol=1e-2)
-        pm.transfer_operator(C, b1, b2, "default")(f)
+    with pytest.raises(ValueError, match="method must be one of"):
+        pm.transfer(F, C, b1, b2, "prod")
+    with pytest.raises(TypeError, match="'approx' is no method's"):
+        pm.transfer(F, C, b1, b2, "svd", approx="ridge")
+    assert not hasattr(pm, "safe_transfer")
+    with pytest.raises(ImportError):
+        import prodmaps.default_transfer  # noqa: F401
 
 
-def test_old_spelling_errors_are_kept(setting):
-    b1, b2, C, F = setting
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DeprecationWarning)
-        with pytest.raises(TypeError, match="unknown parameters"):
-            pm.transfer(F, C, b1, b2, "prod", eps=1e-3)
-        with pytest.raises(ValueError, match="order=2"):
-            pm.transfer(F, C, b1, b2, "prod", order=3)
-        with pytest.raises(ValueError, match="pairs must be 'ordered'"):
-            pm.transfer(F, C, b1, b2, "prod", pairs="foo")  # the default (no rtol) checks pairs too
-        with pytest.raises(TypeError, match="rtol is Approach B's threshold"):
-            pm.transfer(F, C, b1, b2, "prod", approx="ridge", rtol=1e-3)
-        with pytest.raises(TypeError, match="rtol and eps are numbers"):
-            pm.transfer(F, C, b1, b2, "prod", rtol="1e-3")
-        np.testing.assert_array_equal(pm.transfer(F, C, b1, b2, "prod", pairs="unique"),
-                                      pm.transfer(F, C, b1, b2, "prod", pairs="ordered"))
+# ------------------------------------------------------------------ the registry
+def test_the_registry_names_every_method_with_its_defaults():
+    assert list(REGISTRY) == ["std", "default", "svd", "ridge", "lasso", "svd_gain", "p2p"]
+    assert REGISTRY["svd"].parameters["rtol"] == PAPER_RTOL == 1e-3
+    assert REGISTRY["svd"].parameters["pairs"] == "ordered"  # the paper's convention
+    assert dict(REGISTRY["default"].parameters) == dict(DEFAULT_RULE)
+    assert REGISTRY["std"].parameters == {} and REGISTRY["p2p"].operator is PointMapTransfer
+    with pytest.raises(TypeError):
+        REGISTRY["svd"].parameters["rtol"] = 1.0  # read-only defaults
+
+
+def test_a_registered_method_is_one_class_and_one_line(small):
+    b1, b2, C, F = small
+
+    class Halved(pm.TransferOperator):
+        method = "halved"
+
+        def __init__(self, C_12, basis_1, basis_2, *, factor):
+            super().__init__(C_12, basis_1, basis_2, {"factor": factor})
+            self.inner = pm.transfer_operator(C_12, basis_1, basis_2, "std")
+
+        def apply(self, F):
+            return self.params["factor"] * self.inner(F)
+
+    register("halved", Halved, {"factor": 0.5}, "the standard transfer, halved")
+    try:
+        np.testing.assert_array_equal(pm.transfer(F, C, b1, b2, "halved"), 0.5 * pm.transfer(F, C, b1, b2))
+        assert pm.transfer_operator(C, b1, b2, "halved", factor=2.0).params == {"factor": 2.0}
+        with pytest.raises(TypeError, match=r"method='halved' takes no parameter 'rtol'.*of 'svd'"):
+            pm.transfer(F, C, b1, b2, "halved", rtol=1e-3)
+    finally:
+        del REGISTRY["halved"]
+    with pytest.raises(TypeError, match="TransferOperator subclass"):
+        register("bad", object, {})
+
+
+def test_the_gain_rule_is_approach_b_at_the_selected_threshold(small):
+    b1, b2, C, F = small
+    op = pm.transfer_operator(C, b1, b2, "svd_gain", max_gain=2.0)
+    r = select_rtol(b1, method="gain", C_12=C, basis_2=b2, max_gain=2.0)
+    assert op.rtol == r and op.method == "svd_gain"
+    np.testing.assert_array_equal(op(F), pm.transfer(F, C, b1, b2, "svd", rtol=r))
+    assert op.rank == pm.transfer_operator(C, b1, b2, "svd", rtol=r).rank
+
+
+def test_the_point_map_transfer_pulls_back_through_the_standard_conversion(small):
+    b1, b2, C, F = small
+    op = pm.transfer_operator(C, b1, b2, "p2p")
+    p2p_21 = from_fmap(C, b1, b2, "std")
+    np.testing.assert_array_equal(op.p2p_21, p2p_21)
+    np.testing.assert_array_equal(op(F), F[p2p_21])
+    np.testing.assert_array_equal(op.approximate(F), pm.transfer_operator(C, b1, b2).approximate(F))
 
 
 # ------------------------------------------------------------------ the family and its parameters
 def test_every_method_has_its_own_parameters_and_others_are_refused(small):
     b1, b2, C, F = small
-    assert set(PARAMETERS) == set(METHODS)
     with pytest.raises(TypeError, match=r"method='std' takes no parameter 'rtol' \(its parameters: none\); "
                                         r"'rtol' is a parameter of 'svd'"):
         pm.transfer(F, C, b1, b2, "std", rtol=1e-3)
@@ -148,10 +169,6 @@ def test_every_method_has_its_own_parameters_and_others_are_refused(small):
         pm.transfer_operator(C, b1, b2, "ridge", max_iter=10)
     with pytest.raises(TypeError, match=r"'foo' is no method's"):
         pm.transfer_operator(C, b1, b2, "lasso", foo=1)
-    with pytest.raises(TypeError, match="approx= belongs to the deprecated method='prod'"):
-        pm.transfer(F, C, b1, b2, "svd", approx="ridge")
-    with pytest.raises(ValueError, match=r"method must be one of .*'prod' is transfer\(\)'s deprecated spelling"):
-        pm.transfer_operator(C, b1, b2, "prod")
     with pytest.raises(ValueError, match="method must be one of"):
         pm.transfer(F, C, b1, b2, "nearest")
     with pytest.raises(ValueError, match="rtol must be in"):  # values are validated when the operator is built
@@ -166,7 +183,8 @@ def test_every_method_has_its_own_parameters_and_others_are_refused(small):
 
 @pytest.mark.parametrize("method, params", [("std", {}), ("default", {}), ("svd", {"rtol": 1e-3}),
                                             ("svd", {"rtol": 1e-2, "order": 3, "pairs": "unique"}),
-                                            ("ridge", {"eps": 1e-6}), ("lasso", {"eps": 1e-4})])
+                                            ("ridge", {"eps": 1e-6}), ("lasso", {"eps": 1e-4}),
+                                            ("svd_gain", {}), ("p2p", {})])
 def test_built_once_applied_to_parts_equals_applied_to_all(small, method, params):
     b1, b2, C, F = small
     op = pm.transfer_operator(C, b1, b2, method, **params)
@@ -241,7 +259,7 @@ def test_complex_and_sparse_maps(small):
         pm.transfer(f, C.T, b1, b2)  # transposed: no truncation hint
     assert "truncate" not in str(err.value)
     assert pm.transfer(f, C[:6, :5], b1.truncate(5), b2.truncate(6)).shape == (b2.n,)  # the hint works
-    for method in METHODS:
+    for method in REGISTRY:
         assert np.array_equal(pm.transfer(f, sp.csr_matrix(C), b1, b2, method), pm.transfer(f, C, b1, b2, method))
 
 

@@ -239,3 +239,33 @@ def test_cli_diff_refuses_a_png_threshold_outside_0_255(tmp_path, capsys, value)
     with pytest.raises(SystemExit) as exc:
         cli.main(["diff", str(new), str(base), "--png-threshold", value])
     assert exc.value.code == 2 and "--png-threshold" in capsys.readouterr().err
+
+
+def test_cli_diff_pairs_a_profile_folder_with_one_run_folder_either_way(tmp_path, monkeypatch, capsys):
+    # `prodmaps diff results/smoke paper/baselines/smoke/fig02`: the run fig02 of the profile folder
+    reg = tmp_path / "runs.toml"
+    reg.write_text('root = "."\n[runs.fig98]\nnotebook = "x.ipynb"\n[runs.fig99]\nnotebook = "y.ipynb"\n'
+                   '[runs.fig99.tolerances]\n"results.errors.*" = { rtol = 0.05, atol = 0.0 }\n')
+    monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
+    for run in ("fig98", "fig99"):
+        make_run(tmp_path / "base" / run)
+    drift = _copy(DOC)
+    drift["results"]["errors"]["std"]["k8"] = 0.285  # within fig99's tolerance only
+    make_run(tmp_path / "new" / "fig99", drift)
+    new, base = tmp_path / "new", tmp_path / "base"
+    assert cli.main(["diff", str(new), str(base / "fig99")]) == 0  # fig99's own tolerances applied
+    cap = capsys.readouterr()
+    assert cap.out.count("diff PASS") == 1 and f"`{new / 'fig99'}` vs baseline `{base / 'fig99'}`" in cap.out
+    assert f"comparing the run folder {new / 'fig99'} with {base / 'fig99'}" in cap.err
+    assert cli.main(["diff", str(new / "fig99"), str(base)]) == 0  # the other way round
+    assert f"vs baseline `{base / 'fig99'}`" in capsys.readouterr().out
+    assert cli.main(["diff", str(new), str(base), "--run", "fig99"]) == 0  # two profile folders, one run
+    assert capsys.readouterr().out.count("diff PASS") == 1
+    make_run(tmp_path / "new" / "fig98", drift)  # fig98 keeps the default tolerance: the same drift fails
+    assert cli.main(["diff", str(new), str(base / "fig98")]) == 1
+    assert "results.errors.std.k8" in capsys.readouterr().out
+    # a run the profile folder does not hold: refused, saying what it holds and what to pass
+    make_run(tmp_path / "base" / "fig97")
+    assert cli.main(["diff", str(new), str(base / "fig97")]) == 2
+    err = capsys.readouterr().err
+    assert "without the run 'fig97'" in err and "fig98, fig99" in err and "pass two run folders" in err

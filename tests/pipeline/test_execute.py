@@ -28,7 +28,7 @@ fail = False
 
 TINY_BODY = """import numpy as np
 from PIL import Image
-from prodmaps.experiments import results as nbr
+from prodmaps.experiments.shared import results as nbr
 if fail:
     raise RuntimeError("injected failure for the test")
 rng = np.random.default_rng(seed)
@@ -235,7 +235,7 @@ def test_registry_outside_the_project_reaches_the_kernels_run_parameters(tmp_pat
     # knobs with run_parameters, which must read the registry given on the command line
     write_notebook(tmp_path / "own.ipynb",
                    'profile = "smoke"\nout_dir = "results/own"\nknob = None\n',
-                   "from prodmaps.experiments import results as nbr\n"
+                   "from prodmaps.experiments.shared import results as nbr\n"
                    "from prodmaps.pipeline import registry\n"
                    'P = registry.run_parameters("own_run", profile, globals())\n'
                    'nbr.write_results(out_dir, {"knob_twice": 2 * P["knob"]}, P)\n')
@@ -258,7 +258,7 @@ def test_relative_cache_and_data_folders_are_the_invoking_folders_not_the_projec
     (tmp_path / "project" / "paper").mkdir(parents=True)
     write_notebook(tmp_path / "project" / "own.ipynb",
                    'profile = "smoke"\nout_dir = "results/own"\n',
-                   "import os\nfrom prodmaps.experiments import results as nbr\n"
+                   "import os\nfrom prodmaps.experiments.shared import results as nbr\n"
                    "nbr.write_results(out_dir, {k: os.path.abspath(os.environ[k]) for k in "
                    "('PRODMAPS_CACHE', 'PRODMAPS_DATA')}, {})\n")
     reg = tmp_path / "project" / "paper" / "runs.toml"
@@ -409,8 +409,8 @@ def test_repeated_only_adds_runs(project, capsys):
 
 def test_library_hash_covers_importable_code_not_the_pipeline():
     files = {p.relative_to(hashing._PACKAGE).as_posix() for p in hashing.library_files()}
-    assert {"mapping.py", "experiments/protocol.py", "experiments/claims.toml",
-            "experiments/published_tables.csv"} <= files
+    assert {"mapping.py", "experiments/shared/protocol.py", "experiments/shared/claims.toml",
+            "experiments/shared/published_tables.csv"} <= files
     assert not [f for f in files if f.startswith(("pipeline/", "data/"))]
 
 
@@ -421,7 +421,7 @@ def test_executed_notebook_is_kept_as_html(project, capsys):
     assert rc == 0 and "tiny done" in html and "<html" in html.lower()
 
 
-FIGURE_BODY = """from prodmaps.experiments import results as nbr
+FIGURE_BODY = """from prodmaps.experiments.shared import results as nbr
 plt = nbr.setup_matplotlib()
 fig, ax = plt.subplots(figsize=(2, 1.5))
 ax.plot([0, 1, 2], [0, 1, 0])
@@ -480,7 +480,7 @@ def test_records_of_a_run_outside_the_project_hold_no_machine_path(project, tmp_
 
 
 def test_setup_matplotlib_outside_a_kernel_is_agg():
-    code = ("from prodmaps.experiments.results import setup_matplotlib; import matplotlib; "
+    code = ("from prodmaps.experiments.shared.results import setup_matplotlib; import matplotlib; "
             "setup_matplotlib(); print(matplotlib.get_backend())")
     r = subprocess.run([PY, "-c", code], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0 and r.stdout.strip().lower() == "agg", r.stderr
@@ -497,6 +497,41 @@ def test_a_value_that_does_not_parse_or_has_the_wrong_type_is_refused_up_front()
     with pytest.raises(execute.ParameterError, match="disk_cache"):
         execute.plan_runs(runs, profile="smoke", only=["tab01"], overrides={"disk_cache": 1})
     assert execute.plan_runs(runs, profile="smoke", only=["fig04"], overrides={"seed": 3})[0]["params"]["seed"] == 3
+
+
+
+def test_a_float_for_an_integer_parameter_is_refused_naming_the_parameter_and_its_type(tmp_path, capsys):
+    # fig02's n_samples is None in the notebook and 512 in the registry: 2.5 used to reach the notebook and fail
+    # with a message about k (fourier_basis: k must be in [1, n//2])
+    runs = rp.load_registry()
+    with pytest.raises(execute.ParameterError, match=r"n_samples=2\.5 \(float\) does not match the type of the "
+                       r"registry's params\.smoke\.n_samples = 512 \(int\): n_samples expects an integer"):
+        execute.plan_runs(runs, profile="smoke", only=["fig02"], overrides={"n_samples": 2.5})
+    with pytest.raises(execute.ParameterError, match="n_samples expects an integer"):
+        execute.plan_runs(runs, profile="smoke", only=["fig02"], overrides={"n_samples": 2.0})
+    with pytest.raises(execute.ParameterError, match=r"k_values expects a list of integers"):
+        execute.plan_runs(runs, profile="paper", only=["fig03"], overrides={"k_values": [4, 8.5]})
+    assert execute.plan_runs(runs, profile="smoke", only=["fig02"], overrides={"n_samples": 4096})[0]["params"][
+        "n_samples"] == 4096
+    assert execute.plan_runs(runs, profile="smoke", only=["tab01"], overrides={"rtol": 1})[0]["params"]["rtol"] == 1
+    out = tmp_path / "o"  # the command line: refused before anything runs
+    assert cli.main(["reproduce", "--only", "fig02", "-p", "n_samples=2.5", "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "parameter n_samples=2.5" in err and "expects an integer (e.g. -p 'n_samples=2048')" in err
+    assert not out.exists()
+
+
+def test_reproduce_without_the_notebooks_extra_names_the_extra_to_install(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "papermill", None)  # a library-only install: papermill is not there
+    out = tmp_path / "o"
+    assert cli.main(["reproduce", "--only", "fig02", "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "needs papermill" in err and "pip install 'prodmaps[notebooks]'" in err and not out.exists()
+    assert cli.main(["reproduce", "--list"]) == 0  # listing the runs needs no notebook tools
+    # a missing optional package met later (matplotlib for an image diff, dask for a scheduler) names its extra
+    assert "pip install 'prodmaps[dask]'" in execute.install_hint(ModuleNotFoundError("No module named 'dask'",
+                                                                                       name="dask"))
+    assert execute.install_hint(ModuleNotFoundError("No module named 'x'", name="x")) == "No module named 'x'"
 
 
 # ----------------------------------------------------------------------------- command-line rough edges
@@ -549,7 +584,7 @@ def test_a_fractional_timeout_runs_and_a_cell_timeout_is_named_in_the_summary(tm
     (tmp_path / "paper").mkdir()
     write_notebook(tmp_path / "own.ipynb",
                    'profile = "smoke"\nout_dir = "results/own"\nnap = 0.0\n',
-                   "import time\nfrom prodmaps.experiments import results as nbr\ntime.sleep(nap)\n"
+                   "import time\nfrom prodmaps.experiments.shared import results as nbr\ntime.sleep(nap)\n"
                    "nbr.write_results(out_dir, {'nap': nap}, {})\n")
     reg = tmp_path / "paper" / "runs.toml"
     reg.write_text('[runs.own]\nnotebook = "own.ipynb"\n[runs.own.params.smoke]\n')
@@ -607,3 +642,14 @@ def test_the_cli_module_runs_as_a_script():
     p = subprocess.run([sys.executable, "-m", "prodmaps.pipeline.cli", "reproduce", "--only", "nope", "--no-progress"],
                        capture_output=True, text=True)
     assert p.returncode == 2 and "nope" in p.stderr and "NameError" not in p.stderr
+
+
+def test_importing_the_command_line_loads_no_notebook_tool_plotting_or_dask():
+    # the pipeline's own modules are imported at module level; the heavy optional packages only where used
+    heavy = ("papermill", "nbclient", "nbformat", "nbconvert", "ipykernel", "dask", "distributed", "tqdm", "matplotlib",
+             "PIL", "pyvista", "vtk")
+    code = ("import sys, prodmaps.pipeline.cli\n"
+            f"print([m for m in sys.modules if m.split('.')[0] in {heavy!r}])\n")
+    r = subprocess.run([PY, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "[]", r.stdout

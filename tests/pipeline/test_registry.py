@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from prodmaps.experiments.claims import load_ledger
+from prodmaps.experiments.shared.claims import load_ledger
 from prodmaps.pipeline import registry
 from prodmaps.pipeline.notebooks import declared_parameters, parameters_cell
 from prodmaps.pipeline.registry import (
@@ -118,6 +118,9 @@ k = 30
 ks = [1, 2]
 [runs.a.tolerances]
 "results.x" = { rtol = 1e-3 }
+[runs.a.datasets.faust]
+ks = [5]
+shape = "tr_reg_000"
 
 [runs."b.2-x"]
 notebook = "/abs/elsewhere/b.ipynb"
@@ -135,6 +138,10 @@ def test_load_registry_fields_and_path_resolution(tmp_path):
     assert a.parameters("smoke") == {"k": 3}
     assert a.parameters("paper") == {"k": 30, "ks": [1, 2]}
     assert a.parameters("other") == {}
+    # a dataset's values go over every profile's; other datasets keep the profile's
+    assert a.parameters("paper", "faust") == {"k": 30, "ks": [5], "shape": "tr_reg_000"}
+    assert a.parameters("smoke", "faust") == {"k": 3, "ks": [5], "shape": "tr_reg_000"}
+    assert a.parameters("paper", "anny_humans") == a.parameters("paper") and b.datasets == {}
     assert a.tolerances == {"results.x": {"rtol": 1e-3}}
     # parameters() is a copy: changing it leaves the run unchanged
     p = a.parameters("smoke")
@@ -178,6 +185,8 @@ def test_empty_registry_has_no_runs(tmp_path):
         ('[runs.a]\nnotebook = "a.ipynb"\ntolerances = 1e-3\n', "tolerances must be a table"),
         ('[runs.a]\nnotebook = "a.ipynb"\nreport = "not a module"\n', "report must name a module"),
         ('[runs.a]\nnotebook = "a.ipynb"\ndataset_figures = "yes"\n', "dataset_figures must be true or false"),
+        ('[runs.a]\nnotebook = "a.ipynb"\ndatasets = 3\n', "datasets must be tables"),
+        ('[runs.a]\nnotebook = "a.ipynb"\n[runs.a.datasets.faust]\ndataset = "tosca"\n', "must not set ['dataset']"),
     ],
 )
 def test_malformed_registries_raise_registry_error(tmp_path, text, message):

@@ -10,18 +10,22 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import Image
 
-from prodmaps.experiments.claims import VERDICTS, load_ledger
-from prodmaps.experiments.published import load_published, published_values
+from prodmaps.experiments.shared.claims import VERDICTS, load_ledger
+from prodmaps.experiments.shared.published import load_published, published_values
 from prodmaps.pipeline import execute
+from prodmaps.pipeline.publishing import PublishError, publish
 from prodmaps.pipeline.registry import load_registry
-from prodmaps.pipeline.report import build_report, collect_runs
+from prodmaps.pipeline.report import ReportSettings, build_report
+from prodmaps.pipeline.report_data import ClaimResult, DatasetReport, Figure, Study, TableSummary, collect_runs
 
+TEXT = Path(__file__).resolve().parents[2] / "paper" / "report_text"  # the paper's prose, read at build time
 PUB1 = published_values("T1", "ground_truth")  # {(k_M, k_N, stage, method, function): value}
 PUB2 = published_values("T2", "computed_NO17")
 N_PUB = {t: sum(r["table"] == t for r in load_published()) for t in "123456"}
@@ -46,7 +50,7 @@ table = "T1"
 [runs.study_truncation]
 notebook = "notebooks/study.ipynb"
 reproduces = "Study"
-report = "prodmaps.experiments.truncation_study"
+report = "prodmaps.experiments.study_truncation"
 """
 
 FAMS = ("hk k", "HKS", "XYZ")
@@ -136,9 +140,14 @@ def _run(results_dir: Path, name, doc=None, manifest=None, pngs=(), html=True, e
     return d
 
 
+def _report_text(res, root, reg) -> str:
+    return build_report(res, root / "paper" / "REPORT.md", ReportSettings(registry=reg))[0].read_text(encoding="utf-8")
+
+
 def make_project(root: Path) -> tuple[Path, Path]:
-    """``root/paper/runs.toml`` and ``root/results/<run>/``: returns (registry, results folder)."""
+    """``root/paper/runs.toml``, the paper's report texts and ``root/results/<run>/``: (registry, results folder)."""
     (root / "paper").mkdir(parents=True)
+    shutil.copytree(TEXT, root / "paper" / "report_text")
     reg = root / "paper" / "runs.toml"
     reg.write_text(REGISTRY)
     res = root / "results"
@@ -177,7 +186,7 @@ def project(tmp_path_factory):
     reg, res = make_project(root)
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("PRODMAPS_RUNS", str(reg))  # the report's own project-root look-ups find this project
-        md, html = build_report(res, root / "paper" / "REPORT.md", registry=reg)
+        md, html = build_report(res, root / "paper" / "REPORT.md", ReportSettings(registry=reg))
     return {"root": root, "registry": reg, "results": res, "md": md, "html": html,
             "text": md.read_text(encoding="utf-8"), "html_text": html.read_text(encoding="utf-8")}
 
@@ -366,7 +375,8 @@ def test_table_summaries_against_a_custom_published_csv(tmp_path):
                    "1,ground_truth,9,9,HKS,transfer,our_B,0.11\n"  # ours 0.10: diff 0.01
                    "1,ground_truth,9,9,WKS,transfer,std,0.20\n"  # not measured by us
                    "3,ground_truth,6,7,HKS,transfer,std,0.40\n")
-    md, _ = build_report(res, tmp_path / "out" / "R.md", registry=tmp_path / "paper" / "runs.toml", published=csv)
+    md, _ = build_report(res, tmp_path / "out" / "R.md",
+                         ReportSettings(registry=tmp_path / "paper" / "runs.toml", published=csv))
     text = md.read_text(encoding="utf-8")
     rows = _summary_rows(text)
     assert list(rows) == ["Table 1", "Table 3"]
@@ -381,8 +391,8 @@ def test_table_summaries_against_a_custom_published_csv(tmp_path):
 
 def test_no_published_csv_means_no_table_sections(tmp_path):
     _, res = make_project(tmp_path)
-    md, _ = build_report(res, tmp_path / "R.md", registry=tmp_path / "paper" / "runs.toml",
-                         published=tmp_path / "missing.csv")
+    md, _ = build_report(res, tmp_path / "R.md", ReportSettings(registry=tmp_path / "paper" / "runs.toml",
+                                                                published=tmp_path / "missing.csv"))
     text = md.read_text(encoding="utf-8")
     assert "## Tables 1–6" not in text and "## Appendix" not in text
     assert text.index("## Claims of the paper") < text.index("## Runs")
@@ -489,7 +499,7 @@ def test_html_written_where_requested_and_figures_copied(tmp_path, monkeypatch):
     monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
     out = tmp_path / "paper" / "R.md"
     html_out = tmp_path / "paper" / "site.html"
-    md, html = build_report(res, out, registry=reg, html_out=html_out, copy_figures=True)
+    md, html = build_report(res, out, ReportSettings(registry=reg, copy_figures=True), html_out=html_out)
     assert (md, html) == (out.resolve(), html_out)
     assert html_out.is_file() and not out.with_suffix(".html").exists()
     text = md.read_text(encoding="utf-8")
@@ -506,21 +516,23 @@ def test_explicit_registry_works_from_any_working_directory(tmp_path, monkeypatc
     elsewhere.mkdir()
     monkeypatch.chdir(elsewhere)
     monkeypatch.delenv("PRODMAPS_RUNS", raising=False)
-    md, _ = build_report(res, tmp_path / "proj" / "paper" / "R.md", registry=reg)
+    md, _ = build_report(res, tmp_path / "proj" / "paper" / "R.md", ReportSettings(registry=reg))
     assert "## Claims of the paper" in md.read_text(encoding="utf-8")
 
 
 def test_html_links_resolve_from_the_html_folder(tmp_path, monkeypatch):
     reg, res = make_project(tmp_path)
     monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
-    _, html = build_report(res, tmp_path / "paper" / "R.md", registry=reg, html_out=tmp_path / "paper" / "R2.html")
+    _, html = build_report(res, tmp_path / "paper" / "R.md", ReportSettings(registry=reg),
+                           html_out=tmp_path / "paper" / "R2.html")
     links = re.findall(r'(?:href|src)="([^"]+)"', html.read_text(encoding="utf-8"))
     assert links
     for link in links:
         assert (html.parent / link).resolve().is_file(), link
     # the links are shared by both files: an HTML report in another folder is refused, not broken
     with pytest.raises(ValueError, match="html_out must be in the folder"):
-        build_report(res, tmp_path / "paper" / "R.md", registry=reg, html_out=tmp_path / "site" / "R.html")
+        build_report(res, tmp_path / "paper" / "R.md", ReportSettings(registry=reg),
+                     html_out=tmp_path / "site" / "R.html")
 
 
 def test_default_output_is_beside_the_results_never_the_committed_report(tmp_path, monkeypatch):
@@ -578,7 +590,7 @@ def test_a_prepared_dataset_gets_a_verdict_column_and_a_section(tmp_path):
     tab01["table"] = TABLE1
     tab01["pairs"] = [["tr_reg_000", "tr_reg_001"], ["tr_reg_010", "tr_reg_025"]]
     _run(faust, "tab01", _doc(tab01, table="T1"), _manifest("tab01", "ok", 3.0), pngs=["table.png"])
-    md, _ = build_report(res, tmp_path / "paper" / "REPORT.md", registry=reg)
+    md, _ = build_report(res, tmp_path / "paper" / "REPORT.md", ReportSettings(registry=reg))
     text = md.read_text(encoding="utf-8")
     claims = _section(text, "Claims of the paper, judged on these results")
     (table,) = _tables(claims)
@@ -672,7 +684,6 @@ def test_reproduce_writes_its_report_beside_the_results_and_leaves_the_committed
 
 def test_publish_refuses_a_partial_run_and_says_what_is_partial(tmp_path, monkeypatch, capsys):
     from prodmaps.pipeline import cli
-    from prodmaps.pipeline.report import PublishError, publish
 
     reg, res = make_project(tmp_path)  # fig03 failed, fig04 missing, no manifests for some
     monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
@@ -689,13 +700,12 @@ def test_publish_refuses_a_partial_run_and_says_what_is_partial(tmp_path, monkey
 
 
 def test_publish_shows_overridden_parameters_and_refuses_them_by_default(tmp_path, monkeypatch):
-    from prodmaps.pipeline.report import PublishError, publish
 
     reg, paper = _complete_paper_run(tmp_path)
     monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
     man = dict(_manifest("fig03", "ok", 1.0), overrides={"k_values": [4, 8, 12, 16]})
     (paper / "fig03" / "manifest.json").write_text(json.dumps(man))
-    md, _ = build_report(paper, registry=reg)  # every report shows them
+    md, _ = build_report(paper, settings=ReportSettings(registry=reg))  # every report shows them
     assert "`fig03`: `k_values=[4, 8, 12, 16]`" in md.read_text(encoding="utf-8")
     with pytest.raises(PublishError, match=r"parameters overridden: fig03 k_values=\[4, 8, 12, 16\]"):
         publish(paper, registry=reg)
@@ -703,8 +713,6 @@ def test_publish_shows_overridden_parameters_and_refuses_them_by_default(tmp_pat
 
 def test_published_report_links_resolve_in_a_fresh_clone(tmp_path, monkeypatch):
     """Every local link of the published report points into paper/ or the committed notebooks."""
-    from prodmaps.pipeline.report import publish
-
     reg, paper = _complete_paper_run(tmp_path)
     monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
     stale = tmp_path / "paper" / "report_figures" / "old_run" / "gone.png"
@@ -713,8 +721,6 @@ def test_published_report_links_resolve_in_a_fresh_clone(tmp_path, monkeypatch):
     md, html, problems = publish(paper, registry=reg)
     assert problems == [] and md == (tmp_path / "paper" / "REPORT.md").resolve()
     assert not stale.exists() and not stale.parent.exists()  # figures no longer shown are removed
-    import shutil
-
     shutil.rmtree(tmp_path / "results")  # a fresh clone has no results/
     for f in (md, html):
         links = _local_links(f)
@@ -729,8 +735,6 @@ def test_published_report_links_resolve_in_a_fresh_clone(tmp_path, monkeypatch):
 def test_publishing_a_run_kept_outside_the_project_writes_no_machine_path(tmp_path, monkeypatch):
     # `make reproduce OUT=/scratch/res` then `make publish OUT=/scratch/res`: the committed report names
     # the results folder `<out>/paper`, not /scratch/res/paper or ../../scratch/res/paper
-    from prodmaps.pipeline.report import publish
-
     reg, paper = _complete_paper_run(tmp_path / "project")
     monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
     elsewhere = tmp_path / "scratch" / "res"
@@ -743,13 +747,11 @@ def test_publishing_a_run_kept_outside_the_project_writes_no_machine_path(tmp_pa
         assert "scratch" not in text and str(tmp_path) not in text
     text = md.read_text(encoding="utf-8")
     assert "from `<out>/paper`" in text and "outputs in `<out>/paper/tab01`" in text
-    local, _ = build_report(paper, registry=reg)  # a local report keeps the paths that open on this machine
+    local, _ = build_report(paper, settings=ReportSettings(registry=reg))  # a local report: the paths on this machine
     assert "outputs in `tab01`" in local.read_text(encoding="utf-8")
 
 
 def test_publish_keeps_the_faust_section_when_faust_was_not_rerun(tmp_path, monkeypatch):
-    from prodmaps.pipeline.report import kept_dataset, publish
-
     reg, paper = _complete_paper_run(tmp_path)
     monkeypatch.setenv("PRODMAPS_RUNS", str(reg))
     faust = paper.with_name("paper-faust")
@@ -765,11 +767,14 @@ def test_publish_keeps_the_faust_section_when_faust_was_not_rerun(tmp_path, monk
     (tmp_path / "paper" / "report_figures" / "faust" / "fig08").mkdir(parents=True)
     kept_png = tmp_path / "paper" / "report_figures" / "faust" / "fig08" / "curves.png"
     _png(kept_png, 7)
-    import shutil
-
-    shutil.rmtree(faust)  # FAUST not rerun: its column and sections come from the committed report
-    k = kept_dataset(md, "faust")
-    assert k is not None and len(k.column) == len(load_ledger())
+    stored = tmp_path / "paper" / "report_data" / "faust.json"  # FAUST's report data, beside the report
+    assert json.loads(stored.read_text(encoding="utf-8"))["dataset"] == "faust"
+    shutil.rmtree(faust)  # FAUST not rerun: its column and sections come from the stored report data
+    k = DatasetReport.load(tmp_path / "paper", "faust")
+    assert k is not None and list(k.verdicts) == list(load_ledger())
+    assert k.verdicts["tab01.products_improve_transfer"].verdict in VERDICTS
+    assert [t.table for t in k.tables] == ["1"] and k.pairs == [["tr_reg_000", "tr_reg_001"]]
+    (tmp_path / "paper" / "REPORT.md").write_text("# edited by hand: not a data store\n")  # never read back
     md, html, _ = publish(paper, registry=reg)
     second = md.read_text(encoding="utf-8")
 
@@ -787,7 +792,7 @@ def test_publish_keeps_the_faust_section_when_faust_was_not_rerun(tmp_path, monk
     assert kept_png.is_file()  # a kept dataset's figures stay
     first_commit = k.commit
     md, _, _ = publish(paper, registry=reg)  # kept again: still names the commit of the FAUST run's report
-    assert kept_dataset(md, "faust").commit == first_commit
+    assert DatasetReport.load(md.parent, "faust").commit == first_commit
     assert faust_part(md.read_text(encoding="utf-8")) == faust_part(first)
     assert "<h2>On FAUST</h2>" in html.read_text(encoding="utf-8") and "<h2>On FAUST</h2>" in first_html
 
@@ -808,7 +813,7 @@ def test_a_run_with_a_report_module_gets_its_section_in_the_report_and_each_data
     _run(res, "empty", _doc({}), _manifest("empty", "ok", 1.0), pngs=["e.png"])  # no blocks: no section
     faust = res.with_name(res.name + "-faust")
     _run(faust, "owned", _doc({"n": 8}), _manifest("owned", "ok", 1.0), pngs=["o.png"])
-    text = build_report(res, tmp_path / "paper" / "REPORT.md", registry=reg)[0].read_text(encoding="utf-8")
+    text = _report_text(res, tmp_path, reg)
     owned = _section(text, "Study: owned, on embedded humans")
     assert "n = 7" in owned and "![owned o](../results/owned/o.png)" in owned
     assert text.index("\n## Study: Approach B's threshold") < text.index("\n## Study: owned")  # registry order
@@ -828,10 +833,10 @@ def test_a_main_study_run_on_a_prepared_dataset_is_not_repeated_beside_its_datas
                    'report = "owned_section2"\n')
     _run(res, "owned", _doc({"n": 7, "dataset": "faust"}), _manifest("owned", "ok", 1.0), pngs=["o.png"])
     faust = res.with_name(res.name + "-faust")
-    text = build_report(res, tmp_path / "paper" / "REPORT.md", registry=reg)[0].read_text(encoding="utf-8")
+    text = _report_text(res, tmp_path, reg)
     assert text.count("Study: owned2, on FAUST") == 1  # no FAUST folder: the main run's section
     _run(faust, "owned", _doc({"n": 8, "dataset": "faust"}), _manifest("owned", "ok", 1.0), pngs=["o.png"])
-    text = build_report(res, tmp_path / "paper" / "REPORT.md", registry=reg)[0].read_text(encoding="utf-8")
+    text = _report_text(res, tmp_path, reg)
     assert text.count("Study: owned2, on FAUST") == 1 and "n = 8" in _section(text, "On FAUST")
     assert "n = 7" not in text
 
@@ -845,10 +850,115 @@ def test_a_published_report_quotes_a_failed_run_without_machine_paths(tmp_path, 
         f'  File "{root}/.venv/lib/python3.11/site-packages/nbclient/client.py", line 10, in run\n'
         f'  File "{root}/prodmaps/experiments/howto.py", line 5, in f\n'
         f"MeshError: {tmp_path}/alice/scans/spot_03.off: no such file (see https://example.org/a/b/c)\n")
-    published, _ = build_report(res, tmp_path / "pub.md", registry=reg, machine_paths=False)
+    published, _ = build_report(res, tmp_path / "pub.md", ReportSettings(registry=reg, machine_paths=False))
     text = published.read_text(encoding="utf-8")
     assert str(tmp_path) not in text
     assert '"<site-packages>/nbclient/client.py"' in text and '"prodmaps/experiments/howto.py"' in text
     assert "MeshError: …/spot_03.off: no such file (see https://example.org/a/b/c)" in text  # URLs stay
-    local, _ = build_report(res, tmp_path / "local.md", registry=reg)  # a local report keeps them
+    local, _ = build_report(res, tmp_path / "local.md", ReportSettings(registry=reg))  # a local report keeps them
     assert f"{tmp_path}/alice/scans/spot_03.off" in local.read_text(encoding="utf-8")
+
+
+# ------------------------------------------------------------------------------ the parts: data, text, document
+def test_the_report_data_is_built_from_the_results_without_rendering(project):
+    from prodmaps.pipeline.document import Document
+    from prodmaps.pipeline.report import build_document, read_inputs
+
+    settings = ReportSettings(registry=project["registry"])
+    inputs = read_inputs(project["results"], settings, project["root"] / "paper")
+    main = inputs.main
+    assert (main.dataset, main.name, inputs.datasets, inputs.kept) == ("anny_humans", "embedded humans", [], [])
+    assert list(main.verdicts) == list(load_ledger())
+    for cid, (verdict, marks, kinds, evidence) in EXPECTED.items():
+        c = main.verdicts[cid]
+        assert (c.verdict, (c.paper, c.rule, c.default)) == (verdict, marks), cid
+        assert "; ".join(f"{k}: {v}" for k, v in c.subsets.items()) == kinds and c.evidence.startswith(evidence)
+    assert main.counts()["holds"] == 4 and sum(main.counts().values()) == len(load_ledger())
+    t1 = main.tables[0]
+    assert (t1.table, t1.compared, t1.published, t1.within, t1.missed, t1.in_noise) == ("1", 4, N_PUB["1"], 2, 2, 1)
+    assert t1.mean_diff == pytest.approx(0.041) and t1.largest_diff == pytest.approx(0.1)
+    assert t1.beats["our_B"] == [[2, 3], [1, 3], [0, 3]] and main.tables[1].in_noise is None  # no SE: no count
+    assert [(s.run, s.dataset) for s in main.studies] == [("study_truncation", "anny_humans")]
+    assert main.studies[0].blocks[0] == ("h", 2, "Study: Approach B's threshold, transfer gains, and a rule that "
+                                               "does not need ground truth")
+    doc = build_document(inputs, settings, project["root"] / "paper")
+    assert isinstance(doc, Document) and doc.blocks[0][:2] == ("h", 1)
+    assert [b[2] for b in doc.blocks if b[:2] == ("h", 2)][:2] == ["Claims of the paper, judged on these results",
+                                                                  "Tables 1–6: our values beside the published ones"]
+    def undated(text):
+        return re.sub(r" on \d{4}-\d\d-\d\d \d\d:\d\d UTC,", " on DATE,", text)
+
+    assert undated(doc.markdown()) == undated(project["text"])  # what build_report wrote, rendered
+
+
+def test_one_datasets_report_data_round_trips_through_its_json(tmp_path):
+    paper = tmp_path / "paper"
+    img = paper / "report_figures" / "faust" / "fig08" / "curves.png"
+    img.parent.mkdir(parents=True)
+    _png(img, 1)
+    data = DatasetReport("faust", "results/paper-faust", "abc123", ["fig08", "study_x"], ["tr_reg_000", "tr_reg_001"],
+                         [["tr_reg_000", "tr_reg_001"]],
+                         {"fig08.products_above_std": ClaimResult("holds", {"textbook": "does not hold"}, "yes", "no",
+                                                                  "yes", {"intra": "holds"}, "area +0.01")},
+                         [TableSummary("1", 54, 54, 44, 10, 8, 0.012, 0.062, {"our_B": [[10, 10], None, [9, 10]]})],
+                         [Figure("fig08", "Figure 8", [img])],
+                         [Study("study_x", "faust", [("h", 3, "Study: x on FAUST"), ("table", ["a"], [["1"]])], [img])])
+    path = data.save(paper)
+    assert path == paper.resolve() / "report_data" / "faust.json"
+    stored = json.loads(path.read_text(encoding="utf-8"))
+    assert stored["figures"][0]["images"] == ["report_figures/faust/fig08/curves.png"]  # relative to the report
+    back = DatasetReport.load(paper, "faust")
+    assert back == DatasetReport(**{**data.__dict__, "figures": [Figure("fig08", "Figure 8", [img.resolve()])],
+                                    "studies": [Study("study_x", "faust", data.studies[0].blocks, [img.resolve()])]})
+    assert back.counts()["holds"] == 1 and back.name == "FAUST" and back.images() == [img.resolve()] * 2
+    assert DatasetReport.load(paper, "tosca") is None
+    outside = tmp_path / "elsewhere.png"
+    _png(outside, 2)
+    data.figures[0].images = [outside]
+    with pytest.raises(ValueError, match="not in the report's folder"):
+        data.save(paper)
+    path.write_text(json.dumps({"format": 0, "dataset": "faust"}))
+    with pytest.raises(ValueError, match="not the report data of 'faust'"):
+        DatasetReport.load(paper, "faust")
+
+
+def test_the_committed_report_data_of_faust_is_what_the_committed_report_shows():
+    paper = TEXT.parent
+    data = DatasetReport.load(paper, "faust")
+    assert data is not None and list(data.verdicts) == list(load_ledger())
+    text = (paper / "REPORT.md").read_text(encoding="utf-8")
+    shown = re.search(r"^On FAUST(?: \(kept from [^)]*\))?: (.*)\.$", text, flags=re.M).group(1)
+    assert shown == ", ".join(f"{n} {v}" for v, n in data.counts().items() if n)
+    assert data.images() and all(p.is_file() and paper.resolve() in p.parents for p in data.images())
+    assert f"## On {data.name}" in text and all(f"`{r}`" in text for r in data.runs)
+
+
+def test_the_papers_texts_fill_every_placeholder_and_a_missing_text_folder_leaves_a_bare_report(tmp_path):
+    from prodmaps.pipeline.report import TEXT_FILES, report_text
+    from prodmaps.pipeline.report_data import CRITERIA
+
+    values = dict(CRITERIA, ledger_file="prodmaps/experiments/claims.toml", provenance="Generated by a test.")
+    for name in TEXT_FILES:
+        blocks = report_text(TEXT, name, **values)
+        assert blocks, name
+        assert not re.search(r"[{}]|<!--", json.dumps(blocks, ensure_ascii=False)), name
+    assert report_text(TEXT, "title.md", **values)[0] == (
+        "h", 1, "Reproduction report: Improved Functional Mappings via Product Preservation")
+    (tmp_path / "t.md").write_text("A {typo} here.\n")
+    with pytest.raises(ValueError, match=r"t\.md: placeholder 'typo' is not one the report fills"):
+        report_text(tmp_path, "t.md", **values)
+    assert report_text(tmp_path, "absent.md", **values) == []
+    reg, res = make_project(tmp_path / "proj")
+    md, _ = build_report(res, settings=ReportSettings(registry=reg, text=tmp_path / "no-texts"))
+    text = md.read_text(encoding="utf-8")
+    assert text.startswith("# Reproduction report\n\nGenerated by `prodmaps report`")
+    assert "Systematic differences" not in text and "## Claims of the paper" in text
+
+
+def test_document_blocks_are_checked_when_added():
+    from prodmaps.pipeline.document import Document
+
+    with pytest.raises(ValueError, match="not a document block"):
+        Document([("h", "no level")])
+    with pytest.raises(ValueError, match="not a document block"):
+        Document().extend([("figure", "a.png")])

@@ -1,0 +1,361 @@
+"""Building, part 1: the report's data, read from results folders; nothing here renders.
+
+The unit is **one dataset's report data**, a :class:`DatasetReport`: its verdict column (one
+:class:`ClaimResult` per claim of the ledger), its table summaries (:class:`TableSummary`, our
+values beside the published ones), the figures it shows (:class:`Figure`) and the sections of its
+studies (:class:`Study`, blocks of :mod:`.document`). It is either
+
+* built from a results folder by :func:`dataset_report` (``OUT/<profile>`` for the embedded
+  humans, ``OUT/<profile>-<dataset>`` for a prepared dataset, :func:`other_datasets`), or
+* loaded from the JSON a publication stored beside the committed report
+  (:meth:`DatasetReport.load`: ``paper/report_data/<dataset>.json``), for a dataset that was not
+  rerun; :meth:`DatasetReport.save` writes it, image paths relative to the report's folder.
+
+Each dataset contributes a verdict column and a section of the report the same way, whichever
+of the two it came from. :func:`collect_runs` reads the run folders themselves (status, time,
+figures), which the main results' Runs and Figures sections show.
+
+The experiments modules the report needs (the claims ledger, the comparison rules, the published
+tables) are imported here, in one block, and nowhere else in the report's modules: the names the
+other modules use are re-exported below (:data:`VERDICTS`, :data:`TABLE_KEYS`, :data:`CRITERIA`,
+:data:`LEDGER_FILE`, :func:`load_claims`, :func:`load_published_rows`, :func:`match_published`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from .. import datasets
+from ..experiments.shared import claims as ledger  # the one import block of the experiments layer (see the module doc)
+from ..experiments.shared import compare
+from ..experiments.shared import published as pub
+from ..files import atomic_path, read_json
+from .execute import DEFAULT_DATASET
+from .registry import load_registry
+
+__all__ = ["DATASET_NAMES", "DATA_FOLDER", "VERDICTS", "TABLE_KEYS", "CRITERIA", "LEDGER_FILE", "BEAT_METHODS",
+           "RunInfo", "collect_runs", "table_entries", "run_dataset", "overridden_parameters", "other_datasets",
+           "ClaimResult", "claim_results", "TableSummary", "table_summaries", "Figure", "Study", "DatasetReport",
+           "dataset_report", "load_claims", "load_published_rows", "match_published"]
+
+DATASET_NAMES = {"anny_humans": "embedded humans", "faust": "FAUST", "tosca": "TOSCA"}  # as the report names them
+DATA_FOLDER = "report_data"  # beside the committed report: report_data/<dataset>.json
+_FORMAT = 1  # of the stored JSON
+
+VERDICTS = ledger.VERDICTS
+TABLE_KEYS = pub.TABLE_KEYS
+BEAT_METHODS = ("our_B", "our_B_gainrule", "our_default")  # the paper's B, the gain rule, the default
+CRITERIA = {"within": pub.WITHIN, "draw_z": pub.DRAW_Z, "rounding_rel": compare.ROUNDING_REL,
+            "tie_rel": compare.TIE_REL}  # the numbers the report's text states (placeholders of paper/report_text)
+LEDGER_FILE = Path(ledger.LEDGER).resolve().relative_to(Path(__file__).resolve().parents[2]).as_posix()  # as shown
+load_claims = ledger.load_ledger
+match_published = pub.match_entries
+
+
+def load_published_rows(path=None) -> list[dict]:
+    """The published table values (default: the package's CSV); ``[]`` when the file does not exist."""
+    path = Path(path) if path is not None else pub.PUBLISHED_CSV
+    return pub.load_published(path) if path.is_file() else []
+
+
+# ------------------------------------------------------------------------------ run folders
+@dataclass
+class RunInfo:
+    """One run folder of a results folder: its registry entry, status, time, results and figures."""
+
+    name: str
+    folder: Path
+    reproduces: str = ""
+    title: str = ""
+    status: str = "missing"
+    seconds: float | None = None
+    doc: dict = field(default_factory=dict)
+    manifest: dict = field(default_factory=dict)
+    figures: list = field(default_factory=list)
+    report: str = ""  # the module owning the run's report section (registry key `report`)
+    dataset_figures: bool = False  # its figures in every dataset's section (registry key `dataset_figures`)
+
+
+def collect_runs(results_dir, registry=None) -> list[RunInfo]:
+    """Registered runs (registry order) plus any other run folders found in ``results_dir``."""
+    results_dir = Path(results_dir)
+    try:
+        runs = load_registry(registry)
+    except Exception:
+        runs = {}
+    names = list(runs)
+    if results_dir.is_dir():
+        names += sorted(p.name for p in results_dir.iterdir()
+                        if p.is_dir() and not p.name.startswith(".") and p.name not in runs
+                        and ((p / "results.json").is_file() or (p / "manifest.json").is_file()))
+    infos = []
+    for n in names:
+        folder = results_dir / n
+        info = RunInfo(n, folder)
+        if n in runs:
+            info.reproduces, info.title = runs[n].reproduces, runs[n].title
+            info.report, info.dataset_figures = runs[n].report, runs[n].dataset_figures
+        info.doc = read_json(folder / "results.json", {})
+        info.manifest = read_json(folder / "manifest.json", {})
+        if info.manifest:
+            info.status = info.manifest.get("status", "?")
+            info.seconds = info.manifest.get("seconds")
+        elif info.doc:
+            info.status = "ok"
+        info.figures = sorted(folder.glob("*.png"))
+        infos.append(info)
+    return infos
+
+
+def table_entries(info: RunInfo) -> list:
+    """The run's table values (``results.table`` or a top-level ``table``), each tagged with the run."""
+    res = info.doc.get("results", {})
+    tab = res.get("table") if isinstance(res, dict) else None
+    tab = tab if tab is not None else info.doc.get("table")
+    if not isinstance(tab, list):
+        return []
+    return [dict(e, run=info.name) if isinstance(e, dict) else e for e in tab]
+
+
+def run_dataset(info: RunInfo) -> str:
+    """The dataset a run's results were computed on (``anny_humans`` when they do not say)."""
+    res = info.doc.get("results", {}) if info.doc else {}
+    return res.get("dataset", DEFAULT_DATASET) if isinstance(res, dict) else DEFAULT_DATASET
+
+
+def overridden_parameters(infos) -> dict:
+    """``{run: {name: value}}``: parameters given on the command line (``-p``), from the manifests."""
+    return {i.name: dict(i.manifest["overrides"]) for i in infos
+            if isinstance(i.manifest.get("overrides"), dict) and i.manifest["overrides"]}
+
+
+def other_datasets(results_dir) -> dict:
+    """``{dataset: folder}`` of the sibling folders ``<results_dir>-<dataset>`` (e.g. ``results/paper-faust``)."""
+    results_dir = Path(results_dir).resolve()
+    return {ds: results_dir.with_name(f"{results_dir.name}-{ds}") for ds in datasets.names()
+            if results_dir.with_name(f"{results_dir.name}-{ds}").is_dir()}
+
+
+# ------------------------------------------------------------------------------ verdicts
+@dataclass
+class ClaimResult:
+    """One claim judged on one dataset: its verdict and what the report shows beside it.
+
+    ``paper``, ``rule``, ``default``: whether the rule holds at the paper's settings, with the
+    threshold rule and with the default transfer (``"yes"``, ``"no"``, ``"—"`` not measured; None:
+    not recorded). ``readings``: the verdict under each other family reading (``{"textbook": ...}``);
+    ``subsets``: per pair kind (``{"intra": ..., "inter": ...}``).
+    """
+
+    verdict: str
+    readings: dict = field(default_factory=dict)
+    paper: str | None = "—"
+    rule: str | None = "—"
+    default: str | None = "—"
+    subsets: dict = field(default_factory=dict)
+    evidence: str | None = ""
+
+
+def claim_results(verdicts) -> dict[str, ClaimResult]:
+    """``{claim id: ClaimResult}`` in ledger order, from the ledger's verdicts (subset ``all``, else the first)."""
+    by_claim: dict = {}
+    for v in verdicts:
+        by_claim.setdefault(v.claim.id, {})[v.subset] = v
+    out = {}
+    for cid, subs in by_claim.items():
+        v = subs.get("all", next(iter(subs.values())))
+        out[cid] = ClaimResult(v.verdict, ledger.reading_verdicts(v), *(ledger.setting_mark(v, s) for s in
+                                                                        ("paper", "rule", "default")),
+                               {k: subs[k].verdict for k in ("intra", "inter") if k in subs}, v.evidence)
+    return out
+
+
+# ------------------------------------------------------------------------------ tables
+@dataclass
+class TableSummary:
+    """One published table against our values of its cells.
+
+    ``within``: cells within ±``CRITERIA["within"]`` of the published value; ``missed``: the others;
+    ``in_noise``: of those, the ones within draw noise (None when a value has no standard error);
+    ``beats``: per method of :data:`BEAT_METHODS`, ``[wins, families]`` of the product transfer
+    against ``std`` over all, intra- and inter-subject pairs (None where not measured).
+    """
+
+    table: str
+    compared: int
+    published: int
+    within: int | None = None
+    missed: int | None = None
+    in_noise: int | None = None
+    mean_diff: float | None = None
+    largest_diff: float | None = None
+    beats: dict = field(default_factory=dict)
+
+
+def _beats(errors: dict, method: str) -> list | None:
+    """``[wins, families]``: where ``method`` transfers better than ``std``, over the sizes of ``errors``."""
+    trs = [tr for tr in (size.get("transfer", {}) for size in errors.values()) if method in tr and "std" in tr]
+    n_f = sum(len(tr["std"]) for tr in trs)
+    return [sum(compare.lower(tr[method][f], tr["std"][f]) for tr in trs for f in tr["std"]), n_f] if n_f else None
+
+
+def table_summaries(infos, published_rows, matches, *, only_run: bool = False) -> list[TableSummary]:
+    """One :class:`TableSummary` per published table (``only_run``: only tables whose run has results)."""
+    out = []
+    for t in sorted({r["table"] for r in published_rows}, key=int):
+        info = next((i for i in infos if i.reproduces == f"Table {t}"), None)
+        if only_run and not (info and info.doc):
+            continue
+        got = [(r, e) for r, e in matches if r["table"] == t]
+        diffs = [abs(e["value"] - r["value"]) for r, e in got]
+        missed = [(e["value"] - r["value"], e.get("se")) for r, e in got
+                  if not pub.within_published(e["value"] - r["value"])]
+        res = info.doc.get("results", {}) if info else {}
+        s = TableSummary(t, len(got), sum(1 for r in published_rows if r["table"] == t),
+                         beats={m: [_beats(res.get(f"errors{sub}", {}), m) for sub in ("", "_intra", "_inter")]
+                                for m in BEAT_METHODS})
+        if diffs:
+            s.within, s.missed = sum(map(pub.within_published, diffs)), len(missed)
+            s.mean_diff, s.largest_diff = sum(diffs) / len(diffs), max(diffs)
+            if all(se is not None for _, se in missed):
+                s.in_noise = sum(pub.within_draw_noise(dv, se) for dv, se in missed)
+        out.append(s)
+    return out
+
+
+# ------------------------------------------------------------------------------ one dataset
+@dataclass
+class Figure:
+    """The figures of a run shown in a dataset's section (registry ``dataset_figures``)."""
+
+    run: str
+    reproduces: str
+    images: list  # Paths
+
+
+@dataclass
+class Study:
+    """A study's section: the blocks of its run's ``report_blocks`` and the run's figures."""
+
+    run: str
+    dataset: str  # the dataset its results were computed on
+    blocks: list
+    images: list  # Paths
+
+
+@dataclass
+class DatasetReport:
+    """One dataset's part of the report (see the module doc). ``folder``: the results folder as shown."""
+
+    dataset: str
+    folder: str
+    commit: str
+    runs: list = field(default_factory=list)  # the runs with results
+    shapes: list = field(default_factory=list)
+    pairs: list = field(default_factory=list)  # ordered [source, target] pairs of its tables
+    verdicts: dict = field(default_factory=dict)  # {claim id: ClaimResult}
+    tables: list = field(default_factory=list)  # [TableSummary]
+    figures: list = field(default_factory=list)  # [Figure]
+    studies: list = field(default_factory=list)  # [Study]
+
+    @property
+    def name(self) -> str:
+        """The dataset as the report names it (``FAUST``, ``embedded humans``)."""
+        return DATASET_NAMES.get(self.dataset, self.dataset)
+
+    def counts(self) -> dict:
+        """``{verdict: number of claims}`` over :data:`VERDICTS`."""
+        return {k: sum(1 for c in self.verdicts.values() if c.verdict == k) for k in VERDICTS}
+
+    def images(self) -> list:
+        """Every image the dataset's section shows."""
+        return [p for x in (*self.figures, *self.studies) for p in x.images]
+
+    def path(self, report_folder) -> Path:
+        """Where :meth:`save` writes it: ``<report folder>/report_data/<dataset>.json``."""
+        return Path(report_folder) / DATA_FOLDER / f"{self.dataset}.json"
+
+    def save(self, report_folder) -> Path:
+        """Write it as JSON beside the report; its images must lie in ``report_folder`` (copied there)."""
+        folder = Path(report_folder).resolve()
+
+        def rel(p):
+            try:
+                return Path(p).resolve().relative_to(folder).as_posix()
+            except ValueError:
+                raise ValueError(f"image {p} is not in the report's folder {folder}: copy the figures first "
+                                 "(report settings copy_figures=True)") from None
+
+        doc = {"format": _FORMAT, **asdict(self)}
+        for kind in ("figures", "studies"):
+            for x in doc[kind]:
+                x["images"] = [rel(p) for p in x["images"]]
+        path = self.path(folder)
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(doc, indent=1, ensure_ascii=False) + "\n", encoding="utf-8")
+        return path
+
+    @classmethod
+    def load(cls, report_folder, dataset: str) -> DatasetReport | None:
+        """The dataset's data stored beside the report by :meth:`save`, or None when there is none."""
+        folder = Path(report_folder).resolve()
+        path = folder / DATA_FOLDER / f"{dataset}.json"
+        if not path.is_file():
+            return None
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        if not isinstance(doc, dict) or doc.get("format") != _FORMAT or doc.get("dataset") != dataset:
+            raise ValueError(f"{path}: not the report data of {dataset!r} (format {_FORMAT}); delete it and "
+                             f"publish a run of {dataset} (prodmaps reproduce --dataset {dataset}, make publish)")
+        return cls(doc["dataset"], doc["folder"], doc["commit"], doc["runs"], doc["shapes"], doc["pairs"],
+                   {c: ClaimResult(**v) for c, v in doc["verdicts"].items()},
+                   [TableSummary(**t) for t in doc["tables"]],
+                   [Figure(f["run"], f["reproduces"], [folder / p for p in f["images"]]) for f in doc["figures"]],
+                   [Study(s["run"], s["dataset"], [tuple(b) for b in s["blocks"]], [folder / p for p in s["images"]])
+                    for s in doc["studies"]])
+
+
+def _studies(infos, *, dataset: str | None = None) -> list[Study]:
+    """The ``report_blocks`` sections of the runs (of ``dataset``'s section, else the main results')."""
+    out = []
+    for info in infos:
+        if not (info.report and info.doc):
+            continue
+        ds = dataset or run_dataset(info)
+        blocks = importlib.import_module(info.report).report_blocks(info.doc.get("results", {}),
+                                                                    DATASET_NAMES.get(ds, ds), main=dataset is None)
+        if blocks:
+            out.append(Study(info.name, ds, [tuple(b) for b in blocks], list(info.figures)))
+    return out
+
+
+def dataset_report(folder, dataset: str = DEFAULT_DATASET, *, main: bool = False, registry=None,
+                   published_rows=(), infos=None, shown: str | None = None, commit: str = "unknown") -> DatasetReport:
+    """One dataset's report data, built from its results folder (``OUT/<profile>[-<dataset>]``).
+
+    ``main``: the report's own results (every run's table values, studies under their own heading),
+    else a prepared dataset's section (the runs with results, their figures with ``dataset_figures``).
+    ``infos``: the folder's :func:`collect_runs`, if already read; ``shown``: how the report names
+    the folder; ``commit``: the code's commit.
+    """
+    folder = Path(folder)
+    infos = collect_runs(folder, registry) if infos is None else infos
+    present = [i for i in infos if i.doc]
+    shapes, pairs = set(), []
+    for i in present:
+        res = i.doc.get("results", {})
+        for p in res.get("pairs", []) if isinstance(res.get("pairs"), list) else []:
+            if isinstance(p, (list, tuple)) and len(p) == 2 and list(p) not in pairs:
+                pairs.append(list(p))
+                shapes.update(p)
+    used = infos if main else present
+    entries = [e for i in used for e in table_entries(i)]
+    tables = (table_summaries(used, published_rows, match_published(entries, published_rows)[0], only_run=not main)
+              if published_rows and (main or entries) else [])
+    figures = [] if main else [Figure(i.name, i.reproduces, list(i.figures)) for i in present
+                               if i.dataset_figures and i.figures]
+    return DatasetReport(dataset, shown if shown is not None else str(folder), commit, [i.name for i in present],
+                         sorted(shapes), pairs, claim_results(ledger.evaluate_folder(folder)), tables, figures,
+                         _studies(infos) if main else _studies(present, dataset=dataset))
