@@ -119,6 +119,7 @@ STAND_INS = {
     "python -m prodmaps.prepare tosca_r_noniso --archive SGA18_orientation_BCICP_dataset": "prepare_sga18",
     'python: p2p_21 = pm.datasets.ground_truth_between(("faust", "tr_reg_000"), ("faust_r", "tr_reg_000"))':
         "python_cross",
+    "python: class DampedTransfer(TransferOperator):": "python_new_method",
 }
 
 
@@ -467,6 +468,27 @@ def stand_in_python_camel(r: Reader, text: str):
     ns: dict = {}
     _exec("import prodmaps as pm\n" + text, ns, r.tmp)
     assert ns["basis"].kind == "robust" and ns["basis"].vecs.shape == (163, 50)
+
+
+def stand_in_python_new_method(r: Reader, text: str):
+    """The developer guide's worked example registers a method that every transfer then offers."""
+    import prodmaps as pm
+    from prodmaps.transfers import REGISTRY
+
+    ns: dict = {}
+    try:
+        _exec(text, ns, r.tmp)
+        assert REGISTRY["damped"].parameters == {"damping": 1e-3}
+        mesh = pm.mesh.ellipsoid(2)
+        b = pm.eigenbasis(mesh, 6)
+        C = pm.fmap_from_p2p(np.arange(b.n), b, b)
+        f = mesh.vertices[:, 0] * mesh.vertices[:, 1]
+        g = pm.transfer(f, C, b, b, "damped", damping=1e-2)
+        np.testing.assert_array_equal(g, pm.transfer(f, C, b, b, "ridge", eps=1e-4))  # eps = damping²
+        with pytest.raises(TypeError, match="takes no parameter 'rtol'"):
+            pm.transfer(f, C, b, b, "damped", rtol=1e-3)
+    finally:
+        REGISTRY.pop("damped", None)
 
 
 @pytest.mark.parametrize("where, kind, text", documented(), ids=[f"{w}" for w, _, _ in documented()])
