@@ -18,14 +18,17 @@ from pathlib import Path
 import numpy as np
 
 from .. import datasets
+from ..approx import DEFAULT_NORMALIZATION
 from ..files import atomic_path
 from .shared import families as pfam
 from .shared.compare import count_outcomes, outcome
+from .shared.maps import DEFAULT_RECIPE
 from .shared.protocol import ProtocolSettings, approach_a_label, family_means, run_protocol, with_parameters
-from .shared.published import published_values
+from .shared.published import published_values, within_draw_noise, within_published
 from .shared.results import to_jsonable
 
-__all__ = ["TABLES", "FMAP_NAMES", "resolve_table", "table_columns", "run_table", "write_table_files", "table_figure"]
+__all__ = ["TABLES", "FMAP_NAMES", "resolve_table", "table_columns", "run_table", "held_out_rows", "write_table_files",
+           "table_figure"]
 
 TABLES = {
     "T1": {"map_kind": "gt", "k_M": [9], "k_N": [9], "columns": ["std", "our_l1", "our_l2", "our_B"]},
@@ -156,6 +159,58 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
     }
     return {"results": results, "ours": ours, "spread": spread, "published": pub, "rows": rows,
             "shown_columns": shown, "all_columns": all_cols, "protocol": res}
+
+
+GT_TABLES = ("T1", "T3", "T5", "T6")  # the ground-truth tables, whose std cells judge the function families
+READING_CELLS = {"normalisation": ("our_B", GT_TABLES), "NO17 recipe": ("std", ("T2",))}
+
+
+def held_out_rows(table_results: dict) -> list[dict]:
+    """Every frozen reading scored by the tables of one dataset, as the library runs them (no choice made).
+
+    ``table_results`` maps ``"T1"`` .. ``"T6"`` to the ``results`` of :func:`run_table` on one
+    dataset (any subset). One row per reading, with the published cells that judge it: each
+    function family's parameters (:data:`~prodmaps.experiments.shared.families.PUBLISHED_READINGS`)
+    by its ``std`` cells of the ground-truth tables (the control no product method touches),
+    Approach B's normalisation by the ``our_B`` cells of those tables, the NO17 recipe by Table
+    2's ``std`` cells. Fields: ``reading``, ``frozen``, ``alternatives`` (readings the library
+    scored; None for the normalisation and the recipe, whose studies list them), ``cells_n``,
+    ``within`` (±0.02, as printed) and ``within_noise`` (within the draw noise of two independent
+    draws, :func:`~prodmaps.experiments.shared.published.within_draw_noise`).
+    Run on the data a reading was chosen on and on held-out data, the rows compare the two.
+    """
+    def score(method, tables, label=None):
+        n = w = wn = 0
+        for t in tables:
+            res = table_results.get(t)
+            if not res:
+                continue
+            pub = published_values(t, res["fmap"])
+            for e in res["table"]:
+                if e["method"] != method or (label is not None and e["function"] != label):
+                    continue
+                p = pub.get((e["k_M"], e["k_N"], e["stage"], e["method"], e["function"]))
+                if p is None:
+                    continue
+                diff = e["value"] - p
+                n += 1
+                w += int(within_published(diff))
+                wn += int(within_published(diff) or (e.get("se") is not None and within_draw_noise(diff, e["se"])))
+        return n, w, wn
+
+    rows = []
+    for fam, reading in pfam.PUBLISHED_READINGS.items():
+        n, w, wn = score("std", GT_TABLES, pfam.PAPER_LABELS[fam])
+        if n:
+            rows.append({"reading": f"{pfam.PAPER_LABELS[fam]} parameters", "frozen": reading,
+                         "alternatives": len(pfam.READINGS[fam]), "cells_n": n, "within": w, "within_noise": wn})
+    for name, (method, tables) in READING_CELLS.items():
+        n, w, wn = score(method, tables)
+        if n:  # the alternatives of these two are the studies' (their reading_summary)
+            frozen = DEFAULT_NORMALIZATION if name == "normalisation" else DEFAULT_RECIPE
+            rows.append({"reading": "Approach B's normalisation" if name == "normalisation" else name,
+                         "frozen": frozen, "alternatives": None, "cells_n": n, "within": w, "within_noise": wn})
+    return rows
 
 
 def _col_order(keys) -> list:

@@ -57,3 +57,23 @@ def test_normalisation_and_recipe_and_heat_time_rows():
     row = study_no17.reading_summary({"comparison": comp, "default_recipe": "a"})[0]
     got = (row["within"], row["cells_n"], row["choice_here"], row["agrees"], row["alternatives"])
     assert got == (1, 2, "b", False, 2)
+
+
+def test_the_tables_score_every_frozen_reading_by_its_cells():
+    from prodmaps.experiments.shared.families import PAPER_LABELS
+    from prodmaps.experiments.tables_transfer import held_out_rows
+
+    tabs = {t: _results(f"tab0{t[1]}") for t in ("T1", "T2", "T3", "T5", "T6")}
+    rows = {r["reading"]: r for r in held_out_rows(tabs)}
+    assert rows["HKS parameters"]["frozen"] == PUBLISHED_READINGS["HKS"]
+    assert "NO17 recipe" in rows and "Approach B's normalisation" in rows
+    for r in rows.values():
+        assert 0 <= r["within"] <= r["within_noise"] <= r["cells_n"]
+    # the cells are counted from the printed tables: recount one family by hand
+    hks = [e for t in ("T1", "T3", "T5", "T6") for e in tabs[t]["table"]
+           if e["function"] == PAPER_LABELS["HKS"] and e["method"] == "std"]
+    assert rows["HKS parameters"]["cells_n"] == len(hks) > 0
+    # one table less, fewer cells; no tables, no rows
+    fewer = held_out_rows({k: v for k, v in tabs.items() if k != "T6"})
+    assert fewer[0]["cells_n"] < rows["hk k parameters"]["cells_n"]
+    assert held_out_rows({}) == []
