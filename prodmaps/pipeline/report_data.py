@@ -153,7 +153,7 @@ class ClaimResult:
     two are the package's, never part of the verdict. ``readings``: the verdict under each other
     family reading (``{"textbook": ...}``); ``subsets``: per pair kind (``{"intra": ..., "inter": ...}``).
     ``source``: ``"paper"`` or ``"package"``; ``kind``: ``"measured"``, ``"not empirical"`` or
-    ``"not reproduced"``; ``margin`` and ``why``: the claim's practical margin and its reason;
+    ``"not reproducible"``; ``margin`` and ``why``: the claim's practical margin and its reason;
     ``single_case``: the verdict rests on one pair or function; ``excluded``: ``{unit: reason}``
     of the ties by construction left out; ``sensitivity``: ``{margin: verdict}``; ``comparisons``:
     the paired comparisons (``label``, ``n``, ``ours``, ``ref``, ``mean_diff``, ``se``, ``rel``,

@@ -5,7 +5,7 @@ Contract (the criteria, the ledger's format and worked examples: ``docs/guide/cl
 * ``claims.toml`` (package data) holds one entry per claim: ``where``, ``quote``, ``source``
   (``"paper"``: the paper's words, captions and "Please see the Appendix" included; ``"package"``:
   a claim of this package's settings), ``kind`` (``"measured"``, or ``"not empirical"`` /
-  ``"not reproduced"`` with a ``reason``), and for a measured claim the ``runs``, ``values``
+  ``"not reproducible"`` with a ``reason``), and for a measured claim the ``runs``, ``values``
   (``"<run>:<dotted key>"``, ``*`` one level, ``**`` the nested dict below), ``rule.holds`` and,
   for a comparison, a practical ``margin`` with its ``why``.
 * A **comparison** is paired over its units (pairs, or functions, or cells) by :func:`paired`:
@@ -18,7 +18,7 @@ Contract (the criteria, the ledger's format and worked examples: ``docs/guide/cl
   monotonely; a rule is evaluated with every inconclusive comparison against the claim and then
   for it: it holds if it holds the first way, does not hold if it fails the second, else is
   inconclusive (:data:`VERDICTS` adds "not measured here", "not demonstrable in this setting",
-  "not empirical", "not reproduced").
+  "not empirical", "not reproducible").
 * ``rule.ties`` (an expression giving ``{unit: reason}``) excludes ties by construction, e.g.
   :func:`span_ties`: a family in the span of the source basis, where every extended transfer
   equals the standard one up to its truncation; they count neither way and the verdict lists them.
@@ -43,7 +43,7 @@ from pathlib import Path
 from ...files import parse_toml, read_json
 from . import compare
 from .compare import ROUNDING_REL
-from .results import flatten
+from .results import flatten, to_jsonable
 
 __all__ = ["Claim", "Verdict", "Paired", "paired", "span_ties", "load_ledger", "evaluate", "evaluate_folder",
            "verdicts_for_run", "verdicts_on_results", "verdict_counts", "format_table", "setting_mark",
@@ -53,7 +53,7 @@ LEDGER = Path(str(importlib.resources.files("prodmaps.experiments.shared") / "cl
 HOLDS, INCONCLUSIVE, NOT_HOLD = "holds", "inconclusive", "does not hold"
 NOT_DEMONSTRABLE = "not demonstrable in this setting"
 NOT_MEASURED = "not measured here"
-NOT_EMPIRICAL, NOT_REPRODUCED = "not empirical", "not reproduced"
+NOT_EMPIRICAL, NOT_REPRODUCED = "not empirical", "not reproducible"
 VERDICTS = (HOLDS, INCONCLUSIVE, NOT_HOLD, NOT_DEMONSTRABLE, NOT_MEASURED, NOT_EMPIRICAL, NOT_REPRODUCED)
 SOURCES = ("paper", "package")
 KINDS = ("measured", NOT_EMPIRICAL, NOT_REPRODUCED)
@@ -253,7 +253,8 @@ def _mean(values) -> float:
 
 
 _FUNCS = {"all": all, "any": any, "min": min, "max": max, "abs": abs, "len": len, "sum": sum, "sorted": sorted,
-          "round": round, "range": range, "zip": zip, "mean": _mean, "paired": paired, "span_ties": span_ties}
+          "round": round, "range": range, "zip": zip, "list": list, "next": next, "iter": iter, "mean": _mean,
+          "paired": paired, "span_ties": span_ties}
 
 
 # ------------------------------------------------------------------------------ the ledger
@@ -557,7 +558,8 @@ def evaluate(claim: Claim, results: dict) -> list[Verdict]:
     if not claim.measured:
         return [Verdict(claim, s, claim.kind, {"paper": {"verdict": claim.kind, "holds": None,
                                                           "evidence": claim.reason}}) for s in claim.subsets]
-    prepared = {r: (flatten(d.get("results", d), number_lists=True) if d else None) for r, d in results.items()}
+    prepared = {r: (flatten(to_jsonable(d.get("results", d)), number_lists=True) if d else None)
+                for r, d in results.items()}  # numpy arrays (a notebook's own results) as lists
     uses_method = any("{method}" in p for p in claim.values.values())
     out = []
     for subset in claim.subsets:
