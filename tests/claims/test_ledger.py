@@ -23,8 +23,8 @@ def test_ledger_is_well_formed_and_covers_the_papers_claims():
                  "Table 4", "Table 5", "Table 6", "Section 4.2", "Section 5.1"]:
         assert item in where, f"no ledger entry for {item}"
     for c in LEDGER.values():
-        assert c.quote and c.settings and c.runs and c.values and c.holds, c.id
-        assert c.smoke_verdict, f"{c.id}: record the smoke verdict (smoke_verdict = ...)"
+        assert c.quote and c.smoke_verdict, f"{c.id}: record the smoke verdict (smoke_verdict = ...)"
+        assert (c.settings and c.runs and c.values and c.holds) if c.measured else c.reason, c.id
         assert set(c.smoke_verdict) <= set(c.subsets), c.id
 
 

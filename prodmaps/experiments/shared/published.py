@@ -26,10 +26,9 @@ stage, method and whichever of fmap, k_M, k_N are present). Entries matching no 
 several, are listed in the report as unmatched. The difference is ``ours - published``;
 the paper prints two decimals, so ``|difference| <= 0.005`` is "as published".
 
-One rule for every count, decided by what is printed: the report prints our values, the
-differences and the standard errors with :data:`PRINTED_DECIMALS` (3) decimals (:func:`printed`),
-and a cell counts as within ±0.02 when its difference **as printed** is (``−0.020`` and ``+0.020``
-are within, ``−0.021`` is not), so a reader who recounts the printed table gets the same count.
+One rule for every count: the report prints values, differences and SEs with
+:data:`PRINTED_DECIMALS` (3) decimals (:func:`printed`), and the printed difference decides
+(``±0.020`` is within ±0.02, ``−0.021`` is not), so recounting the printed table gives the count.
 
 An entry may also give ``se``, the standard error of our value over its pairs (a mean over
 drawn pairs and functions). Comparisons with the paper (one home for the report and the studies):
