@@ -23,7 +23,14 @@ from ..files import atomic_path
 from .shared import families as pfam
 from .shared.compare import count_outcomes, outcome
 from .shared.maps import DEFAULT_RECIPE
-from .shared.protocol import ProtocolSettings, approach_a_label, family_means, run_protocol, with_parameters
+from .shared.protocol import (
+    ProtocolSettings,
+    approach_a_label,
+    family_means,
+    family_per_pair,
+    run_protocol,
+    with_parameters,
+)
 from .shared.published import published_values, within_draw_noise, within_published
 from .shared.results import to_jsonable
 
@@ -94,7 +101,10 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
 
     ``results`` is the notebook's results document (errors per size/stage/method/family, the
     entries matched to the published table, per-pair map deviations, Approach B ranks, gain-rule
-    thresholds, timings).
+    thresholds, timings). ``errors_per_pair[size][stage][column][family]`` (and
+    ``errors_per_pair_intra`` / ``_inter``) lists each pair's mean over the family's functions, in
+    the order of ``pairs`` (restricted to the kind), for the ledger's paired comparisons;
+    ``seconds["per_column"][size][column]`` each pair's wall time of every column.
     """
     t_start = time.perf_counter()
     columns = table_columns(P, table)
@@ -121,11 +131,12 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
 
     kinds = np.array([datasets.shape_class(store.dataset, a) == datasets.shape_class(store.dataset, b)
                       for a, b in res.pairs])  # True: intra-subject pair
-    by_kind, n_kind = {}, {}
+    by_kind, n_kind, per_pair = {}, {}, {"": nested(family_per_pair(res))}
     for kind, mask in (("intra", kinds), ("inter", ~kinds)):
         n_kind[kind] = int(mask.sum())
         if mask.any():
             by_kind[kind] = nested({k: v[0] for k, v in family_means(res, pairs_mask=mask).items()})
+            per_pair[f"_{kind}"] = nested(family_per_pair(res, pairs_mask=mask))
     all_cols, pub_cols = _col_order(k[:4] for k in ours), _col_order(k[:4] for k in pub)
     shown = [c for c in pub_cols if c in all_cols] if pub_cols else all_cols  # the published table's, if any
     n_pairs = len(res.pairs)  # the mean's standard error from the population std (family_means)
@@ -147,6 +158,7 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
         "errors": nested(ours),
         "errors_std_over_pairs": nested(spread),
         **{f"errors_{kind}": e for kind, e in by_kind.items()},
+        **{f"errors_per_pair{sub}": e for sub, e in per_pair.items()},  # the pairs' family means, pair order
         "n_pairs_by_kind": n_kind,
         "table": entries,
         "products_better_than_std": better,
@@ -155,7 +167,8 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
                                             "per_pair": res.map_deviation[s]} for s in sizes},
         "approach_B_rank_kept": {skey(s): res.ranks[s].get("our_B", []) for s in sizes},
         "gain_rule_rtol": {skey(s): res.gain_rtol[s].get("our_B_gainrule", []) for s in sizes},
-        "seconds": {"total": time.perf_counter() - t_start, "per_pair": res.seconds},
+        "seconds": {"total": time.perf_counter() - t_start, "per_pair": res.seconds,
+                    "per_column": {skey(s): res.column_seconds[s] for s in sizes}},  # {size: {label: per pair}}
     }
     return {"results": results, "ours": ours, "spread": spread, "published": pub, "rows": rows,
             "shown_columns": shown, "all_columns": all_cols, "protocol": res}

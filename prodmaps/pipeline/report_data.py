@@ -36,20 +36,23 @@ from ..files import atomic_path, read_json
 from .execute import DEFAULT_DATASET
 from .registry import load_registry
 
-__all__ = ["DATASET_NAMES", "DATA_FOLDER", "VERDICTS", "TABLE_KEYS", "CRITERIA", "LEDGER_FILE", "BEAT_METHODS",
-           "RunInfo", "collect_runs", "table_entries", "run_dataset", "overridden_parameters", "other_datasets",
-           "ClaimResult", "claim_results", "TableSummary", "table_summaries", "Figure", "Study", "DatasetReport",
-           "dataset_report", "load_claims", "load_published_rows", "match_published"]
+__all__ = ["DATASET_NAMES", "DATA_FOLDER", "VERDICTS", "SOURCES", "TABLE_KEYS", "CRITERIA", "LEDGER_FILE",
+           "BEAT_METHODS", "RunInfo", "collect_runs", "table_entries", "run_dataset", "overridden_parameters",
+           "other_datasets", "ClaimResult", "claim_results", "verdict_counts", "TableSummary", "table_summaries",
+           "Figure", "Study", "DatasetReport", "dataset_report", "load_claims", "load_published_rows",
+           "match_published"]
 
 DATASET_NAMES = {"anny_humans": "embedded humans", "faust": "FAUST", "tosca": "TOSCA"}  # as the report names them
 DATA_FOLDER = "report_data"  # beside the committed report: report_data/<dataset>.json
 _FORMAT = 1  # of the stored JSON
 
 VERDICTS = ledger.VERDICTS
+SOURCES = ledger.SOURCES  # "paper" (the totals) and "package" ("Beyond the paper")
 TABLE_KEYS = pub.TABLE_KEYS
 BEAT_METHODS = ("our_B", "our_B_gainrule", "our_default")  # the paper's B, the gain rule, the default
+# the numbers the report's text states (placeholders of paper/report_text)
 CRITERIA = {"within": pub.WITHIN, "draw_z": pub.DRAW_Z, "rounding_rel": compare.ROUNDING_REL,
-            "tie_rel": compare.TIE_REL}  # the numbers the report's text states (placeholders of paper/report_text)
+            "tie_rel": compare.TIE_REL, "printed_decimals": pub.PRINTED_DECIMALS, "span_tol": ledger.SPAN_TOL}
 LEDGER_FILE = Path(ledger.LEDGER).resolve().relative_to(Path(__file__).resolve().parents[2]).as_posix()  # as shown
 load_claims = ledger.load_ledger
 match_published = pub.match_entries
@@ -144,10 +147,17 @@ def other_datasets(results_dir) -> dict:
 class ClaimResult:
     """One claim judged on one dataset: its verdict and what the report shows beside it.
 
-    ``paper``, ``rule``, ``default``: whether the rule holds at the paper's settings, with the
-    threshold rule and with the default transfer (``"yes"``, ``"no"``, ``"—"`` not measured; None:
-    not recorded). ``readings``: the verdict under each other family reading (``{"textbook": ...}``);
-    ``subsets``: per pair kind (``{"intra": ..., "inter": ...}``).
+    ``verdict``: the paper's setting's (one of :data:`VERDICTS`). ``paper``, ``rule``, ``default``:
+    the outcome at the paper's settings, with the threshold rule and with the default transfer
+    (``"yes"``, ``"no"``, ``"inconclusive"``, ``"—"`` not measured; None: not recorded); the last
+    two are the package's, never part of the verdict. ``readings``: the verdict under each other
+    family reading (``{"textbook": ...}``); ``subsets``: per pair kind (``{"intra": ..., "inter": ...}``).
+    ``source``: ``"paper"`` or ``"package"``; ``kind``: ``"measured"``, ``"not empirical"`` or
+    ``"not reproducible"``; ``margin`` and ``why``: the claim's practical margin and its reason;
+    ``single_case``: the verdict rests on one pair or function; ``excluded``: ``{unit: reason}``
+    of the ties by construction left out; ``sensitivity``: ``{margin: verdict}``; ``comparisons``:
+    the paired comparisons (``label``, ``n``, ``ours``, ``ref``, ``mean_diff``, ``se``, ``rel``,
+    ``outcome``).
     """
 
     verdict: str
@@ -157,6 +167,14 @@ class ClaimResult:
     default: str | None = "—"
     subsets: dict = field(default_factory=dict)
     evidence: str | None = ""
+    source: str = "paper"
+    kind: str = "measured"
+    margin: float | None = None
+    why: str = ""
+    single_case: bool = False
+    excluded: dict = field(default_factory=dict)
+    sensitivity: dict = field(default_factory=dict)
+    comparisons: list = field(default_factory=list)
 
 
 def claim_results(verdicts) -> dict[str, ClaimResult]:
@@ -169,7 +187,20 @@ def claim_results(verdicts) -> dict[str, ClaimResult]:
         v = subs.get("all", next(iter(subs.values())))
         out[cid] = ClaimResult(v.verdict, ledger.reading_verdicts(v), *(ledger.setting_mark(v, s) for s in
                                                                         ("paper", "rule", "default")),
-                               {k: subs[k].verdict for k in ("intra", "inter") if k in subs}, v.evidence)
+                               {k: subs[k].verdict for k in ("intra", "inter") if k in subs}, v.evidence,
+                               v.claim.source, v.claim.kind, v.claim.practical_margin, v.claim.why, v.single_case,
+                               v.excluded, dict(v.paper.get("sensitivity", {})), v.comparisons)
+    return out
+
+
+def verdict_counts(verdicts: dict) -> dict:
+    """``{source: {verdict: n}}`` of ``{claim id: ClaimResult}`` (the ledger's :func:`verdict_counts`).
+
+    Claims the ledger no longer has (a stored report's) count under their recorded source.
+    """
+    out = {s: dict.fromkeys(VERDICTS, 0) for s in ledger.SOURCES}
+    for c in verdicts.values():
+        out[c.source][c.verdict] = out[c.source].get(c.verdict, 0) + 1
     return out
 
 
@@ -181,7 +212,9 @@ class TableSummary:
     ``within``: cells within ±``CRITERIA["within"]`` of the published value; ``missed``: the others;
     ``in_noise``: of those, the ones within draw noise (None when a value has no standard error);
     ``beats``: per method of :data:`BEAT_METHODS`, ``[wins, families]`` of the product transfer
-    against ``std`` over all, intra- and inter-subject pairs (None where not measured).
+    against ``std`` over all, intra- and inter-subject pairs (None where not measured), the ties by
+    construction left out of both (``ties``: ``"<size> <family>"`` of the families in the span of the
+    source basis, where every extended transfer equals the standard one up to its truncation).
     """
 
     table: str
@@ -193,13 +226,23 @@ class TableSummary:
     mean_diff: float | None = None
     largest_diff: float | None = None
     beats: dict = field(default_factory=dict)
+    ties: list = field(default_factory=list)
+
+
+def _span_ties(errors: dict) -> list:
+    """``"<size> <family>"`` of the families in the span of the source basis (ties by construction)."""
+    return [f"{z} {f}" for z, size in errors.items() for f in ledger.span_ties(size.get("approx", {}).get("std", {}))]
 
 
 def _beats(errors: dict, method: str) -> list | None:
-    """``[wins, families]``: where ``method`` transfers better than ``std``, over the sizes of ``errors``."""
-    trs = [tr for tr in (size.get("transfer", {}) for size in errors.values()) if method in tr and "std" in tr]
-    n_f = sum(len(tr["std"]) for tr in trs)
-    return [sum(compare.lower(tr[method][f], tr["std"][f]) for tr in trs for f in tr["std"]), n_f] if n_f else None
+    """``[wins, families]``: where ``method`` transfers better than ``std``, over the sizes of ``errors``.
+
+    Families in the span of the source basis (:func:`_span_ties`) count neither way.
+    """
+    ties = set(_span_ties(errors))
+    cells = [(tr[method][f], tr["std"][f]) for z, size in errors.items() for tr in [size.get("transfer", {})]
+             if method in tr and "std" in tr for f in tr["std"] if f"{z} {f}" not in ties]
+    return [sum(compare.lower(o, s) for o, s in cells), len(cells)] if cells else None
 
 
 def table_summaries(infos, published_rows, matches, *, only_run: bool = False) -> list[TableSummary]:
@@ -216,7 +259,7 @@ def table_summaries(infos, published_rows, matches, *, only_run: bool = False) -
         res = info.doc.get("results", {}) if info else {}
         s = TableSummary(t, len(got), sum(1 for r in published_rows if r["table"] == t),
                          beats={m: [_beats(res.get(f"errors{sub}", {}), m) for sub in ("", "_intra", "_inter")]
-                                for m in BEAT_METHODS})
+                                for m in BEAT_METHODS}, ties=_span_ties(res.get("errors", {})))
         if diffs:
             s.within, s.missed = sum(map(pub.within_published, diffs)), len(missed)
             s.mean_diff, s.largest_diff = sum(diffs) / len(diffs), max(diffs)
@@ -267,8 +310,12 @@ class DatasetReport:
         return DATASET_NAMES.get(self.dataset, self.dataset)
 
     def counts(self) -> dict:
-        """``{verdict: number of claims}`` over :data:`VERDICTS`."""
+        """``{verdict: number of claims}`` over :data:`VERDICTS`, the paper's and the package's together."""
         return {k: sum(1 for c in self.verdicts.values() if c.verdict == k) for k in VERDICTS}
+
+    def counts_by_source(self) -> dict:
+        """``{"paper": {verdict: n}, "package": {verdict: n}}``: the report's totals (:func:`verdict_counts`)."""
+        return verdict_counts(self.verdicts)
 
     def images(self) -> list:
         """Every image the dataset's section shows."""
