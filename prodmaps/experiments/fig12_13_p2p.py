@@ -41,9 +41,15 @@ __all__ = ["subject_pairs", "point_map_recovery", "point_map_sweep", "reading_su
 CONVERSIONS = ("std", "extended", "extended_closed_form")
 
 
-def subject_pairs(dataset: str, subject, n_pairs=None, seed: int = 0) -> list:
-    """All ordered pairs of poses of ``subject`` (or a seeded random subset of ``n_pairs``)."""
+def subject_pairs(dataset: str, subject, n_pairs=None, seed: int = 0, *, both_directions: bool = True) -> list:
+    """All pairs of poses of ``subject`` (or a seeded random subset of ``n_pairs``).
+
+    ``both_directions``: each pair of shapes in both orders (``(a, b)`` and ``(b, a)``, two maps),
+    else once (``a`` before ``b`` in the dataset's order: "all the possible pairs of shapes").
+    """
     all_pairs = [p for p in datasets.pairs(dataset, "intra") if datasets.shape_class(dataset, p[0]) == str(subject)]
+    if not both_directions:
+        all_pairs = [p for p in all_pairs if p[0] < p[1]]
     if not all_pairs:
         raise ValueError(f"no pairs for subject {subject!r} in {dataset!r}")
     if n_pairs is None:
