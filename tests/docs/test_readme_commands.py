@@ -101,8 +101,11 @@ STAND_INS = {
     "make docs": "make_dry_run",
     "pip install .": "pip_install",
     "python -m prodmaps.prepare faust --archive FundCG-s1-2018 --archive Laplacian-Mesh": "prepare_faust",
-    "prodmaps reproduce --dataset faust --only tab01 tab02 tab03 tab04 tab06 fig08 fig11 fig12_13 fig14 "
-    "study_normalization study_no17 study_default study_family_readings": "reproduce_faust",
+    "prodmaps reproduce --dataset faust --only tab01 tab02 tab03 tab04 tab05 tab06 fig04 fig06 fig07 fig08 fig09 "
+    "fig10 fig11 fig12_13 fig14 study_normalization study_no17 study_default study_family_readings": "reproduce_faust",
+    "prodmaps reproduce --dataset faust_r --only tab01 tab02 tab03 tab04 tab05 tab06 fig04 fig06 fig07 fig08 fig10 "
+    "fig11 fig12_13": "reproduce_faust",
+    "prodmaps reproduce --dataset tosca_r --only fig07 fig12_13": "reproduce_faust",
     ".venv/bin/prodmaps reproduce --only fig03 --profile paper -p 'k_values=[4,8,12,16]'": "reproduce_override",
     ".venv/bin/prodmaps reproduce --profile smoke --jobs 2": "reproduce_smoke",
     ".venv/bin/prodmaps diff results/smoke/fig03 paper/baselines/smoke/fig03": "diff",
@@ -341,9 +344,11 @@ def stand_in_python_cross(r: Reader, text: str):
 
 
 def stand_in_reproduce_faust(r: Reader, cmd: str):
+    """A dataset's reproduction: its runs exist and are listed; with the dataset unprepared, it is refused."""
     from prodmaps.pipeline import registry
 
     args = r.cli_args(cmd)
+    ds = args[args.index("--dataset") + 1]
     runs = args[args.index("--only") + 1:]
     assert set(runs) <= set(registry.load_registry(ROOT / "paper" / "runs.toml")), runs
     # FAUST prepared (above): every named run is listed; with an empty data root: refused before running
@@ -352,8 +357,9 @@ def stand_in_reproduce_faust(r: Reader, cmd: str):
     empty = dict(r.env, PRODMAPS_DATA=str(r.tmp / "no-data"))
     p = subprocess.run([sys.executable, "-m", "prodmaps", *args, "--out", str(r.out)], cwd=ROOT, env=empty,
                        capture_output=True, text=True, timeout=300)
-    assert p.returncode != 0 and re.search(r"faust.*prepare|prepare.*faust", p.stdout + p.stderr, re.I | re.S)
-    assert not (r.out / "paper-faust").exists()
+    name = ds.split("_")[0]  # faust, tosca
+    assert p.returncode != 0 and re.search(rf"{name}.*prepare|prepare.*{name}", p.stdout + p.stderr, re.I | re.S)
+    assert not (r.out / f"paper-{ds}").exists()
 
 
 def stand_in_reproduce_override(r: Reader, cmd: str):
