@@ -147,7 +147,7 @@ def bench_nn(args):
     cases.append((f"extended conversion 29/39 (dim {e1.shape[1]})", e2, e1))
     parts, worst, t_o_all, t_b_all = [], np.inf, 0.0, 0.0
     for label, Q, P in cases:
-        t_o, t_b, i_o, (d_kd, i_kd) = timed_pair(lambda: pm.p2p.nearest_neighbors(Q, P),
+        t_o, t_b, i_o, (d_kd, i_kd) = timed_pair(lambda: pm.neighbors.nearest_neighbors(Q, P),
                                                   lambda: cKDTree(P).query(Q), args.repeat)
         same = float(np.mean(i_o == i_kd))
         assert same == 1.0, f"{label}: answers differ from cKDTree on {100 * (1 - same):.3f}% of queries"
@@ -416,16 +416,16 @@ def bench_p2p_extended(args):
     def fresh(b):
         return pm.Basis(b.vecs, b.evals, b.mass)
 
-    def convert(method):
+    def convert(point):
         b1, b2 = fresh(B1), fresh(B2)
-        return pm.p2p.from_fmap(C, b1, b2, method)
+        return pm.p2p.from_fmap(C, b1, b2, "extended", point=point)
 
-    t_new, t_closed, p_new, p_closed = timed_pair(lambda: convert("extended"), lambda: convert("extended_closed_form"),
+    t_new, t_closed, p_new, p_closed = timed_pair(lambda: convert("heat"), lambda: convert("closed_form"),
                                                   args.repeat)
     peaks = {}
-    for method in ("extended", "extended_closed_form"):
+    for method, point in (("extended", "heat"), ("extended_closed_form", "closed_form")):
         tracemalloc.start()
-        convert(method)
+        convert(point)
         peaks[method] = tracemalloc.get_traced_memory()[1] / 2**30
         tracemalloc.stop()
     ok_new, ok_closed = float(np.mean(p_new == gt)), float(np.mean(p_closed == gt))

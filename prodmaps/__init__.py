@@ -41,6 +41,7 @@ from . import (  # noqa: F401
                mapping,
                mesh,
                metrics,
+               neighbors,
                operators,
                p2p,
                products,
@@ -51,10 +52,11 @@ from . import (  # noqa: F401
 from .approx import ApproximationOperator, approximate, approximation_operator
 from .basis import Basis, eigenbasis, fourier_basis
 from .io import load_mesh, save_mesh
-from .mapping import extend_fmap, fmap_from_p2p
+from .mapping import extend_fmap
 from .mesh import Mesh, MeshError
 from .metrics import area_fraction_curve, relative_error
 from .operators import laplacian
+from .p2p import fmap_from_p2p
 from .products import ProductBasis, product_basis
 from .transfers import (
                TransferOperator,

@@ -30,9 +30,9 @@ import numpy as np
 
 from .. import datasets
 from ..basis import eigenbasis
-from ..mapping import fmap_from_p2p
 from ..metrics import relative_error
 from ..operators import laplacian
+from ..p2p import fmap_from_p2p
 from ..products import product_basis
 from ..transfers import transfer, transfer_operator
 from ..truncation import select_rtol

@@ -22,8 +22,8 @@ import numpy as np
 
 from .. import datasets, descriptors
 from ..basis import eigenbasis
-from ..mapping import fmap_from_p2p
 from ..metrics import relative_error
+from ..p2p import fmap_from_p2p
 from ..products import product_basis
 from ..transfers import transfer
 

@@ -24,8 +24,9 @@ import numpy as np
 
 from .. import datasets, truncation
 from ..approx import column_weights
-from ..mapping import extend_fmap, fmap_from_p2p
+from ..mapping import extend_fmap
 from ..metrics import relative_error
+from ..p2p import fmap_from_p2p
 from ..products import product_basis
 from . import compare
 from . import families as pfam
