@@ -31,8 +31,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import truncation
-from ..mapping import extend_fmap, fmap_from_p2p
+from ..mapping import extend_fmap
 from ..metrics import relative_error
+from ..p2p import fmap_from_p2p
 from ..products import product_basis
 from ..transfers import transfer_operator
 from . import families as pfam
