@@ -40,14 +40,17 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
 
-from .approx import column_weights
+from .approx import DEFAULT_NORMALIZATION, column_weights
 from .basis import Basis
 from .checks import check_fmap, check_p2p
 from .mapping import extend_fmap
 from .mesh import check_vertex_indices
 from .neighbors import SEARCHES, nearest_neighbors
-from .products import multi_indices, n_columns, product_basis
+from .products import evaluate_products, multi_indices, n_columns, n_orderings, product_basis
+from .progress import NullBar, progress_bar
 
 __all__ = ["from_fmap", "fmap_from_p2p", "extended_embeddings", "point_functions", "heat_square_coefficients",
            "METHODS", "POINTS", "CONVENTIONS", "DEFAULT_KERNEL_EIG", "KERNEL_BLOCK_BYTES"]
@@ -213,53 +216,169 @@ def _blocks(n_points: int, n_rows: int, block_bytes: int):
         yield slice(s, min(n_points, s + step))
 
 
-_SOURCE_COEF_CACHE_BYTES = 2**28
+_SOURCE_COEF_CACHE_BYTES = 2**28  # per-basis results kept in its cache up to this size (source points, frames)
+PROGRESS_MIN_WORK = 2e10  # progress=None: a bar when the conversion's multiply-adds exceed this (long runs)
 
 
-def _canonical_functions(pb, op) -> tuple[np.ndarray, np.ndarray]:
-    """``(AΨ (n, r), X (K_u, r))`` of an Approach B operator ``op`` of the product basis ``pb``.
+def _solver_rows(pb, rows, d):
+    """``X[rows]`` ``(b, K_u)`` of the scaled solver columns ``X = sqrt(A) B_s D`` (``d`` None: ``D = I``)."""
+    B = evaluate_products(pb.base.vecs[rows], pb.unique_index)  # (b, K_u) unique products
+    scale = pb.solver_scale()  # ordered pairs: sqrt(#orderings) per multiset
+    if scale is not None:
+        B *= scale
+    B *= np.sqrt(pb.base.mass[rows])[:, None]
+    if d is not None:
+        B *= d
+    return B
 
-    With ``sqrt(A) B_s D = U Σ Vᵀ`` truncated to ``r`` (``B_s`` the solver columns, ``D`` the
-    normalisation's column weights), ``X = D V_r Σ_r⁻¹`` and ``Ψ = B_s X`` is A-orthonormal:
-    the canonical coefficients of any function are ``ã = Ψᵀ A f`` (Section 4.4: ``Σ Vᵀ a`` of its
-    Approach B fit ``a = X Xᵀ B_sᵀ A f``). ``X`` comes from the operator's own ``Σ Vᵀ D⁻¹``
-    (``op.canonical``), so the truncation is the operator's: ``X = D² (ΣVᵀD⁻¹)ᵀ Σ⁻²``, with
-    ``Σ² = (ΣVᵀD⁻¹) D² (ΣVᵀD⁻¹)ᵀ`` solved rather than assumed diagonal.
+
+def _gram_upper(blocks, m: int, trans: int) -> np.ndarray:
+    """The upper triangle of ``Σ XbᵀXb`` (``trans=1``) or ``Σ XbXbᵀ`` (``trans=0``) ``(m, m)``, accumulated in place."""
+    G = np.zeros((m, m), order="F")
+    for Xb in blocks:
+        G = sla.blas.dsyrk(1.0, Xb, beta=1.0, c=G, trans=trans, lower=0, overwrite_c=1)
+    return G
+
+
+def _top_eigenpairs(G: np.ndarray, rtol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenpairs ``(w (r,), V (m, r))``, descending, of the PSD ``G`` with ``sqrt(w) > rtol·sqrt(w_max)``.
+
+    ``G`` holds its upper triangle (:func:`_gram_upper`) and is overwritten. Approach B's truncation rule
+    on the Gram matrix of the scaled columns (its operator's ``route="gram"``), computed for the kept
+    eigenpairs only: MRRR on the interval above a lower bound of the threshold, then the exact rule with
+    the computed ``w_max``.
+    """
+    v = np.full(G.shape[0], 1.0 / np.sqrt(G.shape[0]))
+    for _ in range(20):  # power steps: a Rayleigh quotient never exceeds w_max, so the interval holds every
+        u = sla.blas.dsymv(1.0, G, v, lower=0)  # kept eigenvalue
+        nu = float(np.linalg.norm(u))
+        if nu == 0.0:
+            break
+        v = u / nu
+    lam = float(v @ sla.blas.dsymv(1.0, G, v, lower=0))
+    if not lam > 0:
+        raise ValueError("the extended basis is zero on this mesh: no canonical coefficients")
+    w, V = sla.eigh(G, lower=False, subset_by_value=(0.5 * rtol**2 * lam, np.inf), driver="evr", overwrite_a=True,
+                    check_finite=False)
+    w, V = w[::-1], V[:, ::-1]
+    s = np.sqrt(np.maximum(w, 0.0))
+    r = int(np.sum(s > rtol * s[0]))
+    return w[:r], V[:, :r]
+
+
+def _canonical_frame(pb, rtol: float, normalization: str, block_bytes: int):
+    """``(AΨ (n, r), X (K_u, r), ΣVᵀD⁻¹ (r, K_u))``: Approach B's retained directions on ``pb``.
+
+    With ``sqrt(A) B_s D = U Σ Vᵀ`` truncated to the ``r`` singular values above ``rtol·σ_max`` (``B_s``
+    the solver columns, ``D`` the normalisation's column weights), ``X = D V Σ⁻¹`` and ``Ψ = B_s X =
+    U / sqrt(A)`` is A-orthonormal: the canonical coefficients of any function are ``ã = Ψᵀ A f``
+    (Section 4.4: ``Σ Vᵀ a`` of its Approach B fit ``a``); ``ΣVᵀD⁻¹`` gives those of solver coefficients.
+    The truncation is the operator's (:func:`prodmaps.approx.approximation_operator`: the Gram route,
+    on the smaller of ``XᵀX`` and ``XXᵀ``, for ``rtol >= 1e-6``; the SVD of ``X`` below), computed for the
+    kept directions only, with one Gram matrix held at a time. Cached in ``pb.cache`` up to 256 MB.
     """
     def compute():
-        E = pb.expand()  # (K, K_u): solver -> basis coefficients; Eᵀ E = I
-        sV = np.asarray(op.canonical(E.toarray()))  # (r, K_u) = Σ Vᵀ D⁻¹ in the solver columns
-        d = column_weights(pb, op.params["normalization"])
-        d2 = np.ones(sV.shape[1]) if d is None else d * d
-        S2 = (sV * d2) @ sV.T  # (r, r) = Σ²
-        X = np.linalg.solve(0.5 * (S2 + S2.T), sV * d2).T  # (K_u, r)
-        APsi = pb.solver_matmul(X)  # (n, r) Ψ
-        APsi *= pb.base.mass[:, None]
-        return APsi, X
+        base, K_u = pb.base, pb.unique_index.shape[0]
+        n, sq = base.n, np.sqrt(base.mass)
+        step = max(1, int(block_bytes) // (8 * K_u))  # rows per block of solver columns
+        if normalization == "columns":  # unit A-norm columns: the Gram's diagonal, by blocks
+            g = sum(np.einsum("ij,ij->j", X, X) for X in (_solver_rows(pb, slice(i, min(n, i + step)), None)
+                                                           for i in range(0, n, step)))
+            d = 1.0 / np.sqrt(np.maximum(g, np.finfo(float).tiny))
+        else:
+            d = column_weights(pb, normalization)
+        dd = np.ones(K_u) if d is None else d
+        if rtol < 1e-6:  # the operator's SVD route: the Gram squares the condition number
+            U, s, Vt = sla.svd(_solver_rows(pb, slice(0, n), d), full_matrices=False, lapack_driver="gesdd")
+            r = int(np.sum(s > rtol * s[0]))
+            U, s, V = U[:, :r], s[:r], Vt[:r].T
+            VS = V * s
+        elif K_u <= n:  # XᵀX (K_u x K_u), by blocks of rows
+            G = _gram_upper((_solver_rows(pb, slice(i, min(n, i + step)), d) for i in range(0, n, step)), K_u, 1)
+            w, V = _top_eigenpairs(G, rtol)
+            del G
+            s = np.sqrt(w)
+            VS = V * s  # (K_u, r)
+            U = pb.solver_matmul(dd[:, None] * V / s) * sq[:, None]  # (n, r) = X V Σ⁻¹
+        else:  # XXᵀ (n x n) when the extended basis has more columns than the mesh has vertices
+            cstep, sc = max(1, int(block_bytes) // (8 * n)), pb.solver_scale()
 
-    p = op.params
-    return pb.cache.get(("p2p_canonical_functions", float(p["rtol"]), p["normalization"]), compute)
+            def columns(j):  # X[:, j:j + cstep] (n, c)
+                cols = slice(j, min(K_u, j + cstep))
+                Xc = evaluate_products(base.vecs, pb.unique_index[cols])
+                return Xc * ((1.0 if sc is None else sc[cols]) * dd[cols]) * sq[:, None]
+
+            G = _gram_upper((columns(j) for j in range(0, K_u, cstep)), n, 0)
+            w, U = _top_eigenpairs(G, rtol)
+            del G
+            s = np.sqrt(w)
+            VS = pb.solver_rmatmul(sq[:, None] * U) * dd[:, None]  # (K_u, r) = Xᵀ U = V Σ
+        APsi = U * sq[:, None]  # (n, r) A Ψ = sqrt(A) U
+        X = dd[:, None] * VS / (s * s)  # (K_u, r) = D V Σ⁻¹
+        sV = VS.T / dd  # (r, K_u) = Σ Vᵀ D⁻¹
+        return APsi, X, sV
+
+    r_max = min(pb.n, pb.unique_index.shape[0])
+    if 8 * r_max * (pb.n + 2 * pb.unique_index.shape[0]) > _SOURCE_COEF_CACHE_BYTES:
+        return compute()  # too large to keep (a tiny rtol on a big basis): recomputed per map
+    return pb.cache.get(("p2p_canonical_frame", float(rtol), normalization, int(block_bytes)), compute)
 
 
-def _source_embedding(b1: Basis, basis_1: Basis, pb1, op1, *, point, t, n_eig, block_bytes, dtype) -> np.ndarray:
+def _extended_image(C: np.ndarray, phi0_2: float, Y: np.ndarray, index_1: np.ndarray, index_2: np.ndarray):
+    """``C~ Y`` ``(K2_u, m)`` for unique-pair coefficients ``Y`` ``(K1_u, m)``, order 2, without forming ``C~``.
+
+    Lemma 2 written per column: with ``T φ_l = a_l + Σ_i b_il ψ_i`` (``a = φ0_2 C[0, 1:]``, ``b = C[1:, 1:]``)
+    and the products' coefficients as a symmetric ``Q`` (``y_lm / 2`` off the diagonal), the image of
+    ``Σ Q_lm φ_l φ_m`` is ``aᵀQa + 2 (bQa)·ψ + ψᵀ (bQbᵀ) ψ``: ``2 m k³`` multiply-adds and ``m k²`` values
+    instead of the ``K2 × K1`` matrix (:func:`prodmaps.extend_fmap`, equal to rounding).
+    """
+    k2, k1 = C.shape[0] - 1, C.shape[1] - 1
+    m = Y.shape[1]
+    a, b = phi0_2 * C[0, 1:], C[1:, 1:]  # (k1,), (k2, k1)
+    y0, ylin = Y[0], Y[1 : k1 + 1]  # (m,), (k1, m)
+    l, q = index_1[k1 + 1 :, 0] - 1, index_1[k1 + 1 :, 1] - 1  # 0-based factors of the product columns
+    Q = np.zeros((m, k1, k1))
+    Yq = Y[k1 + 1 :].T  # (m, K1_q)
+    Q[:, l, q] = np.where(l == q, 1.0, 0.5) * Yq
+    Q[:, q, l] += np.where(l == q, 0.0, 0.5) * Yq
+    Qa = Q @ a  # (m, k1)
+    out = np.empty((index_2.shape[0], m))
+    out[0] = y0 * C[0, 0] + (a @ ylin + Qa @ a) / phi0_2  # the function 1 is the constant column over φ0
+    out[1 : k2 + 1] = np.outer(C[1:, 0], y0) + b @ ylin + 2.0 * (b @ Qa.T)
+    P = (b @ Q) @ b.T  # (m, k2, k2) symmetric
+    i, j = index_2[k2 + 1 :, 0] - 1, index_2[k2 + 1 :, 1] - 1
+    out[k2 + 1 :] = (P[:, i, j] * np.where(i == j, 1.0, 2.0)).T
+    return out
+
+
+def _source_embedding(b1: Basis, basis_1: Basis, APsi1, key, *, point, t, n_eig, block_bytes, dtype,
+                      bar) -> np.ndarray:
     """Canonical coefficients ``(n1, r1)`` of every source point's function in its own extended basis.
 
     ``Ψ1ᵀ A1 f``, blocked; kept in the source basis' cache (up to 256 MB): they do not depend on the map.
     """
     def compute():
-        APsi = _canonical_functions(pb1, op1)[0].astype(dtype, copy=False)  # (n1, r1)
+        APsi = APsi1.astype(dtype, copy=False)  # (n1, r1)
         out = np.empty((b1.n, APsi.shape[1]))
         for rows in _blocks(b1.n, b1.n, block_bytes):
             pts = np.arange(rows.start, rows.stop)
             out[rows] = point_functions(basis_1, pts, point=point, t=t, n_eig=n_eig, dtype=dtype).T @ APsi  # (b, r1)
+            bar.update()
         return out
 
-    if b1.n * pb1.K * 8 > _SOURCE_COEF_CACHE_BYTES:
+    if b1.n * APsi1.shape[1] * 8 > _SOURCE_COEF_CACHE_BYTES:
         return compute()
-    p = op1.params
-    key = ("p2p_source_canonical", b1.k, point, float(t), int(n_eig), float(p["rtol"]), p["normalization"],
-           pb1.pairs, int(block_bytes), np.dtype(dtype).str)
+    if key in basis_1.cache:
+        bar.update(len(range(0, b1.n, _block_step(b1.n, block_bytes))))
     return basis_1.cache.get(key, compute)
+
+
+def _block_step(n_rows: int, block_bytes: int) -> int:
+    return max(1, int(block_bytes) // (8 * max(1, n_rows)))
+
+
+def _n_blocks(n_points: int, n_rows: int, block_bytes: int) -> int:
+    return len(range(0, n_points, _block_step(n_rows, block_bytes)))
 
 
 def extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, point: str = "heat", t=None, t_scale: float = 1.0,
@@ -268,23 +387,59 @@ def extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, point: str = "h
                         progress: bool | None = None):
     """Canonical coefficients used by the extended conversion (module doc).
 
-    Returns ``(emb_1 (n1, r), emb_2 (n2, r), info)``: the transferred functions of the vertices
-    of shape 1 and the functions of the vertices of shape 2, both as canonical coefficients of
-    shape 2's extended basis (``r`` retained singular values, divided by ``sqrt(area_2)``; the
-    closed form keeps its historical scale), plus a dict of the parameters used. Arguments as in
-    :func:`from_fmap`; ``vertices`` (optional ``(m,)`` shape-2 vertex indices) gives ``emb_2`` of
-    those vertices only, ``(m, r)``. ``C_12`` uses the first ``k1``/``k2`` columns of the bases for
-    the products; the heat kernel uses up to ``n_eig`` columns of the bases as given.
+    Parameters
+    ----------
+    C_12, basis_1, basis_2, point, t, t_scale, n_eig, rtol, normalization, pairs, block_bytes, dtype, progress
+        As in :func:`from_fmap`. ``C_12`` uses the first ``k1``/``k2`` columns of the bases for the
+        products; the heat kernel uses up to ``n_eig`` columns of the bases as given.
+    vertices : (m,) array_like of int, optional
+        Shape-2 vertices whose embedding is wanted (default: all).
+
+    Returns
+    -------
+    emb_1 : (n1, r) ndarray
+        The transferred functions of the vertices of shape 1 as canonical coefficients of shape 2's
+        extended basis (``r`` retained singular values, divided by ``sqrt(area_2)``; the closed form
+        keeps its historical scale).
+    emb_2 : (n2, r) or (m, r) ndarray
+        The functions of the vertices of shape 2, in the same coordinates.
+    info : dict
+        The parameters used (``point``, ``t``, ``n_eig``, ``rtol``, ``pairs``, ``normalization``, ``dim``).
+
+    Raises
+    ------
+    ValueError
+        As :func:`from_fmap`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> b = pm.eigenbasis(ellipsoid(2), 40)
+    >>> e1, e2, info = extended_embeddings(np.eye(12, 10), b, b)
+    >>> e1.shape == e2.shape == (b.n, info["dim"]), info["n_eig"]
+    (True, 40)
     """
+    emb_1, emb_2, info, bar = _extended_embeddings(
+        C_12, basis_1, basis_2, point=point, t=t, t_scale=t_scale, n_eig=n_eig, rtol=rtol, normalization=normalization,
+        pairs=pairs, vertices=vertices, block_bytes=block_bytes, dtype=dtype, progress=progress, extra_steps=0)
+    bar.close()
+    return emb_1, emb_2, info
+
+
+def _extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, point, t, t_scale, n_eig, rtol, normalization, pairs,
+                         vertices, block_bytes, dtype, progress, extra_steps: int):
+    """:func:`extended_embeddings` and its progress bar (with ``extra_steps`` left for the caller)."""
     if point not in POINTS:
         raise ValueError(f"point must be one of {POINTS}, got {point!r}")
     C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)
     k2, k1 = C.shape
     b1, b2 = basis_1.truncate(k1), basis_2.truncate(k2)
-    norm = {} if normalization is None else {"normalization": normalization}
     if point == "closed_form":
-        return _closed_form_embeddings(C, b1, b2, t=t, t_scale=t_scale, n_eig=n_eig, rtol=rtol, normalization=norm,
-                                       pairs=pairs, vertices=vertices)
+        norm = {} if normalization is None else {"normalization": normalization}
+        return (*_closed_form_embeddings(C, b1, b2, t=t, t_scale=t_scale, n_eig=n_eig, rtol=rtol, normalization=norm,
+                                         pairs=pairs, vertices=vertices), NullBar())
     for i, b in ((1, basis_1), (2, basis_2)):
         if not b.mass_is_diagonal:
             raise ValueError(f"point={point!r} needs lumped (diagonal) masses, basis_{i} has a full mass matrix: "
@@ -298,7 +453,7 @@ def extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, point: str = "h
         warnings.warn(f"the squared heat kernel from {n_eig} eigenpairs lies in the span of the products of the "
                       f"map's {k1}/{k2} basis functions: the conversion is then the closed form's, which cannot "
                       f"beat the standard one; pass bases with more eigenpairs ({DEFAULT_KERNEL_EIG} by default)",
-                      stacklevel=3)
+                      stacklevel=4)
     if t is None:
         t = float(t_scale) / float(b1.evals[k1 - 1])
     if not (np.isfinite(t) and t >= 0):
@@ -307,27 +462,52 @@ def extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, point: str = "h
         raise ValueError(f"dtype must be 'float32' or 'float64', got {dtype!r}")
     if int(block_bytes) < 1:
         raise ValueError(f"block_bytes must be >= 1, got {block_bytes}")
+    if isinstance(rtol, (str, bytes)) or not 0 <= rtol < 1:
+        raise ValueError(f"rtol must be a number in [0, 1), got {rtol!r}")
+    normalization = DEFAULT_NORMALIZATION if normalization is None else normalization
+    column_weights(b1, normalization)  # an unknown normalisation fails here, before any work
     ratio = b2.area / b1.area  # shape 2 uses the same time relative to its area: t · a2 / a1
     pb1, pb2 = product_basis(b1, order=2, pairs=pairs), product_basis(b2, order=2, pairs=pairs)
-    op1, op2 = pb1.operator("svd", rtol=rtol, **norm), pb2.operator("svd", rtol=rtol, **norm)
-    Ct = extend_fmap(C, b1, b2, order=2, pairs=pairs)  # (K2, K1)
-    scale = 1.0 / np.sqrt(b2.area)  # ‖f‖ on the unit-area target
-    _, X1 = _canonical_functions(pb1, op1)  # (K1_u, r1)
-    # a source function's fit is a1 = E1 X1 ã1 (ã1 its canonical coefficients on shape 1); its image's
-    # canonical coefficients on shape 2 are Σ2 V2ᵀ D2⁻¹ C~ a1
-    R = np.asarray(op2.canonical(Ct @ (pb1.expand() @ X1))) * scale  # (r2, r1)
-    e1 = _source_embedding(b1, basis_1, pb1, op1, point=point, t=t, n_eig=n_eig, block_bytes=block_bytes,
-                           dtype=dtype)
-    emb_1 = e1 @ R.T  # (n1, r2)
-    APsi2 = _canonical_functions(pb2, op2)[0].astype(dtype, copy=False)  # (n2, r2)
     targets = np.arange(b2.n) if vertices is None else np.asarray(vertices, dtype=np.int64)
-    emb_2 = np.empty((targets.shape[0], APsi2.shape[1]))  # (n2 or m, r2)
-    for rows in _blocks(targets.shape[0], b2.n, block_bytes):
-        F = point_functions(basis_2, targets[rows], point=point, t=t * ratio, n_eig=n_eig, dtype=dtype)  # (n2, b)
-        emb_2[rows] = F.T @ APsi2
-    emb_2 *= scale
-    return emb_1, emb_2, {"point": point, "t": t, "n_eig": n_eig, "rtol": rtol, "pairs": pairs,
-                          "normalization": op2.params["normalization"], "dim": emb_1.shape[1]}
+    K1, K2 = pb1.unique_index.shape[0], pb2.unique_index.shape[0]
+    work = (min(K1, b1.n) ** 2 * (b1.n + min(K1, b1.n)) + min(K2, b2.n) ** 2 * (b2.n + min(K2, b2.n))
+            + b1.n * b1.n * n_eig + targets.size * b2.n * n_eig)  # Grams and decompositions, point functions
+    n_steps = 2 + _n_blocks(b1.n, b1.n, block_bytes) + _n_blocks(targets.size, b2.n, block_bytes) + extra_steps
+    bar = progress_bar(n_steps, "point map (extended)", progress=progress, work=work, min_work=PROGRESS_MIN_WORK,
+                       unit="step")
+    try:
+        APsi1, X1, _ = _canonical_frame(pb1, rtol, normalization, block_bytes)  # (n1, r1), (K1_u, r1)
+        bar.update()
+        APsi2, _, sV2 = _canonical_frame(pb2, rtol, normalization, block_bytes)  # (n2, r2), (r2, K2_u)
+        bar.update()
+        # a source function's fit is E1 X1 ã1 (ã1 its canonical coefficients on shape 1); its image's canonical
+        # coefficients on shape 2 are Σ2 V2ᵀ D2⁻¹ E2ᵀ C~ E1 X1 ã1 (E: solver -> basis coefficients, I for unique)
+        Y = pb1.expand() @ X1  # (K1, r1) in the basis' own columns
+        if pairs == "ordered":  # C~ between ordered bases spreads the unique image over the orderings
+            spread = pb2.fold().T @ sp.diags(1.0 / n_orderings(pb2.unique_index))  # (K2, K2_u)
+            Y = spread @ _extended_image(C, b2.phi0, pb1.fold() @ Y, pb1.unique_index, pb2.unique_index)
+        else:
+            Y = _extended_image(C, b2.phi0, Y, pb1.unique_index, pb2.unique_index)  # (K2, r1) = C~ Y
+        scale = 1.0 / np.sqrt(b2.area)  # ‖f‖ on the unit-area target
+        R = (sV2 @ (pb2.expand().T @ Y)) * scale  # (r2, r1)
+        key = ("p2p_source_canonical", b1.k, point, float(t), int(n_eig), float(rtol), normalization, pairs,
+               int(block_bytes), np.dtype(dtype).str)
+        e1 = _source_embedding(b1, basis_1, APsi1, key, point=point, t=t, n_eig=n_eig, block_bytes=block_bytes,
+                               dtype=dtype, bar=bar)
+        emb_1 = e1 @ R.T  # (n1, r2)
+        APsi2 = APsi2.astype(dtype, copy=False)
+        emb_2 = np.empty((targets.shape[0], APsi2.shape[1]))  # (n2 or m, r2)
+        for rows in _blocks(targets.shape[0], b2.n, block_bytes):
+            F = point_functions(basis_2, targets[rows], point=point, t=t * ratio, n_eig=n_eig, dtype=dtype)  # (n2, b)
+            emb_2[rows] = F.T @ APsi2
+            bar.update()
+        emb_2 *= scale
+    except BaseException:
+        bar.close()
+        raise
+    info = {"point": point, "t": t, "n_eig": n_eig, "rtol": rtol, "pairs": pairs, "normalization": normalization,
+            "dim": emb_1.shape[1]}
+    return emb_1, emb_2, info, bar
 
 
 def from_fmap(C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, convention: str = "area",
@@ -445,6 +625,12 @@ def from_fmap(C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, conv
         bad = set(params) - allowed
         if bad:
             raise TypeError(f"unknown parameters for method={method!r}: {sorted(bad)}; allowed: {sorted(allowed)}")
-        emb_1, emb_2, _ = extended_embeddings(C, basis_1, basis_2, vertices=vertices, progress=progress,
-                                              **params)  # (n1, r), (m, r)
+        kw = {"point": "heat", "t": None, "t_scale": 1.0, "n_eig": None, "rtol": 1e-3, "normalization": None,
+              "pairs": "unique", "block_bytes": KERNEL_BLOCK_BYTES, "dtype": "float32"} | params
+        emb_1, emb_2, _, bar = _extended_embeddings(C, basis_1, basis_2, vertices=vertices, progress=progress,
+                                                    extra_steps=1, **kw)  # (n1, r), (m, r)
+        with bar:
+            p2p_21 = nearest_neighbors(emb_2, emb_1, block=block, search=search)
+            bar.update()
+        return p2p_21
     return nearest_neighbors(emb_2, emb_1, block=block, search=search)

@@ -343,3 +343,25 @@ def test_std_convention_area_is_exact_on_scaled_shapes_and_pyfm_is_not(basis_0):
         np.testing.assert_array_equal(from_fmap(C, basis_0, b2, convention="pyfm"), ref)
     C = np.random.default_rng(1).normal(size=(k, k))
     np.testing.assert_array_equal(from_fmap(C, basis_0, basis_0, convention="pyfm"), from_fmap(C, basis_0, basis_0))
+
+
+def test_extended_conversion_reports_its_progress(capsys):
+    """progress=True: a bar on stderr that reaches its total (decompositions, blocks of point functions,
+    the search); progress=False and the default on a non-terminal: nothing. The map is the same."""
+    import re
+
+    from prodmaps.mesh import ellipsoid
+
+    b = pm.eigenbasis(ellipsoid(3), 40)
+    C = pm.fmap_from_p2p(np.arange(b.n), b.truncate(10), b.truncate(12))
+    capsys.readouterr()
+    quiet = from_fmap(C, b, b, "extended", progress=False)
+    assert capsys.readouterr().err == ""
+    np.testing.assert_array_equal(from_fmap(C, b, b, "extended"), quiet)  # default, stderr not a terminal
+    assert capsys.readouterr().err == ""
+    shown = from_fmap(C, b, b, "extended", progress=True, block_bytes=8 * b.n * 100)  # blocks of 100 points
+    err = capsys.readouterr().err
+    np.testing.assert_array_equal(shown, quiet)
+    assert "point map (extended)" in err
+    n_steps = 2 + 2 * int(np.ceil(b.n / 100)) + 1  # two frames, source and target blocks, the search
+    assert re.search(rf"\b{n_steps}/{n_steps}\b", err), err[-500:]
