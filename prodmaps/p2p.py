@@ -24,9 +24,9 @@ vertex of shape 2 a vertex of shape 1 (pull-back); bases are A-orthonormal with 
   ``search="approximate"`` or ``"auto"`` for millions of vertices).
 * Precision: the extended conversion's large products run in float32 by default (``dtype``): its
   embeddings agree with the float64 ones to about 1e-6 relative; ``dtype="float64"`` is exact.
-* Cost of ``"extended"``: one truncated eigendecomposition of the extended basis' Gram per shape
-  (cached in the basis: maps from one source reuse it), and point functions by blocks of
-  ``KERNEL_BLOCK_BYTES``; no ``n × n`` or ``K × K`` array beyond one Gram is held.
+* Cost of ``"extended"``: per shape, the Gram matrix of its extended basis (``min(n, K)²``) and its
+  eigenpairs above Approach B's threshold only (cached in the basis: maps from one source reuse
+  them); ``C̃`` applied without being formed; point functions by blocks of ``KERNEL_BLOCK_BYTES``.
   ``progress=None`` shows a bar for long conversions on a terminal (:mod:`prodmaps.progress`).
 * Units: both conversions give the same map when either mesh is scaled (``convention="pyfm"``
   excepted: its map depends on the area ratio).
@@ -305,7 +305,10 @@ def _canonical_frame(pb, rtol: float, normalization: str, block_bytes: int):
 
             def columns(j):  # X[:, j:j + cstep] (n, c)
                 cols = slice(j, min(K_u, j + cstep))
-                Xc = evaluate_products(base.vecs, pb.unique_index[cols])
+                # evaluate_products makes its first column the constant φ0: lead with a product to drop
+                Xc = evaluate_products(base.vecs, np.vstack([pb.unique_index[1:2], pb.unique_index[cols]]))[:, 1:]
+                if j == 0:
+                    Xc[:, 0] = base.vecs[:, 0]  # the constant column
                 return Xc * ((1.0 if sc is None else sc[cols]) * dd[cols]) * sq[:, None]
 
             G = _gram_upper((columns(j) for j in range(0, K_u, cstep)), n, 0)
@@ -318,10 +321,13 @@ def _canonical_frame(pb, rtol: float, normalization: str, block_bytes: int):
         sV = VS.T / dd  # (r, K_u) = Σ Vᵀ D⁻¹
         return APsi, X, sV
 
-    r_max = min(pb.n, pb.unique_index.shape[0])
-    if 8 * r_max * (pb.n + 2 * pb.unique_index.shape[0]) > _SOURCE_COEF_CACHE_BYTES:
-        return compute()  # too large to keep (a tiny rtol on a big basis): recomputed per map
-    return pb.cache.get(("p2p_canonical_frame", float(rtol), normalization, int(block_bytes)), compute)
+    key = ("p2p_canonical_frame", float(rtol), normalization, int(block_bytes))
+    if key in pb.cache:
+        return pb.cache.get(key, compute)
+    frame = compute()
+    if sum(a.nbytes for a in frame) <= _SOURCE_COEF_CACHE_BYTES:  # else (a tiny rtol on a big basis) recomputed
+        pb.cache.put(key, frame)
+    return frame
 
 
 def _extended_image(C: np.ndarray, phi0_2: float, Y: np.ndarray, index_1: np.ndarray, index_2: np.ndarray):

@@ -195,10 +195,11 @@ def _dense_reference(C, b1, b2, k1, k2, rtol, point="heat"):
     return e1.T / np.sqrt(b2.area), e2.T / np.sqrt(b2.area)
 
 
-@pytest.mark.parametrize("point", ["heat", "delta"])
-def test_extended_equals_dense_computation(point):
+@pytest.mark.parametrize("point, k1, k2", [("heat", 9, 12), ("delta", 9, 12), ("heat", 38, 40)])
+def test_extended_equals_dense_computation(point, k1, k2):
+    """Both sides of the Gram matrix: 9/12 products (K = 45, 78) against 642 vertices, and 38/40 (K = 741,
+    820: more columns than vertices on the target, the n x n side), by blocks of a few columns."""
     b1, b2 = _ellipsoid_pair()
-    k1, k2 = 9, 12
     rng = np.random.default_rng(1)
     C = pm.fmap_from_p2p(np.arange(b2.n), b1.truncate(k1), b2.truncate(k2)) + 0.03 * rng.normal(size=(k2, k1))
     r1, r2 = _dense_reference(C, b1, b2, k1, k2, 1e-3, point)
@@ -218,6 +219,22 @@ def test_extended_equals_dense_computation(point):
     fit = ext.operator("svd", rtol=1e-3).reconstruct(F)
     np.testing.assert_allclose(np.linalg.norm(e2[[3, 50]], axis=1),
                                np.sqrt(b2.mass @ fit**2) / np.sqrt(b2.area), rtol=1e-8)
+
+
+@pytest.mark.parametrize("k", [12, 40])
+def test_extended_ordered_pairs_keep_the_operators_span(k):
+    """The paper's ordered products (the Gram's K x K side at 12, its n x n side at 40 on 642 vertices):
+    the canonical coefficients of a target point are the area norm of its Approach B fit by the library's
+    operator of the same ordered basis, and the dimension is that operator's rank."""
+    _, b2 = _ellipsoid_pair()
+    C = np.eye(k)
+    e1, e2, info = extended_embeddings(C, b2, b2, pairs="ordered", dtype="float64", block_bytes=40_000)
+    op = pm.product_basis(b2.truncate(k), 2, "ordered").operator("svd", rtol=1e-3)
+    assert info["dim"] == op.rank
+    F = point_functions(b2, [3, 50, 400], t=info["t"])
+    np.testing.assert_allclose(np.linalg.norm(e2[[3, 50, 400]], axis=1),
+                               np.sqrt(b2.mass @ op.reconstruct(F) ** 2) / np.sqrt(b2.area), rtol=1e-8)
+    np.testing.assert_allclose(e1, e2, rtol=0, atol=1e-8 * np.abs(e2).max())  # the identity map
 
 
 def test_point_functions_kernel(basis_0):
@@ -365,3 +382,20 @@ def test_extended_conversion_reports_its_progress(capsys):
     assert "point map (extended)" in err
     n_steps = 2 + 2 * int(np.ceil(b.n / 100)) + 1  # two frames, source and target blocks, the search
     assert re.search(rf"\b{n_steps}/{n_steps}\b", err), err[-500:]
+
+
+def test_extended_conversions_from_one_source_reuse_its_work_with_the_same_numbers(basis_0, basis_13):
+    """A second map from the same source (its canonical frame and points' coefficients cached in the
+    basis) gives exactly the map that fresh bases give, for the unique and the ordered products."""
+    rng = np.random.default_rng(8)
+    C0 = pm.fmap_from_p2p(np.arange(basis_13.n), basis_0.truncate(12), basis_13.truncate(16))
+    C1, C2 = C0 + 0.02 * rng.normal(size=C0.shape), C0 + 0.05 * rng.normal(size=C0.shape)
+    ev = np.sort(rng.choice(basis_13.n, 500, replace=False))
+    for pairs in ("unique", "ordered"):
+        b1 = pm.Basis(basis_0.vecs, basis_0.evals, basis_0.mass)
+        b2 = pm.Basis(basis_13.vecs, basis_13.evals, basis_13.mass)
+        from_fmap(C1, b1, b2, "extended", pairs=pairs, vertices=ev)  # fills the caches
+        again = from_fmap(C2, b1, b2, "extended", pairs=pairs, vertices=ev)
+        fresh = from_fmap(C2, pm.Basis(basis_0.vecs, basis_0.evals, basis_0.mass),
+                          pm.Basis(basis_13.vecs, basis_13.evals, basis_13.mass), "extended", pairs=pairs, vertices=ev)
+        np.testing.assert_array_equal(again, fresh)
