@@ -147,7 +147,7 @@ def main(argv=None) -> int:
     p2p = step("p2p_std", lambda: pm.p2p.from_fmap(C, c1, c2, "std", search=args.search))  # (n,) all vertices
     pipeline = ("eigenbases", "transfer_default", "transfer_approach_b", "p2p_std")
     from prodmaps.eigensolver import CHOLESKY_MIN_N, have_cholesky
-    from prodmaps.p2p import APPROX_MIN_PAIRS, have_faiss
+    from prodmaps.neighbors import APPROX_MIN_PAIRS, have_faiss
     out = {"n": n, "k": args.k, "k_M": k1 - 1, "k_N": k2 - 1, "functions": args.functions, "jobs": args.jobs,
            "solver": args.solver if args.solver != "auto" else
            ("cholesky" if have_cholesky() and n >= CHOLESKY_MIN_N else "superlu"),

@@ -42,7 +42,8 @@ import prodmaps as pm
 import prodmaps.geodesics  # noqa: F401
 from prodmaps import fmaps
 from prodmaps.datasets import dataset_dir
-from prodmaps.p2p import from_fmap, nearest_neighbors
+from prodmaps.neighbors import nearest_neighbors
+from prodmaps.p2p import from_fmap
 
 ROOT = Path(__file__).resolve().parents[1]  # the repository: where results and the registry live
 

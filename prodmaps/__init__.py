@@ -41,6 +41,7 @@ from . import (  # noqa: F401
                mapping,
                mesh,
                metrics,
+               neighbors,
                operators,
                p2p,
                plotting,
@@ -56,10 +57,11 @@ from .approx import ApproximationOperator, approximate, approximation_operator
 from .basis import Basis, eigenbases, eigenbasis, fourier_basis, load_basis
 from .errors import MeshError, MeshWarning, NeedsFacesError
 from .io import load_mesh, load_point_cloud, save_mesh
-from .mapping import extend_fmap, fmap_from_p2p
+from .mapping import extend_fmap
 from .mesh import Mesh
 from .metrics import area_fraction_curve, relative_error
 from .operators import laplacian
+from .p2p import fmap_from_p2p
 from .plotting import plot, plot_map
 from .pointcloud import PointCloud
 from .products import ProductBasis, product_basis

@@ -1,6 +1,7 @@
-"""Functional maps between bases and the extended map ``C~`` (Section 4.3).
+"""The extended functional map ``C~`` (Section 4.3): :func:`extend_fmap`.
 
-Function transfer with these maps is :mod:`prodmaps.transfers` (:func:`prodmaps.transfer_operator`,
+A functional map from a point map is :func:`prodmaps.p2p.fmap_from_p2p`; function transfer with
+these maps is :mod:`prodmaps.transfers` (:func:`prodmaps.transfer_operator`,
 :func:`prodmaps.transfer`).
 
 Conventions (``C_12``, ``p2p_21``, the ground truth, ``C~``): :mod:`prodmaps.conventions`. By Lemma 2,
@@ -16,47 +17,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from .basis import Basis
-from .checks import check_fmap, check_p2p
+from .checks import check_fmap
 from .products import check_pairs, multi_indices, n_orderings, product_basis
 
-__all__ = ["fmap_from_p2p", "extend_fmap"]
-
-
-def fmap_from_p2p(p2p_21, basis_1: Basis, basis_2: Basis) -> np.ndarray:
-    """Functional map ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` ``(k2, k1)`` induced by a point map.
-
-    Parameters
-    ----------
-    p2p_21 : (n2,) array_like of int
-        For each vertex of shape 2, its vertex on shape 1 (the pull-back direction).
-    basis_1, basis_2 : Basis
-        Bases on shape 1 (``n1`` points, ``k1`` columns) and shape 2 (``n2``, ``k2``).
-
-    Returns
-    -------
-    (k2, k1) ndarray
-        Maps coefficients on shape 1 to coefficients on shape 2.
-
-    Raises
-    ------
-    ValueError
-        If ``p2p_21`` is not ``(n2,)`` integer indices in ``[0, n1)``.
-    TypeError
-        If a basis is not a :class:`prodmaps.Basis`.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> import prodmaps as pm
-    >>> from prodmaps.mesh import ellipsoid
-    >>> b1 = pm.eigenbasis(ellipsoid(2), 6)
-    >>> b2 = pm.eigenbasis(ellipsoid(2), 4)
-    >>> C = pm.fmap_from_p2p(np.arange(162), b1, b2)  # the identity point map
-    >>> C.shape, bool(np.allclose(C, np.eye(4, 6)))
-    ((4, 6), True)
-    """
-    p = check_p2p(p2p_21, basis_1.n, basis_2.n)
-    return basis_2.project(basis_1.vecs[p])  # (k2, k1)
+__all__ = ["extend_fmap"]
 
 
 # ------------------------------------------------------------------------- C~

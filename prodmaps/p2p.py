@@ -1,367 +1,102 @@
-"""Point-map recovery from a functional map: standard [OBCS*12] and extended (paper Sections 4.4, 5.3).
+"""Point maps and functional maps, both ways: ``p2p_21 -> C_12`` and ``C_12 -> p2p_21`` (Sections 4.4, 5.3).
 
-Conventions (``C_12`` ``(k2, k1)``, bases, the result ``p2p_21`` ``(n2,)`` pulling back):
-:mod:`prodmaps.conventions`.
+Conventions (:mod:`prodmaps.conventions`): ``C_12`` is ``(k2, k1)``; ``p2p_21`` ``(n2,)`` gives for each
+vertex of shape 2 a vertex of shape 1 (pull-back); bases are A-orthonormal with the constant first.
 
-Standard conversion (``method="std"``)
-    The delta function at ``x`` on shape 1 has coefficients ``Φ1[x]`` (times ``A1[x]``, a
-    per-point scale dropped as in [OBCS*12]); its image has coefficients ``C_12 Φ1[x]ᵀ``.
-    Each vertex ``y`` of shape 2 (coefficients ``Φ2[y]``) is matched to the ``x`` whose image
-    is nearest: rows of ``Φ2[:, :k2]`` ``(n2, k2)`` against rows of ``Φ1[:, :k1] C_12ᵀ``
-    ``(n1, k2)``.
+* :func:`fmap_from_p2p`: ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]``, the functional map of a point map.
+* :func:`from_fmap` ``(C_12, basis_1, basis_2, method)``: the point map of a functional map.
 
-Extended conversion (``method="extended"``, Sections 4.4 and 5.3)
-    Each point is a *function on the mesh*: by default (``point="heat"``) the squared heat
-    kernel ``h_t(x, ·)²`` with ``h_t(x, ·) = Σ_{i<n_eig} e^{−λ_i t} φ_i(x) φ_i`` built from as
-    many eigenpairs as the given basis holds, up to ``n_eig = DEFAULT_KERNEL_EIG = 200`` (the
-    experiments store's basis size, and the paper's "hk K" kernels; at the default ``t`` the
-    weight of eigenpair 200 is ``e^{−λ_199/λ_{k1−1}}`` ≈ 1e-3 for ``k1 = 30``, so more eigenpairs
-    change the kernel by about that much); ``point="delta"`` is the paper's literal Dirac
-    ``δ_x`` (Section 4.4). The function of every point is fitted in the order-2 extended basis
-    of its shape by Approach B (one operator per shape, reused for all points; the library's
-    default reading: ``rtol = 1e-3``, ``normalization="euclidean"``), a source point's
-    coefficients ``a`` ``(K1,)`` are transferred by ``C̃ = pm.extend_fmap(C_12)`` ``(K2, K1)``,
-    and every function on the target is compared through its canonical coefficients
-    ``ã = Σ Vᵀ a`` (SVD ``sqrt(A2) B2 D = U Σ Vᵀ`` truncated at ``rtol``; ``‖f‖_A = ‖ã‖₂``,
-    Section 4.4). Each target vertex is matched to its exact nearest transferred source point.
+  - ``method="std"`` [OBCS*12]: each vertex ``y`` of shape 2 takes the vertex ``x`` of shape 1 whose
+    transferred delta function is nearest, rows of ``Φ2[:, :k2]`` against rows of ``s·Φ1[:, :k1] C_12ᵀ``.
+    ``convention="area"`` (default): ``s = area_1 / area_2``, the comparison of the two shapes scaled
+    to unit area (exact for ground-truth maps whatever the areas; the map does not depend on units);
+    ``convention="pyfm"``: ``s = 1``, pyFM's ``FM_to_p2p`` (the same map when the areas are equal).
+  - ``method="extended"`` (the paper's Section 4.4): every point is a function on its mesh
+    (``point="heat"``, default: the squared heat kernel ``(area·h_t(x, ·))²`` from up to
+    ``DEFAULT_KERNEL_EIG`` eigenpairs of the given bases; ``"delta"``: ``area·δ_x``;
+    ``"closed_form"``: the kernel from the map's own eigenpairs in closed form, which cannot beat
+    ``"std"``), fitted in its shape's order-2 extended basis by Approach B (``rtol`` 1e-3, the
+    ``"euclidean"`` reading), transferred by ``C̃`` and compared through canonical coefficients
+    ``ã = Σ Vᵀ a`` (``‖f‖_A = ‖ã‖₂``). :func:`extended_embeddings` returns those coefficients,
+    :func:`point_functions` the functions, :func:`heat_square_coefficients` the closed form's.
 
-    ``t`` (the paper gives none): default ``t_scale / λ_{k1−1}``, the eigenvalue of the source's
-    last basis function (``t_scale = 1``). Shape 2 uses the same time relative to its area.
+* Nearest neighbours are exact with ties to the smallest index (:mod:`prodmaps.neighbors`;
+  ``search="approximate"`` or ``"auto"`` for millions of vertices).
+* Precision: the extended conversion's large products run in float32 by default (``dtype``): its
+  embeddings agree with the float64 ones to about 1e-6 relative; ``dtype="float64"`` is exact.
+* Cost of ``"extended"``: per shape, the Gram matrix of its extended basis (``min(n, K)²``) and its
+  eigenpairs above Approach B's threshold only (cached in the basis: maps from one source reuse
+  them); ``C̃`` applied without being formed; point functions by blocks of ``KERNEL_BLOCK_BYTES``.
+  ``progress=None`` shows a bar for long conversions on a terminal (:mod:`prodmaps.progress`).
+* Units: both conversions give the same map when either mesh is scaled (``convention="pyfm"``
+  excepted: its map depends on the area ratio).
 
-    Cost and memory: the point functions are evaluated ``KERNEL_BLOCK_BYTES`` (64 MB) of
-    ``(n, b)`` columns at a time and reduced to ``(K, b)`` coefficients at once, so no ``n × n``
-    kernel matrix is ever held beyond that size; the work is ``n1·n1·(n_eig + K1) +
-    m·n2·(n_eig + K2)`` multiply-adds (``m`` evaluated target vertices). The source points'
-    coefficients do not depend on the map and are kept in the source basis' cache (up to 256
-    MB), so maps from one source reuse them.
-
-    Precision: the two large products (the kernels ``Φ W Φ[x]ᵀ`` and their canonical
-    coefficients ``Ψᵀ A f``) run in float32 by default (``dtype``), faster than float64;
-    the embeddings then agree with the float64 ones to ~1e-6 relative (distances to 1e-5 in the
-    tests). ``dtype="float64"`` is the exact computation. Canonical coefficients come from
-    ``Ψ = B_s D V_r Σ_r⁻¹`` ``(n, r)``, the A-orthonormal functions of the operator's retained
-    directions (``ã = Ψᵀ A f``, the same numbers as ``Σ Vᵀ a`` of the fit ``a``, with ``r``
-    instead of ``K`` products per point).
-
-    Units: the functions are those of the mesh scaled to unit area (``area·h`` and ``area·δ``
-    are free of units) and the canonical coefficients are divided by ``sqrt(area_2)``; with the
-    unit-free ``"euclidean"`` truncation the map does not change when a mesh is scaled.
-
-Closed form (``method="extended_closed_form"``)
-    The squared heat kernel from ``n_eig ≤ min(k1, k2)`` eigenpairs has closed-form
-    coefficients in the extended basis of the same eigenpairs: with ``a_i = e^{−λ_i t} φ_i(x)``
-    and the constant value ``c = φ0``::
-
-        h² = a_0² c·φ0 + Σ_{j≥1} 2 a_0 c a_j·φ_j + Σ_{l,m≥1} a_l a_m·φ_l φ_m
-
-    (``pairs="ordered"``: column ``(l, m)`` gets ``a_l a_m``; ``"unique"``: ``a_l²`` or
-    ``2 a_l a_m``), transferred by ``C̃`` and compared through canonical coefficients as above
-    (defaults ``t = t_scale / λ_{n_eig−1}``, ``n_eig = min(k1, k2)``). **Why it cannot beat the
-    standard conversion**: that kernel is ``Σ_{l,m} a_l(x) a_m(x) φ_l φ_m``, a fixed quadratic
-    function of the point's spectral embedding ``(φ_i(x))_{i<k}``; its image through ``C̃`` is the
-    same quadratic function of the transferred embedding. The products therefore carry no
-    information about the point that the standard embedding lacks: the nearest neighbour is
-    decided by the same ``k`` numbers, compared with a distorted metric (it loses to ``"std"`` on
-    FAUST and the embedded humans, ``docs/benchmarks.md``). Kept to measure that.
-
-Nearest neighbours are exact with ties to the smallest index (:func:`nearest_neighbors`): a
-kd-tree in low dimensions, blocked float32 matrix products with an exact float64 recheck of every
-near tie in high ones (the extended embedding has up to ~2.5k dimensions).
-
-Search at scale (``search=`` of :func:`from_fmap` and :func:`nearest_neighbors`)
-    ``"exact"`` is the search above. ``"approximate"`` is an inverted-file index (faiss
-    ``IndexIVFFlat``, the optional dependency ``faiss-cpu``, ``pip install 'prodmaps[fast]'``):
-    the points are clustered by k-means into about ``n_p / IVF_LIST_SIZE`` lists (trained on
-    ``IVF_TRAIN_PER_LIST`` seeded points per list), each query scans the ``IVF_NPROBE`` lists
-    of the nearest centroids in float32 for its ``IVF_CANDIDATES`` nearest, and these are
-    re-ranked by their exact float64 distances (ties to the smallest index), so a query whose
-    exact neighbour was scanned gets the exact answer. ``"auto"`` (the default of
-    :func:`from_fmap`) is approximate when the search compares more than
-    ``APPROX_MIN_PAIRS`` = 1e11 query-point pairs and faiss is installed, exact otherwise:
-    every mesh of the paper (and any pair up to ~300k vertices each) keeps the exact path and
-    its numbers (recall against the exact answer: ``benchmarks/scale_1m.py``).
+Derivations, the choice of ``t``, why the closed form cannot win, the two conventions measured on
+shapes of unequal area: ``docs/guide/point_maps.md``.
 """
 
 from __future__ import annotations
 
-import time
 import warnings
 
 import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
 
-from .approx import column_weights
+from .approx import DEFAULT_NORMALIZATION, column_weights
 from .basis import Basis
-from .checks import check_fmap
+from .checks import check_fmap, check_p2p
 from .mapping import extend_fmap
 from .mesh import check_vertex_indices
-from .products import multi_indices, n_columns, product_basis
+from .neighbors import SEARCHES, nearest_neighbors
+from .products import evaluate_products, multi_indices, n_columns, n_orderings, product_basis
+from .progress import NullBar, progress_bar
 
-__all__ = ["nearest_neighbors", "effective_dimension", "from_fmap", "heat_square_coefficients", "extended_embeddings",
-           "point_functions", "METHODS", "POINTS", "DEFAULT_KERNEL_EIG", "SEARCHES", "have_faiss"]
+__all__ = ["from_fmap", "fmap_from_p2p", "extended_embeddings", "point_functions", "heat_square_coefficients",
+           "METHODS", "POINTS", "CONVENTIONS", "DEFAULT_KERNEL_EIG", "KERNEL_BLOCK_BYTES"]
 
-METHODS = ("std", "extended", "extended_closed_form")
+METHODS = ("std", "extended")
 POINTS = ("heat", "delta", "closed_form")  # a point's function in the extended conversion
+CONVENTIONS = ("area", "pyfm")  # the standard conversion's scale of the transferred deltas
 DEFAULT_KERNEL_EIG = 200  # eigenpairs of the squared heat kernel (the experiments store's basis size)
 KERNEL_BLOCK_BYTES = 64 << 20  # point functions evaluated (n, b) float64 columns at a time, at most this size
 
 
-_U64 = np.finfo(np.float64).eps / 2
-_U32 = float(np.finfo(np.float32).eps) / 2
-KDTREE_MAX_DIM = 32  # auto: kd-tree up to this dimension (or when a brute-force pass would be too large)
-GEMM_MAX_PAIRS = 4e10  # auto: above n_q * n_p pairs the brute force is not attempted (kd-tree instead)
-PRUNE_MIN_DIM = 128  # gemm: products on at least this many leading coordinates ...
-PRUNE_SHARE = 0.995  # ... and on as many as hold this share of the points' spread
-KDTREE_MAX_EFFECTIVE_DIM = 24  # auto: kd-tree above KDTREE_MAX_DIM when the points' effective dimension is this low
-NN_METHODS = ("auto", "kdtree", "gemm")
-PROBE_MIN_DIM = 8  # auto: a kd-tree pick above this dimension is checked against the products ...
-PROBE_QUERIES = 256  # ... on this many queries each, when there are at least 4x as many (_nn_probe)
-_clock = time.perf_counter  # the probe's clock (a test replaces it)
-SEARCHES = ("auto", "exact", "approximate")
-APPROX_MIN_PAIRS = 1e11  # search="auto": approximate above this many query-point pairs (faiss installed)
-IVF_LIST_SIZE = 512  # approximate: about n_p / IVF_LIST_SIZE inverted lists ...
-IVF_TRAIN_PER_LIST = 40  # ... trained by IVF_KMEANS_ITER k-means iterations on this many seeded points per list
-IVF_KMEANS_ITER = 10
-IVF_NPROBE = 4  # lists scanned per query
-IVF_CANDIDATES = 16  # nearest per query (float32) from the scanned lists, re-ranked by exact float64 distances
-IVF_SEED = 0
-_FAISS_HINT = "pip install faiss-cpu (or the extra: pip install 'prodmaps[fast]')"
+def fmap_from_p2p(p2p_21, basis_1: Basis, basis_2: Basis) -> np.ndarray:
+    """Functional map ``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` ``(k2, k1)`` induced by a point map.
 
+    Parameters
+    ----------
+    p2p_21 : (n2,) array_like of int
+        For each vertex of shape 2, its vertex on shape 1 (the pull-back direction).
+    basis_1, basis_2 : Basis
+        Bases on shape 1 (``n1`` points, ``k1`` columns) and shape 2 (``n2``, ``k2``).
 
-def have_faiss() -> bool:
-    """Whether the optional approximate search (``faiss``) can be imported."""
-    try:
-        import faiss  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    Returns
+    -------
+    (k2, k1) ndarray
+        Maps coefficients on shape 1 to coefficients on shape 2.
 
+    Raises
+    ------
+    ValueError
+        If ``p2p_21`` is not ``(n2,)`` integer indices in ``[0, n1)``.
+    TypeError
+        If a basis is not a :class:`prodmaps.Basis`.
 
-def effective_dimension(P: np.ndarray) -> float:
-    """Participation ratio ``(Σ σ_i²)² / Σ σ_i⁴`` of the per-coordinate variances ``σ_i²`` of ``P``.
-
-    ``P`` is ``(n, d)``: ``d`` for isotropic data, about the number of coordinates that carry the spread
-    otherwise (the extended embeddings: ~18 of 150; spectral embeddings of k eigenfunctions: ~0.8 k).
-    A kd-tree's cost grows with it, not with ``d``.
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> b1 = pm.eigenbasis(ellipsoid(2), 6)
+    >>> b2 = pm.eigenbasis(ellipsoid(2), 4)
+    >>> C = pm.fmap_from_p2p(np.arange(162), b1, b2)  # the identity point map
+    >>> C.shape, bool(np.allclose(C, np.eye(4, 6)))
+    ((4, 6), True)
     """
-    v = np.asarray(P, dtype=np.float64).var(axis=0)
-    den = float(np.sum(v * v))
-    return float(v.sum() ** 2 / den) if den > 0 else 0.0
-
-
-def _exact_pick(Q, P, rows, cols, n_rows):
-    """Among candidate pairs ``(rows, cols)`` the exact nearest per row (ties: smallest index).
-
-    Distances are recomputed directly as ``Σ (q − p)²`` in float64 (in chunks of pairs); every
-    row in ``range(n_rows)`` must have at least one candidate. Returns ``idx (n_rows,)``.
-    """
-    d2 = np.empty(rows.shape[0])
-    step = max(1, 2_000_000 // max(1, Q.shape[1]))
-    for s in range(0, rows.shape[0], step):  # chunks of candidate pairs, vectorised inside
-        diff = Q[rows[s : s + step]] - P[cols[s : s + step]]
-        d2[s : s + step] = np.einsum("ij,ij->i", diff, diff)
-    order = np.lexsort((cols, d2, rows))  # by row, then distance, then index
-    r, first = np.unique(rows[order], return_index=True)
-    if r.shape[0] != n_rows:
-        raise AssertionError("internal error: a row without candidates")
-    return cols[order[first]]
-
-
-def _nn_gemm(Q, P, block):
-    """Exact nearest neighbours by float32 products on the leading coordinates, candidates rechecked in float64."""
-    d = Q.shape[1]
-    # coordinates by decreasing spread of the points (a permutation: distances unchanged); the first
-    # r of them give lower bounds ‖q_r − p_r‖² ≤ ‖q − p‖²
-    spread = P.var(axis=0)
-    order = np.argsort(-spread, kind="stable")
-    share = np.cumsum(spread[order]) / max(spread.sum(), np.finfo(float).tiny)
-    r = d if d <= PRUNE_MIN_DIM else int(min(d, max(PRUNE_MIN_DIM, np.searchsorted(share, PRUNE_SHARE) + 1)))
-    lead = order[:r]
-    Qr, Pr = np.ascontiguousarray(Q[:, lead]), np.ascontiguousarray(P[:, lead])
-    gamma = 2.0 * (r + 8) * _U32  # |G − D'_r| ≤ γ (‖q_r‖² + 2‖p_r‖²) for the float32 product G
-    pr_sq = np.einsum("ij,ij->i", Pr, Pr)
-    qr_sq = np.einsum("ij,ij->i", Qr, Qr)
-    Pa = np.empty((P.shape[0], r + 1), dtype=np.float32)  # (n_p, r + 1): [−2p_r, (1 − 2γ)‖p_r‖²]
-    Pa[:, :r] = -2.0 * Pr
-    Pa[:, r] = (1.0 - 2.0 * gamma) * pr_sq
-    idx = np.empty(Q.shape[0], dtype=np.int64)
-    Qa = np.empty((min(block, Q.shape[0]), r + 1), dtype=np.float32)
-    slack = 1.0 + 4.0 * (d + 8) * _U64  # rounding of the float64 distances that define the answer
-    for s in range(0, Q.shape[0], block):  # blocks of queries, vectorised inside
-        b = min(block, Q.shape[0] - s)
-        Qa[:b, :r] = Qr[s : s + b]
-        Qa[:b, r] = 1.0
-        low = Qa[:b] @ Pa.T  # (b, n_p): L ≤ ‖q_r − p_r‖² − ‖q_r‖² ≤ ‖q − p‖² − ‖q_r‖²
-        j0 = np.argmin(low, axis=1)
-        diff = Q[s : s + b] - P[j0]
-        upper = np.einsum("ij,ij->i", diff, diff) * slack  # exact distance to one point, rounded up
-        thr = upper - qr_sq[s : s + b] + gamma * qr_sq[s : s + b]
-        thr = np.nextafter(thr.astype(np.float32), np.float32(np.inf))  # rounded up
-        at = np.arange(b)
-        first = low[at, j0].copy()
-        low[at, j0] = np.inf
-        amb = np.flatnonzero(low.min(axis=1) <= thr)  # a second candidate: recheck exactly
-        idx[s : s + b] = j0
-        if amb.size:
-            low[amb, j0[amb]] = first[amb]
-            rows, cols = np.nonzero(low[amb] <= thr[amb, None])
-            idx[s + amb] = _exact_pick(Q[s + amb], P, rows, cols, amb.size)
-    return idx
-
-
-def _nn_kdtree(Q, P, block, tree=None):
-    from scipy.spatial import cKDTree
-
-    tree = cKDTree(P) if tree is None else tree
-    if P.shape[0] == 1:
-        return np.zeros(Q.shape[0], dtype=np.int64)
-    dist, nn = tree.query(Q, k=2, workers=-1)  # (n_q, 2) the two nearest
-    idx = nn[:, 0].astype(np.int64)
-    d = Q.shape[1]
-    # the kd-tree's distances carry a relative rounding of about (d + 3) u: the first neighbour is
-    # the exact answer unless the second one is as close up to four times that
-    amb = np.flatnonzero(dist[:, 1] ** 2 <= dist[:, 0] ** 2 * (1.0 + 4.0 * (d + 8) * _U64))
-    if amb.size:
-        idx[amb] = _nn_gemm(Q[amb], P, block)
-    return idx
-
-
-def _nn_probe(Q, P, block):
-    """``"auto"`` between the kd-tree and the products when neither clearly wins, by timing both.
-
-    The first ``PROBE_QUERIES`` queries by the kd-tree, the next as many by the products, and the rest
-    by the one that was faster per query (exact either way: the choice never changes the result).
-    """
-    from scipy.spatial import cKDTree
-
-    s = PROBE_QUERIES
-    idx = np.empty(Q.shape[0], dtype=np.int64)
-    tree = cKDTree(P)
-    t1 = _clock()
-    idx[:s] = _nn_kdtree(Q[:s], P, block, tree)
-    t2 = _clock()
-    idx[s:2 * s] = _nn_gemm(Q[s:2 * s], P, block)
-    t3 = _clock()
-    rest = Q.shape[0] - 2 * s
-    kd = (t2 - t1) * rest / s  # per-query cost times the rest (the tree is built already)
-    mm = (t3 - t2) * rest / s
-    idx[2 * s:] = _nn_kdtree(Q[2 * s:], P, block, tree) if kd <= mm else _nn_gemm(Q[2 * s:], P, block)
-    return idx
-
-
-def _rerank(Q, P, cand, block_rows: int = 1 << 18):
-    """Among the candidates ``cand`` ``(n_q, c)`` (``-1``: none) of each query, the exact nearest.
-
-    :func:`_exact_pick`: float64 distances, ties to the smallest index, by blocks of queries; ``-1`` for
-    a row without any.
-    """
-    idx = np.full(cand.shape[0], -1, dtype=np.int64)
-    for s in range(0, cand.shape[0], block_rows):
-        cb = cand[s : s + block_rows].astype(np.int64)
-        has = cb >= 0
-        sub = np.flatnonzero(has.any(axis=1))  # rows with a candidate
-        rows, cols = np.nonzero(has[sub])
-        idx[s + sub] = _exact_pick(Q[s + sub], P, rows, cb[sub][rows, cols], sub.size)
-    return idx
-
-
-def _nn_approximate(Q, P, block, *, nprobe: int = IVF_NPROBE, candidates: int = IVF_CANDIDATES,
-                    list_size: int = IVF_LIST_SIZE, seed: int = IVF_SEED):
-    """Approximate nearest neighbours by a faiss inverted-file index, candidates re-ranked exactly.
-
-    Module doc, "Search at scale". Deterministic for given inputs (seeded training sample, faiss'
-    seeded k-means). Rows whose scanned lists hold no point are searched exactly.
-    """
-    try:
-        import faiss
-    except ImportError as e:
-        raise ImportError(f"search='approximate' needs the optional dependency faiss: {_FAISS_HINT}") from e
-    n_p, d = P.shape
-    nlist = max(1, int(round(n_p / list_size)))
-    P32 = np.ascontiguousarray(P, dtype=np.float32)
-    index = faiss.IndexIVFFlat(faiss.IndexFlatL2(d), d, nlist)
-    index.cp.seed = int(seed)
-    index.cp.niter = IVF_KMEANS_ITER
-    index.cp.min_points_per_centroid = 1  # small inputs: no warning (the training sample is all points)
-    n_train = min(n_p, IVF_TRAIN_PER_LIST * nlist)
-    sample = np.sort(np.random.default_rng(seed).choice(n_p, n_train, replace=False))
-    index.train(P32[sample])
-    index.add(P32)
-    index.nprobe = int(min(nprobe, nlist))
-    _, cand = index.search(np.ascontiguousarray(Q, dtype=np.float32), int(min(candidates, n_p)))  # (n_q, c)
-    idx = _rerank(Q, P, cand)
-    none = np.flatnonzero(idx < 0)
-    if none.size:
-        idx[none] = _nn_gemm(Q[none], P, block)
-    return idx
-
-
-def nearest_neighbors(queries: np.ndarray, points: np.ndarray, block: int | None = None,
-                      return_distance: bool = False, method: str = "auto", search: str = "exact"):
-    """Exact Euclidean nearest neighbour in ``points`` ``(n_p, d)`` of every row of ``queries`` ``(n_q, d)``.
-
-    With ``search="approximate"``, an approximate one.
-
-    The answer is the index minimising the squared distance ``Σ_i (q_i − p_i)²`` computed in
-    float64; **ties go to the smallest index**. It does not depend on ``method`` or ``block``:
-
-    * ``"gemm"``: blocked brute force (``block`` query rows at a time, default about 4·10⁶
-      distances per block, and at least 64 rows while a block stays under 2.5·10⁸ distances: with a
-      million points a block of 3 rows would stream all of them for every 3 queries)
-      by one float32 matrix product of ``[q, 1]`` and ``[−2p, ‖p‖²]``;
-      every point within the rounding bound of a row's minimum is a candidate, and rows with
-      several candidates are decided by the exact float64 distances of their candidates.
-    * ``"kdtree"``: ``scipy.spatial.cKDTree`` (both cores), the two nearest per query; a query
-      whose second neighbour is as close as the first up to rounding is decided by ``"gemm"``.
-    * ``"auto"`` (default): ``"kdtree"`` in up to ``KDTREE_MAX_DIM`` dimensions, above when the
-      points' :func:`effective_dimension` is at most ``KDTREE_MAX_EFFECTIVE_DIM`` (as the extended
-      embedding's 150 coordinates at 29/39 are) or when the brute force would compare more than
-      ``GEMM_MAX_PAIRS`` pairs; ``"gemm"`` otherwise. A kd-tree pick above ``PROBE_MIN_DIM``
-      dimensions with at least ``4 * PROBE_QUERIES`` queries is checked: both methods answer
-      ``PROBE_QUERIES`` queries, timed, and the faster one answers the rest (a kd-tree's cost
-      depends on how far the queries lie from the points).
-
-    ``search``: ``"exact"`` (default, all of the above), ``"approximate"`` (faiss inverted-file
-    index with an exact re-ranking of its candidates, module doc "Search at scale"; ``method`` is
-    then ignored; ``ImportError`` without faiss) or ``"auto"`` (approximate above
-    ``APPROX_MIN_PAIRS`` query-point pairs when faiss is installed, exact otherwise).
-
-    Returns ``idx (n_q,)`` int64 (and the Euclidean distances ``(n_q,)`` if ``return_distance``).
-    """
-    Q = np.ascontiguousarray(queries, dtype=np.float64)
-    P = np.ascontiguousarray(points, dtype=np.float64)
-    if Q.ndim != 2 or P.ndim != 2:
-        raise ValueError(f"queries and points must be 2D arrays (n, d); got {Q.shape} and {P.shape}")
-    if Q.shape[1] != P.shape[1]:
-        raise ValueError(f"queries have dimension {Q.shape[1]} but points have {P.shape[1]}; they must match")
-    if P.shape[0] == 0:
-        raise ValueError("points is empty: nothing to match to")
-    if method not in NN_METHODS:
-        raise ValueError(f"method must be one of {NN_METHODS}, got {method!r}")
-    if search not in SEARCHES:
-        raise ValueError(f"search must be one of {SEARCHES}, got {search!r}")
-    if search == "auto":
-        big = float(Q.shape[0]) * float(P.shape[0]) > APPROX_MIN_PAIRS
-        search = "approximate" if big and have_faiss() else "exact"
-    if block is None:  # ~4e6 distances a block; at least 64 rows while a block holds <= 2.5e8 (1 GB)
-        block = max(1, int(4_000_000 // P.shape[0]), min(64, int(250_000_000 // P.shape[0])))
-    block = int(block)
-    if block < 1:
-        raise ValueError(f"block must be >= 1, got {block}")
-    if method == "auto":
-        big = float(Q.shape[0]) * float(P.shape[0]) > GEMM_MAX_PAIRS
-        low = Q.shape[1] <= KDTREE_MAX_DIM or effective_dimension(P) <= KDTREE_MAX_EFFECTIVE_DIM
-        method = "kdtree" if (low or big) else "gemm"
-        if method == "kdtree" and not big and Q.shape[1] > PROBE_MIN_DIM and Q.shape[0] >= 4 * PROBE_QUERIES:
-            method = "probe"
-    if Q.shape[0] == 0:
-        idx = np.zeros(0, dtype=np.int64)
-    else:
-        nn = {"probe": _nn_probe, "kdtree": _nn_kdtree, "gemm": _nn_gemm}[method]
-        idx = (_nn_approximate if search == "approximate" else nn)(Q, P, block)
-    if not return_distance:
-        return idx
-    diff = Q - P[idx]
-    return idx, np.sqrt(np.einsum("ij,ij->i", diff, diff))
+    p = check_p2p(p2p_21, basis_1.n, basis_2.n)
+    return basis_2.project(basis_1.vecs[p])  # (k2, k1)
 
 
 def heat_square_coefficients(basis: Basis, t: float, n_eig: int, pairs: str = "unique", points=None) -> np.ndarray:
@@ -481,82 +216,241 @@ def _blocks(n_points: int, n_rows: int, block_bytes: int):
         yield slice(s, min(n_points, s + step))
 
 
-_SOURCE_COEF_CACHE_BYTES = 2**28
+_SOURCE_COEF_CACHE_BYTES = 2**28  # per-basis results kept in its cache up to this size (source points, frames)
+PROGRESS_MIN_WORK = 2e10  # progress=None: a bar when the conversion's multiply-adds exceed this (long runs)
 
 
-def _canonical_functions(pb, op) -> tuple[np.ndarray, np.ndarray]:
-    """``(AΨ (n, r), X (K_u, r))`` of an Approach B operator ``op`` of the product basis ``pb``.
+def _solver_rows(pb, rows, d):
+    """``X[rows]`` ``(b, K_u)`` of the scaled solver columns ``X = sqrt(A) B_s D`` (``d`` None: ``D = I``)."""
+    B = evaluate_products(pb.base.vecs[rows], pb.unique_index)  # (b, K_u) unique products
+    scale = pb.solver_scale()  # ordered pairs: sqrt(#orderings) per multiset
+    if scale is not None:
+        B *= scale
+    B *= np.sqrt(pb.base.mass[rows])[:, None]
+    if d is not None:
+        B *= d
+    return B
 
-    With ``sqrt(A) B_s D = U Σ Vᵀ`` truncated to ``r`` (``B_s`` the solver columns, ``D`` the
-    normalisation's column weights), ``X = D V_r Σ_r⁻¹`` and ``Ψ = B_s X`` is A-orthonormal:
-    the canonical coefficients of any function are ``ã = Ψᵀ A f`` (Section 4.4: ``Σ Vᵀ a`` of its
-    Approach B fit ``a = X Xᵀ B_sᵀ A f``). ``X`` comes from the operator's own ``Σ Vᵀ D⁻¹``
-    (``op.canonical``), so the truncation is the operator's: ``X = D² (ΣVᵀD⁻¹)ᵀ Σ⁻²``, with
-    ``Σ² = (ΣVᵀD⁻¹) D² (ΣVᵀD⁻¹)ᵀ`` solved rather than assumed diagonal.
+
+def _gram_upper(blocks, m: int, trans: int) -> np.ndarray:
+    """The upper triangle of ``Σ XbᵀXb`` (``trans=1``) or ``Σ XbXbᵀ`` (``trans=0``) ``(m, m)``, accumulated in place."""
+    G = np.zeros((m, m), order="F")
+    for Xb in blocks:
+        G = sla.blas.dsyrk(1.0, Xb, beta=1.0, c=G, trans=trans, lower=0, overwrite_c=1)
+    return G
+
+
+def _top_eigenpairs(G: np.ndarray, rtol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenpairs ``(w (r,), V (m, r))``, descending, of the PSD ``G`` with ``sqrt(w) > rtol·sqrt(w_max)``.
+
+    ``G`` holds its upper triangle (:func:`_gram_upper`) and is overwritten. Approach B's truncation rule
+    on the Gram matrix of the scaled columns (its operator's ``route="gram"``), computed for the kept
+    eigenpairs only: MRRR on the interval above a lower bound of the threshold, then the exact rule with
+    the computed ``w_max``.
+    """
+    v = np.full(G.shape[0], 1.0 / np.sqrt(G.shape[0]))
+    for _ in range(20):  # power steps: a Rayleigh quotient never exceeds w_max, so the interval holds every
+        u = sla.blas.dsymv(1.0, G, v, lower=0)  # kept eigenvalue
+        nu = float(np.linalg.norm(u))
+        if nu == 0.0:
+            break
+        v = u / nu
+    lam = float(v @ sla.blas.dsymv(1.0, G, v, lower=0))
+    if not lam > 0:
+        raise ValueError("the extended basis is zero on this mesh: no canonical coefficients")
+    w, V = sla.eigh(G, lower=False, subset_by_value=(0.5 * rtol**2 * lam, np.inf), driver="evr", overwrite_a=True,
+                    check_finite=False)
+    w, V = w[::-1], V[:, ::-1]
+    s = np.sqrt(np.maximum(w, 0.0))
+    r = int(np.sum(s > rtol * s[0]))
+    return w[:r], V[:, :r]
+
+
+def _canonical_frame(pb, rtol: float, normalization: str, block_bytes: int):
+    """``(AΨ (n, r), X (K_u, r), ΣVᵀD⁻¹ (r, K_u))``: Approach B's retained directions on ``pb``.
+
+    With ``sqrt(A) B_s D = U Σ Vᵀ`` truncated to the ``r`` singular values above ``rtol·σ_max`` (``B_s``
+    the solver columns, ``D`` the normalisation's column weights), ``X = D V Σ⁻¹`` and ``Ψ = B_s X =
+    U / sqrt(A)`` is A-orthonormal: the canonical coefficients of any function are ``ã = Ψᵀ A f``
+    (Section 4.4: ``Σ Vᵀ a`` of its Approach B fit ``a``); ``ΣVᵀD⁻¹`` gives those of solver coefficients.
+    The truncation is the operator's (:func:`prodmaps.approx.approximation_operator`: the Gram route,
+    on the smaller of ``XᵀX`` and ``XXᵀ``, for ``rtol >= 1e-6``; the SVD of ``X`` below), computed for the
+    kept directions only, with one Gram matrix held at a time. Cached in ``pb.cache`` up to 256 MB.
     """
     def compute():
-        E = pb.expand()  # (K, K_u): solver -> basis coefficients; Eᵀ E = I
-        sV = np.asarray(op.canonical(E.toarray()))  # (r, K_u) = Σ Vᵀ D⁻¹ in the solver columns
-        d = column_weights(pb, op.params["normalization"])
-        d2 = np.ones(sV.shape[1]) if d is None else d * d
-        S2 = (sV * d2) @ sV.T  # (r, r) = Σ²
-        X = np.linalg.solve(0.5 * (S2 + S2.T), sV * d2).T  # (K_u, r)
-        APsi = pb.solver_matmul(X)  # (n, r) Ψ
-        APsi *= pb.base.mass[:, None]
-        return APsi, X
+        base, K_u = pb.base, pb.unique_index.shape[0]
+        n, sq = base.n, np.sqrt(base.mass)
+        step = max(1, int(block_bytes) // (8 * K_u))  # rows per block of solver columns
+        if normalization == "columns":  # unit A-norm columns: the Gram's diagonal, by blocks
+            g = sum(np.einsum("ij,ij->j", X, X) for X in (_solver_rows(pb, slice(i, min(n, i + step)), None)
+                                                           for i in range(0, n, step)))
+            d = 1.0 / np.sqrt(np.maximum(g, np.finfo(float).tiny))
+        else:
+            d = column_weights(pb, normalization)
+        dd = np.ones(K_u) if d is None else d
+        if rtol < 1e-6:  # the operator's SVD route: the Gram squares the condition number
+            U, s, Vt = sla.svd(_solver_rows(pb, slice(0, n), d), full_matrices=False, lapack_driver="gesdd")
+            r = int(np.sum(s > rtol * s[0]))
+            U, s, V = U[:, :r], s[:r], Vt[:r].T
+            VS = V * s
+        elif K_u <= n:  # XᵀX (K_u x K_u), by blocks of rows
+            G = _gram_upper((_solver_rows(pb, slice(i, min(n, i + step)), d) for i in range(0, n, step)), K_u, 1)
+            w, V = _top_eigenpairs(G, rtol)
+            del G
+            s = np.sqrt(w)
+            VS = V * s  # (K_u, r)
+            U = pb.solver_matmul(dd[:, None] * V / s) * sq[:, None]  # (n, r) = X V Σ⁻¹
+        else:  # XXᵀ (n x n) when the extended basis has more columns than the mesh has vertices
+            cstep, sc = max(1, int(block_bytes) // (8 * n)), pb.solver_scale()
 
-    p = op.params
-    return pb.cache.get(("p2p_canonical_functions", float(p["rtol"]), p["normalization"]), compute)
+            def columns(j):  # X[:, j:j + cstep] (n, c)
+                cols = slice(j, min(K_u, j + cstep))
+                # evaluate_products makes its first column the constant φ0: lead with a product to drop
+                Xc = evaluate_products(base.vecs, np.vstack([pb.unique_index[1:2], pb.unique_index[cols]]))[:, 1:]
+                if j == 0:
+                    Xc[:, 0] = base.vecs[:, 0]  # the constant column
+                return Xc * ((1.0 if sc is None else sc[cols]) * dd[cols]) * sq[:, None]
+
+            G = _gram_upper((columns(j) for j in range(0, K_u, cstep)), n, 0)
+            w, U = _top_eigenpairs(G, rtol)
+            del G
+            s = np.sqrt(w)
+            VS = pb.solver_rmatmul(sq[:, None] * U) * dd[:, None]  # (K_u, r) = Xᵀ U = V Σ
+        APsi = U * sq[:, None]  # (n, r) A Ψ = sqrt(A) U
+        X = dd[:, None] * VS / (s * s)  # (K_u, r) = D V Σ⁻¹
+        sV = VS.T / dd  # (r, K_u) = Σ Vᵀ D⁻¹
+        return APsi, X, sV
+
+    key = ("p2p_canonical_frame", float(rtol), normalization, int(block_bytes))
+    if key in pb.cache:
+        return pb.cache.get(key, compute)
+    frame = compute()
+    if sum(a.nbytes for a in frame) <= _SOURCE_COEF_CACHE_BYTES:  # else (a tiny rtol on a big basis) recomputed
+        pb.cache.put(key, frame)
+    return frame
 
 
-def _source_embedding(b1: Basis, basis_1: Basis, pb1, op1, *, point, t, n_eig, block_bytes, dtype) -> np.ndarray:
+def _extended_image(C: np.ndarray, phi0_2: float, Y: np.ndarray, index_1: np.ndarray, index_2: np.ndarray):
+    """``C~ Y`` ``(K2_u, m)`` for unique-pair coefficients ``Y`` ``(K1_u, m)``, order 2, without forming ``C~``.
+
+    Lemma 2 written per column: with ``T φ_l = a_l + Σ_i b_il ψ_i`` (``a = φ0_2 C[0, 1:]``, ``b = C[1:, 1:]``)
+    and the products' coefficients as a symmetric ``Q`` (``y_lm / 2`` off the diagonal), the image of
+    ``Σ Q_lm φ_l φ_m`` is ``aᵀQa + 2 (bQa)·ψ + ψᵀ (bQbᵀ) ψ``: ``2 m k³`` multiply-adds and ``m k²`` values
+    instead of the ``K2 × K1`` matrix (:func:`prodmaps.extend_fmap`, equal to rounding).
+    """
+    k2, k1 = C.shape[0] - 1, C.shape[1] - 1
+    m = Y.shape[1]
+    a, b = phi0_2 * C[0, 1:], C[1:, 1:]  # (k1,), (k2, k1)
+    y0, ylin = Y[0], Y[1 : k1 + 1]  # (m,), (k1, m)
+    l, q = index_1[k1 + 1 :, 0] - 1, index_1[k1 + 1 :, 1] - 1  # 0-based factors of the product columns
+    Q = np.zeros((m, k1, k1))
+    Yq = Y[k1 + 1 :].T  # (m, K1_q)
+    Q[:, l, q] = np.where(l == q, 1.0, 0.5) * Yq
+    Q[:, q, l] += np.where(l == q, 0.0, 0.5) * Yq
+    Qa = Q @ a  # (m, k1)
+    out = np.empty((index_2.shape[0], m))
+    out[0] = y0 * C[0, 0] + (a @ ylin + Qa @ a) / phi0_2  # the function 1 is the constant column over φ0
+    out[1 : k2 + 1] = np.outer(C[1:, 0], y0) + b @ ylin + 2.0 * (b @ Qa.T)
+    P = (b @ Q) @ b.T  # (m, k2, k2) symmetric
+    i, j = index_2[k2 + 1 :, 0] - 1, index_2[k2 + 1 :, 1] - 1
+    out[k2 + 1 :] = (P[:, i, j] * np.where(i == j, 1.0, 2.0)).T
+    return out
+
+
+def _source_embedding(b1: Basis, basis_1: Basis, APsi1, key, *, point, t, n_eig, block_bytes, dtype,
+                      bar) -> np.ndarray:
     """Canonical coefficients ``(n1, r1)`` of every source point's function in its own extended basis.
 
     ``Ψ1ᵀ A1 f``, blocked; kept in the source basis' cache (up to 256 MB): they do not depend on the map.
     """
     def compute():
-        APsi = _canonical_functions(pb1, op1)[0].astype(dtype, copy=False)  # (n1, r1)
+        APsi = APsi1.astype(dtype, copy=False)  # (n1, r1)
         out = np.empty((b1.n, APsi.shape[1]))
         for rows in _blocks(b1.n, b1.n, block_bytes):
             pts = np.arange(rows.start, rows.stop)
             out[rows] = point_functions(basis_1, pts, point=point, t=t, n_eig=n_eig, dtype=dtype).T @ APsi  # (b, r1)
+            bar.update()
         return out
 
-    if b1.n * pb1.K * 8 > _SOURCE_COEF_CACHE_BYTES:
+    if b1.n * APsi1.shape[1] * 8 > _SOURCE_COEF_CACHE_BYTES:
         return compute()
-    p = op1.params
-    key = ("p2p_source_canonical", b1.k, point, float(t), int(n_eig), float(p["rtol"]), p["normalization"],
-           pb1.pairs, int(block_bytes), np.dtype(dtype).str)
+    if key in basis_1.cache:
+        bar.update(len(range(0, b1.n, _block_step(b1.n, block_bytes))))
     return basis_1.cache.get(key, compute)
+
+
+def _block_step(n_rows: int, block_bytes: int) -> int:
+    return max(1, int(block_bytes) // (8 * max(1, n_rows)))
+
+
+def _n_blocks(n_points: int, n_rows: int, block_bytes: int) -> int:
+    return len(range(0, n_points, _block_step(n_rows, block_bytes)))
 
 
 def extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, point: str = "heat", t=None, t_scale: float = 1.0,
                         n_eig=None, rtol: float = 1e-3, normalization: str | None = None, pairs: str = "unique",
-                        vertices=None, block_bytes: int = KERNEL_BLOCK_BYTES, dtype: str = "float32"):
+                        vertices=None, block_bytes: int = KERNEL_BLOCK_BYTES, dtype: str = "float32",
+                        progress: bool | None = None):
     """Canonical coefficients used by the extended conversion (module doc).
 
-    Returns ``(emb_1 (n1, r), emb_2 (n2, r), info)``: the transferred functions of the vertices
-    of shape 1 and the functions of the vertices of shape 2, both as canonical coefficients of
-    shape 2's extended basis (``r`` retained singular values, divided by ``sqrt(area_2)``; the
-    closed form keeps its historical scale), plus a dict of the parameters used. Arguments as in
-    :func:`from_fmap`; ``vertices`` (optional ``(m,)`` shape-2 vertex indices) gives ``emb_2`` of
-    those vertices only, ``(m, r)``. ``C_12`` uses the first ``k1``/``k2`` columns of the bases for
-    the products; the heat kernel uses up to ``n_eig`` columns of the bases as given.
+    Parameters
+    ----------
+    C_12, basis_1, basis_2, point, t, t_scale, n_eig, rtol, normalization, pairs, block_bytes, dtype, progress
+        As in :func:`from_fmap`. ``C_12`` uses the first ``k1``/``k2`` columns of the bases for the
+        products; the heat kernel uses up to ``n_eig`` columns of the bases as given.
+    vertices : (m,) array_like of int, optional
+        Shape-2 vertices whose embedding is wanted (default: all).
+
+    Returns
+    -------
+    emb_1 : (n1, r) ndarray
+        The transferred functions of the vertices of shape 1 as canonical coefficients of shape 2's
+        extended basis (``r`` retained singular values, divided by ``sqrt(area_2)``; the closed form
+        keeps its historical scale).
+    emb_2 : (n2, r) or (m, r) ndarray
+        The functions of the vertices of shape 2, in the same coordinates.
+    info : dict
+        The parameters used (``point``, ``t``, ``n_eig``, ``rtol``, ``pairs``, ``normalization``, ``dim``).
+
+    Raises
+    ------
+    ValueError
+        As :func:`from_fmap`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.mesh import ellipsoid
+    >>> b = pm.eigenbasis(ellipsoid(2), 40)
+    >>> e1, e2, info = extended_embeddings(np.eye(12, 10), b, b)
+    >>> e1.shape == e2.shape == (b.n, info["dim"]), info["n_eig"]
+    (True, 40)
     """
+    emb_1, emb_2, info, bar = _extended_embeddings(
+        C_12, basis_1, basis_2, point=point, t=t, t_scale=t_scale, n_eig=n_eig, rtol=rtol, normalization=normalization,
+        pairs=pairs, vertices=vertices, block_bytes=block_bytes, dtype=dtype, progress=progress, extra_steps=0)
+    bar.close()
+    return emb_1, emb_2, info
+
+
+def _extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, point, t, t_scale, n_eig, rtol, normalization, pairs,
+                         vertices, block_bytes, dtype, progress, extra_steps: int):
+    """:func:`extended_embeddings` and its progress bar (with ``extra_steps`` left for the caller)."""
     if point not in POINTS:
         raise ValueError(f"point must be one of {POINTS}, got {point!r}")
     C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)
     k2, k1 = C.shape
     b1, b2 = basis_1.truncate(k1), basis_2.truncate(k2)
-    norm = {} if normalization is None else {"normalization": normalization}
     if point == "closed_form":
-        return _closed_form_embeddings(C, b1, b2, t=t, t_scale=t_scale, n_eig=n_eig, rtol=rtol, normalization=norm,
-                                       pairs=pairs, vertices=vertices)
+        norm = {} if normalization is None else {"normalization": normalization}
+        return (*_closed_form_embeddings(C, b1, b2, t=t, t_scale=t_scale, n_eig=n_eig, rtol=rtol, normalization=norm,
+                                         pairs=pairs, vertices=vertices), NullBar())
     for i, b in ((1, basis_1), (2, basis_2)):
         if not b.mass_is_diagonal:
             raise ValueError(f"point={point!r} needs lumped (diagonal) masses, basis_{i} has a full mass matrix: "
                              "build the bases with mass='lumped' (the default), or use method='std' or "
-                             "'extended_closed_form'")
+                             "point='closed_form'")
     n_max = min(basis_1.k, basis_2.k)
     n_eig = min(DEFAULT_KERNEL_EIG, n_max) if n_eig is None else int(n_eig)
     if not 2 <= n_eig <= n_max:
@@ -565,7 +459,7 @@ def extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, point: str = "h
         warnings.warn(f"the squared heat kernel from {n_eig} eigenpairs lies in the span of the products of the "
                       f"map's {k1}/{k2} basis functions: the conversion is then the closed form's, which cannot "
                       f"beat the standard one; pass bases with more eigenpairs ({DEFAULT_KERNEL_EIG} by default)",
-                      stacklevel=3)
+                      stacklevel=4)
     if t is None:
         t = float(t_scale) / float(b1.evals[k1 - 1])
     if not (np.isfinite(t) and t >= 0):
@@ -574,65 +468,118 @@ def extended_embeddings(C_12, basis_1: Basis, basis_2: Basis, *, point: str = "h
         raise ValueError(f"dtype must be 'float32' or 'float64', got {dtype!r}")
     if int(block_bytes) < 1:
         raise ValueError(f"block_bytes must be >= 1, got {block_bytes}")
+    if isinstance(rtol, (str, bytes)) or not 0 <= rtol < 1:
+        raise ValueError(f"rtol must be a number in [0, 1), got {rtol!r}")
+    normalization = DEFAULT_NORMALIZATION if normalization is None else normalization
+    column_weights(b1, normalization)  # an unknown normalisation fails here, before any work
     ratio = b2.area / b1.area  # shape 2 uses the same time relative to its area: t · a2 / a1
     pb1, pb2 = product_basis(b1, order=2, pairs=pairs), product_basis(b2, order=2, pairs=pairs)
-    op1, op2 = pb1.operator("svd", rtol=rtol, **norm), pb2.operator("svd", rtol=rtol, **norm)
-    Ct = extend_fmap(C, b1, b2, order=2, pairs=pairs)  # (K2, K1)
-    scale = 1.0 / np.sqrt(b2.area)  # ‖f‖ on the unit-area target
-    _, X1 = _canonical_functions(pb1, op1)  # (K1_u, r1)
-    # a source function's fit is a1 = E1 X1 ã1 (ã1 its canonical coefficients on shape 1); its image's
-    # canonical coefficients on shape 2 are Σ2 V2ᵀ D2⁻¹ C~ a1
-    R = np.asarray(op2.canonical(Ct @ (pb1.expand() @ X1))) * scale  # (r2, r1)
-    e1 = _source_embedding(b1, basis_1, pb1, op1, point=point, t=t, n_eig=n_eig, block_bytes=block_bytes,
-                           dtype=dtype)
-    emb_1 = e1 @ R.T  # (n1, r2)
-    APsi2 = _canonical_functions(pb2, op2)[0].astype(dtype, copy=False)  # (n2, r2)
     targets = np.arange(b2.n) if vertices is None else np.asarray(vertices, dtype=np.int64)
-    emb_2 = np.empty((targets.shape[0], APsi2.shape[1]))  # (n2 or m, r2)
-    for rows in _blocks(targets.shape[0], b2.n, block_bytes):
-        F = point_functions(basis_2, targets[rows], point=point, t=t * ratio, n_eig=n_eig, dtype=dtype)  # (n2, b)
-        emb_2[rows] = F.T @ APsi2
-    emb_2 *= scale
-    return emb_1, emb_2, {"point": point, "t": t, "n_eig": n_eig, "rtol": rtol, "pairs": pairs,
-                          "normalization": op2.params["normalization"], "dim": emb_1.shape[1]}
+    K1, K2 = pb1.unique_index.shape[0], pb2.unique_index.shape[0]
+    work = (min(K1, b1.n) ** 2 * (b1.n + min(K1, b1.n)) + min(K2, b2.n) ** 2 * (b2.n + min(K2, b2.n))
+            + b1.n * b1.n * n_eig + targets.size * b2.n * n_eig)  # Grams and decompositions, point functions
+    n_steps = 2 + _n_blocks(b1.n, b1.n, block_bytes) + _n_blocks(targets.size, b2.n, block_bytes) + extra_steps
+    bar = progress_bar(n_steps, "point map (extended)", progress=progress, work=work, min_work=PROGRESS_MIN_WORK,
+                       unit="step")
+    try:
+        APsi1, X1, _ = _canonical_frame(pb1, rtol, normalization, block_bytes)  # (n1, r1), (K1_u, r1)
+        bar.update()
+        APsi2, _, sV2 = _canonical_frame(pb2, rtol, normalization, block_bytes)  # (n2, r2), (r2, K2_u)
+        bar.update()
+        # a source function's fit is E1 X1 ã1 (ã1 its canonical coefficients on shape 1); its image's canonical
+        # coefficients on shape 2 are Σ2 V2ᵀ D2⁻¹ E2ᵀ C~ E1 X1 ã1 (E: solver -> basis coefficients, I for unique)
+        Y = pb1.expand() @ X1  # (K1, r1) in the basis' own columns
+        if pairs == "ordered":  # C~ between ordered bases spreads the unique image over the orderings
+            spread = pb2.fold().T @ sp.diags(1.0 / n_orderings(pb2.unique_index))  # (K2, K2_u)
+            Y = spread @ _extended_image(C, b2.phi0, pb1.fold() @ Y, pb1.unique_index, pb2.unique_index)
+        else:
+            Y = _extended_image(C, b2.phi0, Y, pb1.unique_index, pb2.unique_index)  # (K2, r1) = C~ Y
+        scale = 1.0 / np.sqrt(b2.area)  # ‖f‖ on the unit-area target
+        R = (sV2 @ (pb2.expand().T @ Y)) * scale  # (r2, r1)
+        key = ("p2p_source_canonical", b1.k, point, float(t), int(n_eig), float(rtol), normalization, pairs,
+               int(block_bytes), np.dtype(dtype).str)
+        e1 = _source_embedding(b1, basis_1, APsi1, key, point=point, t=t, n_eig=n_eig, block_bytes=block_bytes,
+                               dtype=dtype, bar=bar)
+        emb_1 = e1 @ R.T  # (n1, r2)
+        APsi2 = APsi2.astype(dtype, copy=False)
+        emb_2 = np.empty((targets.shape[0], APsi2.shape[1]))  # (n2 or m, r2)
+        for rows in _blocks(targets.shape[0], b2.n, block_bytes):
+            F = point_functions(basis_2, targets[rows], point=point, t=t * ratio, n_eig=n_eig, dtype=dtype)  # (n2, b)
+            emb_2[rows] = F.T @ APsi2
+            bar.update()
+        emb_2 *= scale
+    except BaseException:
+        bar.close()
+        raise
+    info = {"point": point, "t": t, "n_eig": n_eig, "rtol": rtol, "pairs": pairs, "normalization": normalization,
+            "dim": emb_1.shape[1]}
+    return emb_1, emb_2, info, bar
 
 
-def from_fmap(C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, block: int | None = None, vertices=None,
-              search: str = "auto", **params) -> np.ndarray:
+def from_fmap(C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, convention: str = "area",
+              block: int | None = None, vertices=None, search: str = "auto", progress: bool | None = None,
+              **params) -> np.ndarray:
     """Point map ``p2p_21`` ``(n2,)`` (for each vertex of shape 2 a vertex of shape 1) from ``C_12`` ``(k2, k1)``.
 
     Parameters
     ----------
-    C_12 : ``(k2, k1)`` functional map; uses the first ``k1`` columns of ``basis_1`` and the
-        first ``k2`` of ``basis_2``.
-    basis_1, basis_2 : the shapes' bases. For ``"extended"`` pass the shapes' big bases (200
-        eigenpairs, :data:`DEFAULT_KERNEL_EIG`): the heat kernel that represents a point is built
-        from all their columns (up to ``n_eig``), the products from the map's ``k1``/``k2``.
-    method : ``"std"`` (nearest neighbours between ``Φ2`` and ``Φ1 C_12ᵀ``, [OBCS*12]),
-        ``"extended"`` (Sections 4.4/5.3: points as squared heat kernels on the mesh, fitted in the
+    C_12 : (k2, k1) array_like
+        Functional map; uses the first ``k1`` columns of ``basis_1`` and the first ``k2`` of ``basis_2``.
+    basis_1, basis_2 : Basis
+        The shapes' bases. For ``"extended"`` pass the shapes' big bases (200 eigenpairs,
+        ``DEFAULT_KERNEL_EIG``): the heat kernel that represents a point is built from all their
+        columns (up to ``n_eig``), the products from the map's ``k1``/``k2``.
+    method : ``"std"`` (default) or ``"extended"``
+        ``"std"``: nearest neighbours between ``Φ2`` and the transferred deltas ``s·Φ1 C_12ᵀ``
+        [OBCS*12]; ``"extended"``: Sections 4.4/5.3, points as functions on the mesh fitted in the
         extended basis by Approach B, transferred by ``C̃``, compared through canonical
-        coefficients) or ``"extended_closed_form"`` (the kernel from the map's own eigenpairs in
-        closed form; cannot beat ``"std"``, see the module doc).
-    block : query rows per block of the exact nearest-neighbour search.
-    vertices : optional ``(m,)`` int array of shape-2 vertices to map (default: all). The answer
-        is then ``(m,)``, equal to ``from_fmap(...)[vertices]`` (the search is exact per query), at
-        ``m/n2`` of the search's cost: for evaluating a map on sampled vertices.
-    search : ``"auto"`` (default), ``"exact"`` or ``"approximate"`` (the nearest-neighbour search,
-        module doc "Search at scale"). ``"auto"`` is exact up to ``APPROX_MIN_PAIRS`` = 1e11
-        query-point pairs (``m`` or ``n2`` times ``n1``: every mesh of the paper, any pair up to
-        ~300k vertices each) and approximate above when faiss is installed (a faiss
-        inverted-file index, candidates re-ranked by exact distances; recall against the exact
-        answer measured in ``benchmarks/scale_1m.py``). ``"approximate"`` without faiss raises
-        ``ImportError``; ``"exact"`` is always exact (hours at a million vertices).
-    **params : for the extended methods: ``t`` (heat time in shape 1's units; default
-        ``t_scale / λ_{k1−1}``, closed form ``t_scale / λ_{n_eig−1}``), ``t_scale`` (1.0),
-        ``n_eig`` (eigenpairs in the kernel, constant included; default ``min(200, basis_1.k,
-        basis_2.k)``, closed form ``min(k1, k2)``), ``rtol`` (Approach B truncation, 1e-3),
-        ``normalization`` (of Approach B, :mod:`prodmaps.approx`; default the library's
-        ``"euclidean"``), ``pairs`` (``"unique"`` or ``"ordered"``); ``"extended"`` also takes
-        ``point`` (``"heat"`` default, ``"delta"``, or ``"closed_form"`` = the closed-form method)
-        ``block_bytes`` (size of a block of point functions, 64 MB) and ``dtype`` (``"float32"``,
-        default, or ``"float64"``: the precision of the two large products, see the module doc).
+        coefficients (module doc).
+    convention : ``"area"`` (default) or ``"pyfm"``
+        The standard conversion's scale ``s`` of the transferred deltas. ``"area"``: ``s = area_1 /
+        area_2``, the comparison as on unit-area shapes: exact for a ground-truth ``C_12`` whatever the
+        areas, and the map does not change when a mesh is scaled. ``"pyfm"``: ``s = 1``, exactly
+        pyFM's ``FM_to_p2p`` / ``FunctionalMapping.get_p2p`` for the same bases and map (ties
+        aside); wrong by the area ratio on shapes of unequal area (measured in
+        ``docs/guide/coming_from.md``). Equal areas: the same map. ``"extended"`` is unit-free and
+        takes only ``"area"``.
+    block : int, optional
+        Query rows per block of the exact nearest-neighbour search.
+    vertices : (m,) array_like of int, optional
+        Shape-2 vertices to map (default: all). The answer is then ``(m,)``, equal to
+        ``from_fmap(...)[vertices]`` (the search is exact per query), at ``m/n2`` of the search's cost.
+    search : ``"auto"`` (default), ``"exact"`` or ``"approximate"``
+        The nearest-neighbour search (:func:`prodmaps.neighbors.nearest_neighbors`): ``"auto"`` is exact
+        up to ``APPROX_MIN_PAIRS`` = 1e11 query-point pairs (every mesh of the paper, any pair up to
+        ~300k vertices each) and approximate above when faiss is installed; ``"approximate"`` without
+        faiss raises ``ImportError``; ``"exact"`` is always exact (hours at a million vertices).
+    progress : bool, optional
+        A progress bar on stderr: ``None`` (default) for long extended conversions on a terminal,
+        ``True`` always, ``False`` never (:func:`prodmaps.progress.progress_bar`).
+    **params
+        For ``"extended"``: ``point`` (``"heat"`` default, ``"delta"``, ``"closed_form"``), ``t``
+        (heat time in shape 1's units; default ``t_scale / λ_{k1−1}``, closed form
+        ``t_scale / λ_{n_eig−1}``), ``t_scale`` (1.0), ``n_eig`` (eigenpairs in the kernel, constant
+        included; default ``min(200, basis_1.k, basis_2.k)``, closed form ``min(k1, k2)``), ``rtol``
+        (Approach B truncation, 1e-3), ``normalization`` (of Approach B, :mod:`prodmaps.approx`;
+        default the library's ``"euclidean"``), ``pairs`` (``"unique"`` or ``"ordered"``),
+        ``block_bytes`` (a block of point functions, 64 MB) and ``dtype`` (``"float32"``, default, or
+        ``"float64"``: the precision of the large products).
+
+    Returns
+    -------
+    (n2,) or (m,) int64 ndarray
+        For each (given) vertex of shape 2 its vertex of shape 1.
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``method``, ``convention``, ``search`` or ``point``, a map that does not fit the
+        bases, out-of-range ``vertices``, a full mass matrix with a mesh ``point``, or parameters out of
+        range.
+    TypeError
+        For parameters the method does not take, or a basis that is not a :class:`prodmaps.Basis`.
+    ImportError
+        For ``search="approximate"`` without faiss.
 
     Examples
     --------
@@ -641,11 +588,22 @@ def from_fmap(C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, bloc
     >>> from prodmaps.mesh import ellipsoid
     >>> b = pm.eigenbasis(ellipsoid(2), 40)
     >>> C = pm.fmap_from_p2p(np.arange(b.n), b.truncate(10), b.truncate(12))  # (12, 10) identity map
+    >>> bool(np.all(from_fmap(C, b, b) == np.arange(b.n)))
+    True
     >>> bool(np.all(from_fmap(C, b, b, "extended") == np.arange(b.n)))
+    True
+    >>> big = b.scaled(0.5)  # shape 2: the same mesh at half the size (a quarter of the area)
+    >>> C_half = pm.fmap_from_p2p(np.arange(b.n), b.truncate(10), big.truncate(12))
+    >>> float(np.mean(from_fmap(C_half, b, big) == np.arange(b.n)))  # the area rule: exact
+    1.0
+    >>> float(np.mean(from_fmap(C_half, b, big, convention="pyfm") == np.arange(b.n))) < 1.0
     True
     """
     if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+        raise ValueError(f"method must be one of {METHODS}, got {method!r} (the closed form is "
+                         "method='extended', point='closed_form')")
+    if convention not in CONVENTIONS:
+        raise ValueError(f"convention must be one of {CONVENTIONS}, got {convention!r}")
     if search not in SEARCHES:
         raise ValueError(f"search must be one of {SEARCHES}, got {search!r}")
     C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)
@@ -657,17 +615,28 @@ def from_fmap(C_12, basis_1: Basis, basis_2: Basis, method: str = "std", *, bloc
     if method == "std":
         if params:
             raise TypeError(f"method='std' takes no extra parameters, got {sorted(params)}")
-        # compared as on unit-area shapes (so the answer does not depend on units or the area ratio):
-        # sqrt(a2) Φ2 against the unit-area map's images a1 / sqrt(a2) Φ1 Cᵀ, i.e. Φ2 against (a1/a2) Φ1 Cᵀ
-        emb_1 = (basis_1.area / basis_2.area) * (basis_1.vecs[:, :k1] @ C.T)  # (n1, k2) images of the source deltas
+        # "area": compared as on unit-area shapes (so the answer depends neither on units nor on the area
+        # ratio): sqrt(a2) Φ2 against the unit-area map's images a1 / sqrt(a2) Φ1 Cᵀ, i.e. Φ2 against
+        # (a1/a2) Φ1 Cᵀ; "pyfm": Φ2 against Φ1 Cᵀ as pyFM's FM_to_p2p
+        scale = basis_1.area / basis_2.area if convention == "area" else 1.0
+        emb_1 = basis_1.vecs[:, :k1] @ C.T  # (n1, k2) images of the source deltas
+        if scale != 1.0:
+            emb_1 *= scale
         emb_2 = basis_2.vecs[:, :k2] if vertices is None else basis_2.vecs[vertices, :k2]  # (n2 or m, k2)
     else:
-        allowed = {"t", "t_scale", "n_eig", "rtol", "pairs", "normalization"}
-        allowed |= {"point", "block_bytes", "dtype"} if method == "extended" else set()
+        if convention != "area":
+            raise ValueError(f"convention={convention!r} is the standard conversion's; method='extended' is free "
+                             "of units and areas (leave convention at 'area')")
+        allowed = {"point", "t", "t_scale", "n_eig", "rtol", "pairs", "normalization", "block_bytes", "dtype"}
         bad = set(params) - allowed
         if bad:
             raise TypeError(f"unknown parameters for method={method!r}: {sorted(bad)}; allowed: {sorted(allowed)}")
-        if method == "extended_closed_form":
-            params["point"] = "closed_form"
-        emb_1, emb_2, _ = extended_embeddings(C, basis_1, basis_2, vertices=vertices, **params)  # (n1, r), (m, r)
+        kw = {"point": "heat", "t": None, "t_scale": 1.0, "n_eig": None, "rtol": 1e-3, "normalization": None,
+              "pairs": "unique", "block_bytes": KERNEL_BLOCK_BYTES, "dtype": "float32"} | params
+        emb_1, emb_2, _, bar = _extended_embeddings(C, basis_1, basis_2, vertices=vertices, progress=progress,
+                                                    extra_steps=1, **kw)  # (n1, r), (m, r)
+        with bar:
+            p2p_21 = nearest_neighbors(emb_2, emb_1, block=block, search=search)
+            bar.update()
+        return p2p_21
     return nearest_neighbors(emb_2, emb_1, block=block, search=search)

@@ -15,9 +15,9 @@ import numpy as np
 from .. import datasets
 from ..approx import PAPER_RTOL
 from ..basis import eigenbasis
-from ..mapping import fmap_from_p2p
 from ..metrics import relative_error
 from ..operators import laplacian
+from ..p2p import fmap_from_p2p
 from ..transfers import transfer_operator
 from .shared.anatomy import composite_function
 

@@ -15,8 +15,8 @@ import time
 from .. import datasets
 from ..approx import PAPER_RTOL
 from ..basis import eigenbasis
-from ..mapping import fmap_from_p2p
 from ..metrics import relative_error
+from ..p2p import fmap_from_p2p
 from ..transfers import transfer
 from .shared.anatomy import composite_function
 from .shared.compare import outcome

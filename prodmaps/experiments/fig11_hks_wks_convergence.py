@@ -29,8 +29,9 @@ import numpy as np
 from .. import datasets, descriptors
 from ..approx import PAPER_RTOL
 from ..basis import eigenbasis
-from ..mapping import extend_fmap, fmap_from_p2p
+from ..mapping import extend_fmap
 from ..metrics import relative_error
+from ..p2p import fmap_from_p2p
 from ..products import evaluate_products, product_basis
 from ..transfers import transfer
 

@@ -11,8 +11,11 @@ target vertex a source vertex) by :func:`prodmaps.p2p.from_fmap`, three conversi
                             basis' Approach B operator (rtol 1e-3, "euclidean"), sources through ``C̃``,
                             compared through canonical coefficients; ``t = 1/λ`` of the source's
                             last basis function;
-``"extended_closed_form"``  the same kernel built in closed form from the map's own eigenpairs
-                            (it cannot beat ``"std"``, see :mod:`prodmaps.p2p`).
+``"extended_closed_form"``  ``method="extended", point="closed_form"``: the same kernel built in closed
+                            form from the map's own eigenpairs (it cannot beat ``"std"``, see
+                            ``docs/guide/point_maps.md``).
+
+:data:`CONVERSIONS` maps these names (the results' keys) to the arguments of ``from_fmap``.
 
 Maps: ground truth (Figure 12) or NO17 (Figure 13,
 :mod:`prodmaps.experiments.shared.maps`). Error (Kim et al. 2011): heat-method geodesic distance on the
@@ -28,8 +31,7 @@ import zlib
 import numpy as np
 
 from .. import datasets, geodesics
-from ..mapping import fmap_from_p2p
-from ..p2p import from_fmap
+from ..p2p import fmap_from_p2p, from_fmap
 from .shared.compare import count_outcomes
 from .shared.maps import no17_demo_map
 from .shared.parallel import map_by_source
@@ -38,7 +40,8 @@ from .shared.store import ShapeStore
 __all__ = ["subject_pairs", "point_map_recovery", "point_map_sweep", "reading_summary", "evaluation_vertices",
            "CONVERSIONS"]
 
-CONVERSIONS = ("std", "extended", "extended_closed_form")
+CONVERSIONS = {"std": {"method": "std"}, "extended": {"method": "extended"},
+               "extended_closed_form": {"method": "extended", "point": "closed_form"}}  # name -> from_fmap arguments
 
 
 def subject_pairs(dataset: str, subject, n_pairs=None, seed: int = 0, *, both_directions: bool = True) -> list:
@@ -171,7 +174,7 @@ def _recovery_pair(store: ShapeStore, ip: int, s1: str, item, target_dim: int, s
             timing["no17"] += time.perf_counter() - t1
         for method in CONVERSIONS:
             t1 = time.perf_counter()
-            recovered[m, method] = from_fmap(C, B1, B2, method, vertices=ev)  # (n_eval,) target -> source vertex
+            recovered[m, method] = from_fmap(C, B1, B2, vertices=ev, **CONVERSIONS[method])  # (n_eval,) -> source
             timing[method] += time.perf_counter() - t1
     # all maps of the pair against the same truth: geodesics from the true images computed once
     E = geodesics.map_error(store.mesh(s1), np.stack(list(recovered.values())), gt[ev],

@@ -23,9 +23,8 @@ import time
 import numpy as np
 
 from ..geodesics import map_error
-from ..mapping import fmap_from_p2p
 from ..metrics import relative_error
-from ..p2p import from_fmap
+from ..p2p import fmap_from_p2p, from_fmap
 from ..transfers import transfer_operator
 from .shared import families as pfam
 from .shared.maps import landmark_pairs, no17_fit, recipe

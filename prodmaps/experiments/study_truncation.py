@@ -24,8 +24,8 @@ import numpy as np
 
 from .. import datasets, truncation
 from ..approx import PAPER_RTOL, column_weights
-from ..mapping import fmap_from_p2p
 from ..metrics import relative_error
+from ..p2p import fmap_from_p2p
 from ..products import product_basis
 from ..transfers import transfer_operator
 from .shared import compare

@@ -39,7 +39,7 @@ def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return
         nearest-neighbour search) and when stderr is a terminal.
 
     Each step's point map is the exact nearest-neighbour answer of
-    :func:`prodmaps.p2p.nearest_neighbors` (ties to the smallest source index). Everything works
+    :func:`prodmaps.neighbors.nearest_neighbors` (ties to the smallest source index). Everything works
     on bases of point clouds as on bases of meshes.
 
     Returns

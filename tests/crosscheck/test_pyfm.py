@@ -196,3 +196,60 @@ def test_pyfm_arrays_that_break_the_conventions_are_refused(pair):
     b = pm.basis.from_arrays(V, ev, a)
     with pytest.raises(ValueError, match="shape 1 to shape 2"):
         pm.transfer(np.zeros(b.n), np.zeros((10, 12)), b, b, "default")
+
+
+def test_pyfm_point_map_convention_is_pyfms_exactly(human_0, human_13):
+    """``from_fmap(..., convention="pyfm")`` is pyFM's ``FM_to_p2p`` / ``get_p2p`` for the same bases and map,
+    vertex for vertex, on two shapes of unequal area (an embedded human and another one scaled by 0.5: a
+    quarter of its area), where the library's default (the area rule) is a different map."""
+    import pyFM.spectral as spectral
+
+    k = 30
+    small = pm.Mesh(human_13.vertices * 0.5, human_13.faces)
+    tm1 = TriMesh(human_0.vertices.copy(), human_0.faces.copy())
+    tm2 = TriMesh(small.vertices.copy(), small.faces.copy())
+    tm1.process(k)
+    tm2.process(k)
+    b1 = pm.basis.from_arrays(tm1.eigenvectors[:, :k], tm1.eigenvalues[:k], tm1.vertex_areas)
+    b2 = pm.basis.from_arrays(tm2.eigenvectors[:, :k], tm2.eigenvalues[:k], tm2.vertex_areas)
+    assert b2.area / b1.area == pytest.approx(0.25, rel=0.02)
+    gt = np.arange(small.n_vertices)  # one triangulation: ground truth the identity
+    C = spectral.p2p_to_FM(gt, tm1.eigenvectors[:, :k], tm2.eigenvectors[:, :k], A2=tm2.A)  # (k, k)
+    C = C + 0.05 * np.linalg.norm(C, 2) / np.sqrt(k) * np.random.default_rng(0).normal(size=C.shape)
+    theirs = spectral.FM_to_p2p(C, tm1.eigenvectors, tm2.eigenvectors)
+    model = FunctionalMapping(tm1, tm2)
+    np.testing.assert_array_equal(model.get_p2p(FM=C), theirs)
+    ours = pm.p2p.from_fmap(C, b1, b2, convention="pyfm")
+    np.testing.assert_array_equal(ours, theirs)  # 100 %: no ties on these data
+    area = pm.p2p.from_fmap(C, b1, b2)  # the default: the shapes compared at unit area
+    assert np.mean(area == theirs) < 0.5
+    err = {name: np.linalg.norm(human_0.vertices[p] - human_0.vertices[gt], axis=1).mean()
+           for name, p in (("area", area), ("pyfm", ours))}
+    assert err["area"] < 0.7 * err["pyfm"], err  # the area rule is the better one here (measured 0.5x)
+
+
+def test_the_readmes_pyfm_snippet_runs_against_pyfm(tmp_path, human_0, human_13):
+    """The README's "Coming from pyFM or geomfum" block, as written, with its two mesh files filled by
+    embedded humans: pyFM's FunctionalMapping fit, our bases from the model's meshes, the default
+    transfer and pyFM's point map through convention="pyfm"."""
+    import os
+    import re
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"^```python\n(.*?)^```", readme, flags=re.S | re.M)
+    block = next(b for b in blocks if "FunctionalMapping(" in b)
+    for name, mesh in (("shape_1.off", human_0), ("shape_2.off", human_13)):
+        pm.save_mesh(tmp_path / name, mesh)
+    assert '"shape_1.off"' in block and '"shape_2.off"' in block
+    ns: dict = {}
+    old = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        exec(compile(block, "README.md", "exec"), ns)
+    finally:
+        os.chdir(old)
+    model = ns["model"]
+    assert model.FM_12.shape == (30, 30) and ns["b1"].k == 30 and ns["b2"].k == 30
+    assert ns["g"].shape == (human_13.n_vertices, 3) and np.all(np.isfinite(ns["g"]))
+    np.testing.assert_array_equal(ns["p2p_21"], model.get_p2p())

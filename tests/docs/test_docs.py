@@ -49,7 +49,7 @@ def test_front_page_guide_and_api(site):
     front = (out / "index.html").read_text()
     for link in ("guide/index.html", "api.html", "_generated/gallery/index.html", "_generated/report.html"):
         assert link in front, link
-    for page in ("install", "quickstart", "conventions", "coming_from", "own_meshes", "default_transfer"):
+    for page in ("install", "quickstart", "conventions", "coming_from", "own_meshes", "default_transfer", "point_maps"):
         assert (out / "guide" / f"{page}.html").is_file(), page
     install = re.sub(r"<[^>]+>", "", (out / "guide" / "install.html").read_text())
     assert "pip install ." in install  # the library alone, without the extras
@@ -164,10 +164,12 @@ def test_docs_runs_is_resolved_from_the_project_root(tmp_path):
 def test_api_reference_has_a_page_per_module_and_one_parameters_block_per_entry(site):
     out, _ = site
     pages = {p.stem for p in (out / "api").glob("*.html")}
-    for mod in ("mesh", "io", "basis", "products", "approx", "mapping", "p2p", "fmaps", "descriptors", "geodesics",
-                "metrics", "lmh", "fields"):
+    for mod in ("mesh", "io", "basis", "products", "approx", "mapping", "p2p", "neighbors", "fmaps", "descriptors",
+                "geodesics", "metrics", "lmh", "fields"):
         assert mod in pages, mod
-    wanted = {"p2p": ["prodmaps.p2p.from_fmap"], "geodesics": ["prodmaps.geodesics"],
+    wanted = {"p2p": ["prodmaps.p2p.from_fmap", "prodmaps.p2p.fmap_from_p2p"],
+              "neighbors": ["prodmaps.neighbors.nearest_neighbors", "prodmaps.neighbors.probe_neighbors"],
+              "geodesics": ["prodmaps.geodesics"],
               "mesh": ["prodmaps.mesh.repair", "prodmaps.mesh.remove_unreferenced_vertices",
                        "prodmaps.mesh.remove_degenerate_faces", "prodmaps.mesh.largest_component"],
               "io": ["prodmaps.io.load_mesh_repaired"]}

@@ -111,8 +111,7 @@ STAND_INS = {
     ".venv/bin/prodmaps diff results/smoke/fig03 paper/baselines/smoke/fig03": "diff",
     ".venv/bin/prodmaps claims results/paper": "claims",
     'python: m1 = pm.datasets.load_shape("anny_humans", "anny_000")': "python_as_written",
-    "python: b1 = pm.basis.from_arrays(mesh1.eigenvectors[:, :k1], mesh1.eigenvalues[:k1], mesh1.vertex_areas)":
-        "python_pyfm",
+    'python: model = FunctionalMapping(TriMesh.load("shape_1.off"), TriMesh.load("shape_2.off"))': "python_pyfm",
     'python: mesh = pm.load_mesh("scan.ply")': "python_scan",
     'python: cloud = pm.load_point_cloud("scan.xyz")': "python_cloud",
     'python: camel = pm.load_mesh("camel-gallop-01.off", validate=False)': "python_camel",
@@ -408,26 +407,63 @@ def stand_in_python_as_written(r: Reader, text: str):
     assert np.all(err_ext < pm.relative_error(ns["g_std"], f[p2p_21], b2.mass)), err_ext
 
 
-def _pyfm_stand_ins():
+def _pyfm_stand_in_modules(monkeypatch) -> None:
+    """Stand-ins of pyFM's ``TriMesh`` (a mesh file, 40 eigenpairs, ``vertex_areas``) and ``FunctionalMapping``
+    (deep copies of the meshes, ``fit`` giving the identity's ground-truth map, ``get_p2p`` pyFM's rule),
+    installed as the modules ``pyFM.mesh`` and ``pyFM.functional``."""
+    import copy
+
     import prodmaps as pm
 
-    m1 = pm.datasets.load_shape("anny_humans", "anny_000")
-    m2 = pm.datasets.load_shape("anny_humans", "anny_013")
-    b1, b2 = pm.eigenbasis(m1, 12), pm.eigenbasis(m2, 30)
+    class TriMesh:
+        def __init__(self, mesh):
+            self.vertices = mesh.vertices
+            self.eigenvectors = self.eigenvalues = None  # pyFM computes them in preprocess, on its copies
+            self._mesh = mesh
 
-    def trimesh(b):  # pyFM's TriMesh: eigenvectors (n, K), eigenvalues (K,), vertex_areas (n,)
-        return SimpleNamespace(eigenvectors=b.vecs, eigenvalues=b.evals, vertex_areas=b.mass)
+        @classmethod
+        def load(cls, path):
+            return cls(pm.load_mesh(path))
 
-    C = pm.fmap_from_p2p(np.arange(m2.n_vertices), b1, b2)
-    return dict(mesh1=trimesh(b1), mesh2=trimesh(b2), k1=10, k2=30, f=m1.vertices,
-                model=SimpleNamespace(FM_12=C[:, :10]))
+    class FunctionalMapping:
+        def __init__(self, mesh1, mesh2):
+            self.mesh1, self.mesh2 = copy.deepcopy(mesh1), copy.deepcopy(mesh2)
+
+        def preprocess(self, **kw):
+            for m in (self.mesh1, self.mesh2):
+                b = pm.eigenbasis(m._mesh, 40)
+                m.eigenvectors, m.eigenvalues, m.vertex_areas = b.vecs, b.evals, b.mass
+
+        def fit(self, K=(50, 50)):
+            self.k1, self.k2 = K
+            b1 = pm.Basis(self.mesh1.eigenvectors[:, : self.k1], self.mesh1.eigenvalues[: self.k1],
+                          self.mesh1.vertex_areas)
+            b2 = pm.Basis(self.mesh2.eigenvectors[:, : self.k2], self.mesh2.eigenvalues[: self.k2],
+                          self.mesh2.vertex_areas)
+            self.FM_12 = pm.fmap_from_p2p(np.arange(b2.n), b1, b2)  # same triangulation: the identity
+
+        def get_p2p(self):
+            emb1 = self.mesh1.eigenvectors[:, : self.k1] @ self.FM_12.T
+            return pm.neighbors.nearest_neighbors(self.mesh2.eigenvectors[:, : self.k2], emb1)
+
+    monkeypatch.setitem(sys.modules, "pyFM", SimpleNamespace(__path__=[]))
+    monkeypatch.setitem(sys.modules, "pyFM.mesh", SimpleNamespace(TriMesh=TriMesh))
+    monkeypatch.setitem(sys.modules, "pyFM.functional", SimpleNamespace(FunctionalMapping=FunctionalMapping))
 
 
 def stand_in_python_pyfm(r: Reader, text: str):
-    ns = _pyfm_stand_ins()
-    _exec("import prodmaps as pm\n" + text, ns, r.tmp)
-    assert ns["g"].shape == ns["f"].shape
-    assert ns["b1"].k == 10 and ns["b2"].k == 30
+    import prodmaps as pm
+
+    with pytest.MonkeyPatch.context() as mp:
+        _pyfm_stand_in_modules(mp)
+        for i, sid in ((1, "anny_000"), (2, "anny_013")):
+            pm.save_mesh(r.tmp / f"shape_{i}.off", pm.datasets.load_shape("anny_humans", sid))
+        ns: dict = {}
+        _exec(text, ns, r.tmp)
+    n2 = ns["m2"].vertices.shape[0]
+    assert ns["b1"].k == 30 and ns["b2"].k == 30
+    assert ns["g"].shape == (n2, 3)
+    np.testing.assert_array_equal(ns["p2p_21"], ns["model"].get_p2p())
 
 
 def stand_in_python_scan(r: Reader, text: str):

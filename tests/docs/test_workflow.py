@@ -58,4 +58,7 @@ def test_ci_uploads_junit_and_executed_notebooks_and_tests_both_ends_of_the_rang
     for python, resolution in (("3.11", "lowest-direct"), ("3.13", "highest")):
         assert f'python: "{python}"\n            resolution: {resolution}' in compat
     assert "requirements-lock" not in compat  # the ranges, not the lock
+    # numpy 1.26 (pyproject's lower bound): the library's own extras, the newest of everything else
+    assert 'resolution: highest\n            extras: geometry\n            pins: \'"numpy==1.26.*"' in compat
+    assert "${{ matrix.extras || 'notebooks' }}" in compat and "${{ matrix.pins }}" in compat
     assert "requirements-lock.txt" in (ROOT / "Makefile").read_text()  # make venv installs the lock

@@ -1,103 +1,27 @@
-"""Point-map recovery: exact blocked nearest neighbours, standard and extended conversions."""
+"""Point maps from functional maps (standard and extended conversions) and back (fmap_from_p2p)."""
 
 import numpy as np
 import pytest
 from scipy.spatial.distance import cdist
 
 import prodmaps as pm
+from prodmaps import neighbors
 from prodmaps.p2p import (
-    NN_METHODS,
     extended_embeddings,
+    fmap_from_p2p,
     from_fmap,
     heat_square_coefficients,
-    nearest_neighbors,
     point_functions,
 )
 
-
-@pytest.mark.parametrize("dim", [3, 40, 2500])
-@pytest.mark.parametrize("block", [1, 7, None])
-def test_blocked_nn_equals_brute_force(dim, block):
-    rng = np.random.default_rng(dim)
-    P = rng.normal(size=(300, dim))
-    Q = rng.normal(size=(123, dim))
-    idx, dist = nearest_neighbors(Q, P, block=block, return_distance=True)
-    D = cdist(Q, P)
-    assert idx.dtype == np.int64 and idx.shape == (123,)
-    assert np.array_equal(idx, np.argmin(D, axis=1))
-    assert np.allclose(dist, D.min(axis=1), rtol=1e-9)
-
-
-def test_nn_exact_hits_and_ties():
-    P = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 0.0], [5.0, 5.0]])
-    for method in NN_METHODS:
-        assert np.array_equal(nearest_neighbors(P, P, method=method), [0, 1, 1, 3])  # duplicates: smallest index
-    # a query exactly half-way between two points goes to the smaller index, whatever the order
-    Q = np.array([[0.5, 0.0], [3.0, 2.5]])
-    for method in NN_METHODS:
-        assert np.array_equal(nearest_neighbors(Q, P, method=method), [0, 1])
-        assert np.array_equal(nearest_neighbors(Q, P[::-1], method=method), [1, 0])
+# the three conversions of the experiments (name -> from_fmap arguments)
+CONVERSIONS = {"std": {"method": "std"}, "extended": {"method": "extended"},
+               "closed_form": {"method": "extended", "point": "closed_form"}}
 
 
 def _brute_force(Q, P):
     """Reference: squared distances by direct differences, first index of the minimum."""
     return np.argmin(cdist(Q, P, "sqeuclidean"), axis=1)
-
-
-@pytest.mark.parametrize("method", NN_METHODS)
-@pytest.mark.parametrize("dim", [1, 2, 5, 30, 33, 64, 300])
-def test_nn_methods_equal_brute_force_with_exact_ties(method, dim):
-    """Grid points (many duplicates and equidistant neighbours, every distance exact in floating
-    point) and half-integer queries: every method returns the brute force's first minimiser."""
-    rng = np.random.default_rng(dim)
-    P = rng.integers(-2, 3, size=(400, dim)).astype(float)
-    Q = rng.integers(-2, 3, size=(250, dim)) + 0.5 * rng.integers(0, 2, size=(250, dim))
-    D = cdist(Q, P, "sqeuclidean")
-    assert np.sum(D == D.min(axis=1, keepdims=True)) > Q.shape[0]  # the data has exact ties
-    for block in (1, 37, None):
-        assert np.array_equal(nearest_neighbors(Q, P, method=method, block=block), _brute_force(Q, P))
-    Pr, Qr = rng.normal(size=(500, dim)), rng.normal(size=(300, dim))  # generic data, one scale spread out
-    Pr *= np.geomspace(1.0, 1e-3, dim)[None, :]
-    Qr *= np.geomspace(1.0, 1e-3, dim)[None, :]
-    assert np.array_equal(nearest_neighbors(Qr, Pr, method=method), _brute_force(Qr, Pr))
-
-
-def test_nn_near_ties_are_decided_exactly():
-    """Points whose distances differ below float32 resolution: the float32 stage must hand them
-    to the exact recheck (a float32-only argmin would pick either)."""
-    rng = np.random.default_rng(5)
-    base = rng.normal(size=(1, 50))
-    P = np.repeat(base, 40, axis=0) + 1e-9 * rng.normal(size=(40, 50))
-    P = np.vstack([P, rng.normal(size=(200, 50))])
-    Q = base + 1e-9 * rng.normal(size=(30, 50))
-    for method in NN_METHODS:
-        assert np.array_equal(nearest_neighbors(Q, P, method=method), _brute_force(Q, P))
-
-
-def test_nn_auto_agrees_with_kdtree_on_spectral_embeddings(human_0, human_13):
-    """The standard conversion's embeddings in both regimes of ``auto`` (kd-tree, products)."""
-    from scipy.spatial import cKDTree
-
-    b1, b2 = pm.eigenbasis(human_0, 50), pm.eigenbasis(human_13, 50)
-    C = np.random.default_rng(2).normal(size=(50, 50)) * 0.1 + np.eye(50)
-    for k in (10, 50):
-        P, Q = b1.vecs[:, :k] @ C[:k, :k].T, b2.vecs[:, :k]
-        d_kd, i_kd = cKDTree(P).query(Q, k=2)
-        assert np.all(d_kd[:, 1] > d_kd[:, 0])  # no near ties: the kd-tree's answer is the exact one
-        assert np.array_equal(nearest_neighbors(Q, P), i_kd[:, 0])
-
-
-def test_nn_bad_inputs():
-    with pytest.raises(ValueError, match="dimension"):
-        nearest_neighbors(np.zeros((3, 2)), np.zeros((4, 3)))
-    with pytest.raises(ValueError, match="2D"):
-        nearest_neighbors(np.zeros(3), np.zeros((4, 3)))
-    with pytest.raises(ValueError, match="empty"):
-        nearest_neighbors(np.zeros((3, 2)), np.zeros((0, 2)))
-    with pytest.raises(ValueError, match="block"):
-        nearest_neighbors(np.zeros((3, 2)), np.zeros((4, 2)), block=0)
-    with pytest.raises(ValueError, match="method"):
-        nearest_neighbors(np.zeros((3, 2)), np.zeros((4, 2)), method="ball")
 
 
 def test_std_matches_its_definition(basis_0, basis_13):
@@ -110,11 +34,11 @@ def test_std_matches_its_definition(basis_0, basis_13):
     assert np.array_equal(p2p, ref)
 
 
-@pytest.mark.parametrize("method", ["std", "extended", "extended_closed_form"])
-def test_ground_truth_identity_recovered_exactly(basis_0, method):
+@pytest.mark.parametrize("conversion", CONVERSIONS)
+def test_ground_truth_identity_recovered_exactly(basis_0, conversion):
     k = 12
     C = pm.fmap_from_p2p(np.arange(basis_0.n), basis_0.truncate(k), basis_0.truncate(k))
-    assert np.array_equal(from_fmap(C, basis_0, basis_0, method=method), np.arange(basis_0.n))
+    assert np.array_equal(from_fmap(C, basis_0, basis_0, **CONVERSIONS[conversion]), np.arange(basis_0.n))
 
 
 def test_closed_form_identity_rectangular(basis_0):
@@ -122,7 +46,7 @@ def test_closed_form_identity_rectangular(basis_0):
     lie in the span of the first 10 eigenfunctions' products on both sides)."""
     C = pm.fmap_from_p2p(np.arange(basis_0.n), basis_0.truncate(10), basis_0.truncate(16))
     assert C.shape == (16, 10)
-    assert np.array_equal(from_fmap(C, basis_0, basis_0, method="extended_closed_form"), np.arange(basis_0.n))
+    assert np.array_equal(from_fmap(C, basis_0, basis_0, "extended", point="closed_form"), np.arange(basis_0.n))
 
 
 @pytest.mark.parametrize("pairs", ["unique", "ordered"])
@@ -159,8 +83,8 @@ def test_pairs_conventions_agree(basis_0, basis_13):
     rng = np.random.default_rng(4)
     C = pm.fmap_from_p2p(np.arange(basis_13.n), basis_0.truncate(8), basis_13.truncate(10))
     C = C + 0.05 * rng.normal(size=C.shape)
-    pu = from_fmap(C, basis_0, basis_13, method="extended_closed_form", pairs="unique")
-    po = from_fmap(C, basis_0, basis_13, method="extended_closed_form", pairs="ordered")
+    pu = from_fmap(C, basis_0, basis_13, "extended", point="closed_form", pairs="unique")
+    po = from_fmap(C, basis_0, basis_13, "extended", point="closed_form", pairs="ordered")
     assert np.mean(pu == po) > 0.999  # identical up to floating-point near-ties
 
 
@@ -177,15 +101,19 @@ def test_from_fmap_bad_inputs(basis_0, basis_13):
     with pytest.raises(TypeError, match="unknown"):
         from_fmap(C, basis_0, basis_13, method="extended", time=1.0)
     with pytest.raises(ValueError, match="n_eig"):
-        from_fmap(C, basis_0, basis_13, method="extended_closed_form", n_eig=9)  # above min(k1, k2) = 8
+        from_fmap(C, basis_0, basis_13, "extended", point="closed_form", n_eig=9)  # above min(k1, k2) = 8
     with pytest.raises(ValueError, match="n_eig"):
         from_fmap(C, basis_0, basis_13, method="extended", n_eig=41)  # above the bases' 40 columns
     with pytest.raises(ValueError, match="point"):
         from_fmap(C, basis_0, basis_13, method="extended", point="gauss")
     with pytest.raises(ValueError, match="dtype"):
         from_fmap(C, basis_0, basis_13, method="extended", dtype="float16")
-    with pytest.raises(TypeError, match="unknown"):
-        from_fmap(C, basis_0, basis_13, method="extended_closed_form", point="heat")
+    with pytest.raises(ValueError, match="point='closed_form'"):
+        from_fmap(C, basis_0, basis_13, method="extended_closed_form")  # the spelling of releases before 0.3
+    with pytest.raises(ValueError, match="convention"):
+        from_fmap(C, basis_0, basis_13, convention="unit")
+    with pytest.raises(ValueError, match="convention='pyfm' is the standard conversion's"):
+        from_fmap(C, basis_0, basis_13, "extended", convention="pyfm")
     with pytest.raises(ValueError, match="t must"):
         from_fmap(C, basis_0, basis_13, method="extended", t=-1.0)
     with pytest.raises(TypeError):
@@ -202,71 +130,26 @@ def test_extended_names_a_full_mass(point):
     np.testing.assert_array_equal(from_fmap(np.eye(8), b, b), np.arange(b.n))
 
 
-
-def test_effective_dimension_and_auto_on_extended_embeddings(basis_0, basis_13, monkeypatch):
-    """effective_dimension counts the coordinates that carry the spread; on the extended
-    conversion's embeddings (more than KDTREE_MAX_DIM coordinates, a few carry the spread)
-    ``auto`` takes the kd-tree and returns the brute force's answer."""
-    from prodmaps import p2p
-
-    rng = np.random.default_rng(4)
-    assert p2p.effective_dimension(rng.normal(size=(4000, 50))) == pytest.approx(50, rel=0.05)
-    assert p2p.effective_dimension(np.c_[rng.normal(size=(100, 1)), np.zeros((100, 9))]) == pytest.approx(1.0)
-    assert p2p.effective_dimension(np.ones((5, 3))) == 0.0
-    C = rng.normal(size=(40, 30)) * 0.05 + np.eye(40, 30)
-    e1, e2, _ = extended_embeddings(C, basis_0.truncate(30), basis_13.truncate(40), point="closed_form")
-    assert e1.shape[1] > p2p.KDTREE_MAX_DIM and p2p.effective_dimension(e1) <= p2p.KDTREE_MAX_EFFECTIVE_DIM
-    calls = []
-    real = p2p._nn_kdtree
-    monkeypatch.setattr(p2p, "_nn_kdtree", lambda *a: calls.append(1) or real(*a))
-    assert np.array_equal(nearest_neighbors(e2, e1), _brute_force(e2, e1))
-    assert len(calls) >= 1  # the kd-tree, alone or checked by the probe (e2 has thousands of rows)
-    calls.clear()
-    Q, P = rng.normal(size=(50, 60)), rng.normal(size=(80, 60))  # isotropic: the products
-    assert np.array_equal(nearest_neighbors(Q, P), _brute_force(Q, P)) and calls == []
-
-
-@pytest.mark.parametrize("kd_faster", [True, False])
-def test_auto_probe_finishes_with_the_faster_method(monkeypatch, kd_faster):
-    """Above PROBE_MIN_DIM with enough queries, a kd-tree pick is checked on PROBE_QUERIES queries
-    per method (timed) and the faster one answers the rest; the answer is the brute force's
-    either way (clock replaced so that both outcomes are exercised)."""
-    from prodmaps import p2p
-
-    rng = np.random.default_rng(7)
-    P = rng.normal(size=(600, 12)) * np.r_[np.ones(3), 1e-3 * np.ones(9)]  # effective dimension ~3
-    Q = rng.normal(size=(4 * p2p.PROBE_QUERIES + 37, 12)) * np.r_[np.ones(3), 1e-3 * np.ones(9)]
-    ticks = iter([0.0, 1.0 if kd_faster else 5.0, 3.0 if kd_faster else 6.0])  # t1, t2, t3
-    monkeypatch.setattr(p2p, "_clock", lambda: next(ticks))
-    used = {"kdtree": [], "gemm": []}
-    real_kd, real_mm = p2p._nn_kdtree, p2p._nn_gemm
-    monkeypatch.setattr(p2p, "_nn_kdtree", lambda Q_, *a: used["kdtree"].append(len(Q_)) or real_kd(Q_, *a))
-    monkeypatch.setattr(p2p, "_nn_gemm", lambda Q_, *a: used["gemm"].append(len(Q_)) or real_mm(Q_, *a))
-    assert np.array_equal(nearest_neighbors(Q, P), _brute_force(Q, P))
-    s, rest = p2p.PROBE_QUERIES, len(Q) - 2 * p2p.PROBE_QUERIES
-    winner, loser = ("kdtree", "gemm") if kd_faster else ("gemm", "kdtree")
-    assert used[winner][0] == s and rest in used[winner] and used[loser][0] == s
-
-
-@pytest.mark.parametrize("method", ["std", "extended", "extended_closed_form"])
-def test_from_fmap_on_sampled_vertices_is_the_full_map_sampled(basis_0, basis_13, method):
-    b1, b2 = (basis_0.truncate(12), basis_13.truncate(16)) if method != "extended" else (basis_0, basis_13)
+@pytest.mark.parametrize("conversion", CONVERSIONS)
+def test_from_fmap_on_sampled_vertices_is_the_full_map_sampled(basis_0, basis_13, conversion):
+    kw = CONVERSIONS[conversion]
+    b1, b2 = (basis_0.truncate(12), basis_13.truncate(16)) if conversion != "extended" else (basis_0, basis_13)
     C = np.random.default_rng(2).normal(size=(16, 12))
-    full = from_fmap(C, b1, b2, method)  # (n2,)
+    full = from_fmap(C, b1, b2, **kw)  # (n2,)
     ev = np.sort(np.random.default_rng(3).choice(b2.n, 300, replace=False))
-    np.testing.assert_array_equal(from_fmap(C, b1, b2, method, vertices=ev), full[ev])
-    assert from_fmap(C, b1, b2, method, vertices=ev[:0]).shape == (0,)
-    if method != "std":  # the sampled target embedding is the full one's rows (computed on those rows only)
-        kw = {"point": "closed_form"} if method == "extended_closed_form" else {}
-        e1, e2, _ = extended_embeddings(C, b1, b2, **kw)
-        s1, s2, _ = extended_embeddings(C, b1, b2, vertices=ev, **kw)
+    np.testing.assert_array_equal(from_fmap(C, b1, b2, vertices=ev, **kw), full[ev])
+    assert from_fmap(C, b1, b2, vertices=ev[:0], **kw).shape == (0,)
+    if conversion != "std":  # the sampled target embedding is the full one's rows (computed on those rows only)
+        point = {k: v for k, v in kw.items() if k == "point"}
+        e1, e2, _ = extended_embeddings(C, b1, b2, **point)
+        s1, s2, _ = extended_embeddings(C, b1, b2, vertices=ev, **point)
         assert s2.shape == (ev.size, e2.shape[1]) and np.array_equal(s1, e1)
-        tol = 1e-13 if method == "extended_closed_form" else 1e-6  # float32 products by blocks of points
+        tol = 1e-13 if conversion == "closed_form" else 1e-6  # float32 products by blocks of points
         np.testing.assert_allclose(s2, e2[ev], rtol=0, atol=tol * np.abs(e2).max())
     with pytest.raises(ValueError, match="vertices indices out of range"):
-        from_fmap(C, b1, b2, method, vertices=np.array([b2.n]))
+        from_fmap(C, b1, b2, vertices=np.array([b2.n]), **kw)
     with pytest.raises(ValueError, match="integer"):
-        from_fmap(C, b1, b2, method, vertices=ev.astype(float))
+        from_fmap(C, b1, b2, vertices=ev.astype(float), **kw)
 
 
 # --------------------------------------------- the extended conversion of Section 4.4 (issue 33)
@@ -312,10 +195,11 @@ def _dense_reference(C, b1, b2, k1, k2, rtol, point="heat"):
     return e1.T / np.sqrt(b2.area), e2.T / np.sqrt(b2.area)
 
 
-@pytest.mark.parametrize("point", ["heat", "delta"])
-def test_extended_equals_dense_computation(point):
+@pytest.mark.parametrize("point, k1, k2", [("heat", 9, 12), ("delta", 9, 12), ("heat", 38, 40)])
+def test_extended_equals_dense_computation(point, k1, k2):
+    """Both sides of the Gram matrix: 9/12 products (K = 45, 78) against 642 vertices, and 38/40 (K = 741,
+    820: more columns than vertices on the target, the n x n side), by blocks of a few columns."""
     b1, b2 = _ellipsoid_pair()
-    k1, k2 = 9, 12
     rng = np.random.default_rng(1)
     C = pm.fmap_from_p2p(np.arange(b2.n), b1.truncate(k1), b2.truncate(k2)) + 0.03 * rng.normal(size=(k2, k1))
     r1, r2 = _dense_reference(C, b1, b2, k1, k2, 1e-3, point)
@@ -335,6 +219,22 @@ def test_extended_equals_dense_computation(point):
     fit = ext.operator("svd", rtol=1e-3).reconstruct(F)
     np.testing.assert_allclose(np.linalg.norm(e2[[3, 50]], axis=1),
                                np.sqrt(b2.mass @ fit**2) / np.sqrt(b2.area), rtol=1e-8)
+
+
+@pytest.mark.parametrize("k", [12, 40])
+def test_extended_ordered_pairs_keep_the_operators_span(k):
+    """The paper's ordered products (the Gram's K x K side at 12, its n x n side at 40 on 642 vertices):
+    the canonical coefficients of a target point are the area norm of its Approach B fit by the library's
+    operator of the same ordered basis, and the dimension is that operator's rank."""
+    _, b2 = _ellipsoid_pair()
+    C = np.eye(k)
+    e1, e2, info = extended_embeddings(C, b2, b2, pairs="ordered", dtype="float64", block_bytes=40_000)
+    op = pm.product_basis(b2.truncate(k), 2, "ordered").operator("svd", rtol=1e-3)
+    assert info["dim"] == op.rank
+    F = point_functions(b2, [3, 50, 400], t=info["t"])
+    np.testing.assert_allclose(np.linalg.norm(e2[[3, 50, 400]], axis=1),
+                               np.sqrt(b2.mass @ op.reconstruct(F) ** 2) / np.sqrt(b2.area), rtol=1e-8)
+    np.testing.assert_allclose(e1, e2, rtol=0, atol=1e-8 * np.abs(e2).max())  # the identity map
 
 
 def test_point_functions_kernel(basis_0):
@@ -394,74 +294,108 @@ def test_closed_form_reproduces_the_previous_release(basis_0, basis_13):
     rng = np.random.default_rng(4)
     C = pm.fmap_from_p2p(np.arange(basis_13.n), basis_0.truncate(12), basis_13.truncate(16))
     C = C + 0.05 * rng.normal(size=C.shape)
-    assert digest(from_fmap(C, basis_0, basis_13, "extended_closed_form")) == "faff928a3646df91"
+    assert digest(from_fmap(C, basis_0, basis_13, "extended", point="closed_form")) == "faff928a3646df91"
     C2 = np.random.default_rng(2).normal(size=(16, 12))
-    assert digest(from_fmap(C2, basis_0, basis_13, "extended_closed_form")) == "987aeb3c7451b7d6"
-
-
-def test_approximate_search_recall_against_exact(basis_0, basis_13):
-    """search="approximate" (faiss inverted-file index, candidates re-ranked exactly): on the standard
-    conversion of a computed-like map between the two humans (5002 vertices, 40 dimensions), with lists of
-    ~32 points and 2 probed (the defaults would scan every list here), it agrees with the exact search on
-    at least 99% of vertices (measured 99.7%), a miss is a farther point (never a closer one), and it is
-    deterministic."""
-    pytest.importorskip("faiss")  # an optional extra; `make venv` installs it ([fast] in the lock file)
-    from prodmaps import p2p
-
-    C = pm.fmap_from_p2p(np.arange(basis_13.n), basis_0, basis_13)  # (40, 40) ground truth
-    C = C + 0.02 * np.random.default_rng(5).normal(size=C.shape)  # a computed map's kind of error
-    Q, P = basis_13.vecs, (basis_0.area / basis_13.area) * (basis_0.vecs @ C.T)
-    exact, d_ex = nearest_neighbors(Q, P, return_distance=True)
-    approx = p2p._nn_approximate(Q, P, None, list_size=32, nprobe=2)
-    recall = float(np.mean(approx == exact))
-    assert recall >= 0.99, recall
-    assert recall < 1.0  # the index is really approximate at these settings (else the test proves nothing)
-    d_ap = np.linalg.norm(Q - P[approx], axis=1)
-    assert np.all(d_ap >= d_ex * (1 - 1e-12))  # never closer than the exact nearest
-    assert np.all(d_ap[approx != exact] > d_ex[approx != exact])  # a miss is a farther point, not a tie
-    np.testing.assert_array_equal(p2p._nn_approximate(Q, P, None, list_size=32, nprobe=2), approx)
-    # the defaults (lists of ~512 points: 10 lists here, 4 probed, 16 candidates re-ranked)
-    assert np.mean(nearest_neighbors(Q, P, search="approximate") == exact) >= 0.99
-    np.testing.assert_array_equal(from_fmap(C, basis_0, basis_13, search="approximate"),
-                                  nearest_neighbors(Q, P, search="approximate"))
+    assert digest(from_fmap(C2, basis_0, basis_13, "extended", point="closed_form")) == "987aeb3c7451b7d6"
 
 
 def test_search_auto_is_exact_below_the_threshold_and_approximate_above(basis_0, basis_13, monkeypatch):
-    """search="auto" keeps the exact path below APPROX_MIN_PAIRS (every existing number unchanged) and
-    takes the approximate one above it when faiss imports; "approximate" without faiss is an ImportError
-    that names the package; "exact" never touches faiss."""
+    """from_fmap's search="auto" keeps the exact path below APPROX_MIN_PAIRS (every existing number
+    unchanged) and takes the approximate one (neighbors.ivf_neighbors) above it when faiss imports;
+    "approximate" without faiss is an ImportError that names the package."""
     import sys
-
-    from prodmaps import p2p
 
     b1, b2 = basis_0.truncate(20), basis_13.truncate(30)
     C = pm.fmap_from_p2p(np.arange(b2.n), b1, b2) + 0.05 * np.random.default_rng(6).normal(size=(30, 20))
     calls = []
-    real = p2p._nn_approximate
+    real = neighbors.ivf_neighbors
 
-    def spy(Q, P, block, **kw):
+    def spy(Q, P, **kw):
         calls.append(Q.shape[0])
-        return real(Q, P, block, **kw)
+        return real(Q, P, **kw)
 
-    monkeypatch.setattr(p2p, "_nn_approximate", spy)
+    monkeypatch.setattr(neighbors, "ivf_neighbors", spy)
     exact = from_fmap(C, b1, b2, search="exact")
-    assert b1.n * b2.n < p2p.APPROX_MIN_PAIRS
+    assert b1.n * b2.n < neighbors.APPROX_MIN_PAIRS
     np.testing.assert_array_equal(from_fmap(C, b1, b2), exact)  # auto, small: exact, bit for bit
     assert calls == []
-    monkeypatch.setattr(p2p, "APPROX_MIN_PAIRS", b1.n * b2.n - 1)  # this pair counts as large
-    if p2p.have_faiss():
+    monkeypatch.setattr(neighbors, "APPROX_MIN_PAIRS", b1.n * b2.n - 1)  # this pair counts as large
+    if neighbors.have_faiss():
         got = from_fmap(C, b1, b2)
         assert calls == [b2.n] and np.mean(got == exact) >= 0.99
+        np.testing.assert_array_equal(from_fmap(C, b1, b2, search="approximate"), got)
     calls.clear()
     monkeypatch.setitem(sys.modules, "faiss", None)  # not installed
-    assert not p2p.have_faiss()
     np.testing.assert_array_equal(from_fmap(C, b1, b2), exact)  # auto without faiss: exact
     assert calls == []
     with pytest.raises(ImportError, match="pip install faiss-cpu"):
         from_fmap(C, b1, b2, search="approximate")
-    with pytest.raises(ImportError, match="pip install faiss-cpu"):
-        nearest_neighbors(b2.vecs[:, :20], b1.vecs, search="approximate")
     with pytest.raises(ValueError, match="search must be one of"):
         from_fmap(C, b1, b2, search="ivf")
-    with pytest.raises(ValueError, match="search must be one of"):
-        nearest_neighbors(b2.vecs[:, :20], b1.vecs, search="fast")
+
+
+def test_fmap_from_p2p_is_the_pulled_back_projection(basis_0, basis_13):
+    """``C_12 = Φ2ᵀ A2 Φ1[p2p_21]`` for any point map, rectangular; the top-level name is this function
+    (both conversions live in prodmaps.p2p; the round trip of the identity: test_ground_truth_identity...)."""
+    assert pm.fmap_from_p2p is fmap_from_p2p
+    p2p = np.random.default_rng(0).permutation(basis_0.n)[: basis_13.n]  # any point map 13 -> 0
+    C = fmap_from_p2p(p2p, basis_0.truncate(20), basis_13.truncate(30))  # (30, 20)
+    assert C.shape == (30, 20)
+    ref = basis_13.vecs[:, :30].T @ (basis_13.mass[:, None] * basis_0.vecs[p2p, :20])
+    np.testing.assert_allclose(C, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+
+
+def test_std_convention_area_is_exact_on_scaled_shapes_and_pyfm_is_not(basis_0):
+    """The same shape scaled (areas 4x and 1/4x): the ground-truth map gives the identity exactly with
+    the area convention; pyFM's convention compares deltas at the wrong scale. With equal areas the
+    two conventions are the same map."""
+    k = 20
+    for s in (0.5, 2.0):
+        b2 = basis_0.scaled(s)
+        C = fmap_from_p2p(np.arange(basis_0.n), basis_0.truncate(k), b2.truncate(k))  # = s·I (up to rounding)
+        np.testing.assert_allclose(C, s * np.eye(k), atol=1e-9)
+        np.testing.assert_array_equal(from_fmap(C, basis_0, b2), np.arange(basis_0.n))
+        assert np.mean(from_fmap(C, basis_0, b2, convention="pyfm") == np.arange(basis_0.n)) < 0.5
+        ref = np.argmin(cdist(b2.vecs[:, :k], basis_0.vecs[:, :k] @ C.T), axis=1)  # pyFM's definition
+        np.testing.assert_array_equal(from_fmap(C, basis_0, b2, convention="pyfm"), ref)
+    C = np.random.default_rng(1).normal(size=(k, k))
+    np.testing.assert_array_equal(from_fmap(C, basis_0, basis_0, convention="pyfm"), from_fmap(C, basis_0, basis_0))
+
+
+def test_extended_conversion_reports_its_progress(capsys):
+    """progress=True: a bar on stderr that reaches its total (decompositions, blocks of point functions,
+    the search); progress=False and the default on a non-terminal: nothing. The map is the same."""
+    import re
+
+    from prodmaps.mesh import ellipsoid
+
+    b = pm.eigenbasis(ellipsoid(3), 40)
+    C = pm.fmap_from_p2p(np.arange(b.n), b.truncate(10), b.truncate(12))
+    capsys.readouterr()
+    quiet = from_fmap(C, b, b, "extended", progress=False)
+    assert capsys.readouterr().err == ""
+    np.testing.assert_array_equal(from_fmap(C, b, b, "extended"), quiet)  # default, stderr not a terminal
+    assert capsys.readouterr().err == ""
+    shown = from_fmap(C, b, b, "extended", progress=True, block_bytes=8 * b.n * 100)  # blocks of 100 points
+    err = capsys.readouterr().err
+    np.testing.assert_array_equal(shown, quiet)
+    assert "point map (extended)" in err
+    n_steps = 2 + 2 * int(np.ceil(b.n / 100)) + 1  # two frames, source and target blocks, the search
+    assert re.search(rf"\b{n_steps}/{n_steps}\b", err), err[-500:]
+
+
+def test_extended_conversions_from_one_source_reuse_its_work_with_the_same_numbers(basis_0, basis_13):
+    """A second map from the same source (its canonical frame and points' coefficients cached in the
+    basis) gives exactly the map that fresh bases give, for the unique and the ordered products."""
+    rng = np.random.default_rng(8)
+    C0 = pm.fmap_from_p2p(np.arange(basis_13.n), basis_0.truncate(12), basis_13.truncate(16))
+    C1, C2 = C0 + 0.02 * rng.normal(size=C0.shape), C0 + 0.05 * rng.normal(size=C0.shape)
+    ev = np.sort(rng.choice(basis_13.n, 500, replace=False))
+    for pairs in ("unique", "ordered"):
+        b1 = pm.Basis(basis_0.vecs, basis_0.evals, basis_0.mass)
+        b2 = pm.Basis(basis_13.vecs, basis_13.evals, basis_13.mass)
+        from_fmap(C1, b1, b2, "extended", pairs=pairs, vertices=ev)  # fills the caches
+        again = from_fmap(C2, b1, b2, "extended", pairs=pairs, vertices=ev)
+        fresh = from_fmap(C2, pm.Basis(basis_0.vecs, basis_0.evals, basis_0.mass),
+                          pm.Basis(basis_13.vecs, basis_13.evals, basis_13.mass), "extended", pairs=pairs, vertices=ev)
+        np.testing.assert_array_equal(again, fresh)

@@ -47,9 +47,9 @@ from ...fields.crossfield import (
 from ...fields.frames import angle_defect, mesh_frames
 from ...fields.quadmesh import extract_quads, quad_mesh_stats, seamless_parametrization
 from ...geodesics import distances, edge_graph
-from ...mapping import fmap_from_p2p
 from ...mesh import Mesh, mean_edge_length
 from ...operators import lumped_mass
+from ...p2p import fmap_from_p2p
 from ..shared.parallel import map_tasks
 
 __all__ = ["match_singularities", "surface_ground_truth", "low_curvature_vertices", "pair_measures",

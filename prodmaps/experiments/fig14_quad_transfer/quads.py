@@ -6,8 +6,8 @@ functional map and quadrangulates each surface along its own field, never using 
 point map recovered from ``C`` carry a coarse quad mesh of the source onto the target? Conversions
 (:func:`prodmaps.p2p.from_fmap`): ``"std"`` [OBCS*12], ``"extended"`` (Section 4.4: squared heat
 kernels on the mesh from 200 eigenpairs, the experiments store's big basis, fitted in the extended
-basis of the map's ``k + 1`` functions) and ``"extended_closed_form"`` (the kernel from the map's own
-eigenpairs).
+basis of the map's ``k + 1`` functions) and ``"extended_closed_form"`` (``point="closed_form"``: the
+kernel from the map's own eigenpairs).
 
 Steps: :func:`coarse_remesh` (pymeshlab quadric decimation, then isotropic remeshing),
 :func:`pair_triangles` (greedy pairing of adjacent triangles into quads), snapping the quad vertices
@@ -24,9 +24,8 @@ from scipy.spatial import cKDTree
 
 from ... import datasets, geodesics
 from ...fields.frames import polygon_corner_degrees
-from ...mapping import fmap_from_p2p
 from ...mesh import Mesh
-from ...p2p import DEFAULT_KERNEL_EIG, from_fmap
+from ...p2p import DEFAULT_KERNEL_EIG, fmap_from_p2p, from_fmap
 from ..fig12_13_p2p import CONVERSIONS
 from ..shared.store import ShapeStore
 
@@ -169,7 +168,7 @@ def point_map_quad_transport(dataset: str, source_id: str, target_id: str, ks, *
         C_21 = fmap_from_p2p(p2p_12_true, b2, b1)  # (k1, k2): target -> source, ground truth
         for method in CONVERSIONS:
             t0 = time.perf_counter()
-            tv = from_fmap(C_21, B2, B1, method, vertices=src_v)  # target vertex of each quad vertex
+            tv = from_fmap(C_21, B2, B1, vertices=src_v, **CONVERSIONS[method])  # target vertex of each quad vertex
             verr = geodesics.map_error(mesh_2, tv, p2p_12_true[src_v])  # (m,) on the target
             m_, _, _ = quad_measures(mesh_2.vertices, tv, V_true, quads)
             m_.update({"vertex_error_mean": float(verr.mean()), "vertex_error_median": float(np.median(verr)),

@@ -17,7 +17,7 @@ import numpy as np
 
 from ... import fmaps
 from ...files import sha256_bytes
-from ...mapping import fmap_from_p2p
+from ...p2p import fmap_from_p2p
 from ...sampling import farthest_point_landmarks
 from .store import EIGEN_CODE, ShapeStore, code_fingerprint
 

@@ -21,8 +21,8 @@ import numpy as np
 
 from ... import datasets
 from ...approx import PAPER_RTOL
-from ...mapping import fmap_from_p2p
 from ...metrics import relative_error
+from ...p2p import fmap_from_p2p
 from ...products import product_basis
 from ...transfers import REGISTRY, transfer_operator
 from . import families as pfam
