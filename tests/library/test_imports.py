@@ -298,8 +298,20 @@ MAX_PRIVATE_IN_TESTS = 5
 
 
 def _private_callables() -> dict[str, set[str]]:
-    """``name -> {qualified name}`` of every private module-level function, class and method of the library."""
+    """``name -> {qualified name}`` of every private module-level function, class and method of the library.
+
+    A private module-level name bound by assignment counts when its module calls it (``_clock =
+    time.perf_counter`` then ``_clock()``): a function by another name.
+    """
     out: dict[str, set[str]] = {}
+    for name, tree in TREES.items():
+        called = {n.func.id for n in ast.walk(tree) if isinstance(n, ast.Call) and isinstance(n.func, ast.Name)}
+        for node in tree.body:
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target] \
+                if isinstance(node, ast.AnnAssign) else []
+            for t in targets:
+                if isinstance(t, ast.Name) and t.id in called and t.id.startswith("_") and not t.id.startswith("__"):
+                    out.setdefault(t.id, set()).add(f"{name}.{t.id}")
 
     def visit(body, prefix):
         for node in body:
