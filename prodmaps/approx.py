@@ -1,72 +1,40 @@
 """Approximating functions in a (product) basis: the standard projection, Approach A, Approach B.
 
-All methods minimise in the **area inner product**: the residual is measured as
-``||f - B a||_A² = (f - B a)ᵀ A (f - B a)`` with ``A`` the mass of the basis.
+Holds :func:`approximation_operator` (an :class:`ApproximationOperator`, built once per basis and
+applied to any number of functions), :func:`approximate` (that operator applied once; operators of
+a ProductBasis are cached on it), :func:`column_weights` (the normalisation ``D``),
+:func:`gram_eigenpairs`, :func:`operator_parameters` and the constants :data:`PAPER_RTOL`,
+:data:`NORMALIZATIONS`, :data:`DEFAULT_NORMALIZATION`, :data:`RIDGE_PENALTIES`.
+
+Conventions (:mod:`prodmaps.conventions`): a :class:`~prodmaps.Basis` ``Φ`` ``(n, k)`` is
+A-orthonormal (``ΦᵀAΦ = I``, ``A`` the lumped mass), column 0 the constant, ``k`` counting it; a
+product basis ``B`` ``(n, K)`` holds the base columns, then the products. Every method minimises
+in the **area inner product**, ``||f - B a||_A² = (f - B a)ᵀ A (f - B a)``. Functions ``F`` are
+``(n,)`` or ``(n, m)`` (one per column); coefficients ``(K,)`` or ``(K, m)`` are always those of
+the basis' own columns.
 
 Methods
 -------
 ``"std"``
-    The A-orthogonal projection on an orthonormal :class:`~prodmaps.Basis`: ``a = Φᵀ A f``.
+    The A-orthogonal projection on an orthonormal Basis: ``a = Φᵀ A f``.
 ``"svd"`` (Approach B, Section 4.2)
-    ``sqrt(A) B = U Σ Vᵀ``; singular values below ``rtol · σ_max`` are dropped
-    (``rtol = 1e-3`` in the paper) and ``a = V Σ⁺ Uᵀ sqrt(A) f``, the minimum-norm solution of
-    the truncated problem.
+    Truncated SVD of ``sqrt(A) B D``: singular values below ``rtol · σ_max`` are dropped
+    (:data:`PAPER_RTOL` ``= 1e-3`` in the paper); the minimum-norm solution.
 ``"ridge"`` (Approach A, p = 2)
-    ``argmin ||f - B a||_A² + ε σ_max² ||a||²`` in closed form; ``ε`` is relative to
-    ``σ_max²``, the largest eigenvalue of ``Bᵀ A B``, so it does not depend on units.
-    ``penalty="norm"``: Equation 4 as printed, norms not squared,
-    ``argmin ||f - B a||_A + ε σ_max ||a||`` (``ε`` relative to ``σ_max``; lumped mass). Its
-    minimiser is the ridge solution at a weight of its own for every function,
-    ``λ = ε σ_max ||f - B a||_A / ||a||`` (the stationarity condition), found by bisection on
-    ``log λ`` along the ridge path of one SVD of ``sqrt(A) B D`` (not the Gram matrix, whose
-    eigenvalues lose the small directions that a small ``λ`` reaches); a function that ``B`` fits
-    closely is barely regularised. ``a = 0`` when ``ε σ_max ||f||_A >= ||D Bᵀ A f||``.
+    ``argmin ||f - B a||_A² + ε σ_max² ||a||²``; ``penalty="norm"``: Equation 4 as printed (norms).
 ``"lasso"`` (Approach A, p = 1)
-    ``argmin ½||f - B a||_A² + ε λ_max ||a||₁`` with ``λ_max = ||Bᵀ A f||_∞`` (the smallest
-    weight whose solution is 0), solved by FISTA on the Gram matrix; stops when the
-    optimality conditions hold to ``tol`` (relative to the weight) or after ``max_iter``.
+    ``argmin ½||f - B a||_A² + ε λ_max ||a||₁`` with ``λ_max = ||Bᵀ A f||_∞``, by FISTA.
 
-Operators are computed once per basis and reused for any number of functions: every method
-except lasso is ``a = M (Bᵀ A f)`` or ``a = P Uᵀ sqrt(A) f`` with small precomputed factors.
+``normalization`` names the diagonal ``D`` the truncation and the penalties see (``"euclidean"``,
+the default :data:`DEFAULT_NORMALIZATION`, ``"unit_area"`` and ``"columns"`` are free of the
+mesh's units; ``"area"`` and ``"area@<s>"`` are not, kept for studies). ``route`` computes
+Approach B by the SVD or the Gram matrix (the same result; ``"auto"`` by ``rtol``). With
+``pairs="ordered"`` every solver runs on the scaled unique basis and maps back exactly.
 
-Routes for Approach B (same result up to round-off; a test proves it):
-``"svd"`` is the paper's SVD of ``sqrt(A) B``; ``"gram"`` diagonalises ``G = Bᵀ A B = V Σ² Vᵀ``
-(``n >> K``: one GEMM and a ``K x K`` eigh, many times faster). ``"gram"`` squares the
-condition number, so it is only exact enough when ``rtol >= 1e-6``; ``"auto"`` (default)
-picks ``"gram"`` then and ``"svd"`` below.
-
-For ``pairs="ordered"`` product bases every solver runs on the scaled unique basis (see
-:mod:`prodmaps.products`), which has exactly the ordered basis' singular values; results
-are mapped back with ``Sᵀ`` and equal the direct ordered computation.
-
-Normalisation (Approaches A and B)
-----------------------------------
-The threshold ``rtol`` (and Approach A's weights) act on the singular values of
-``sqrt(A) B D``, where the diagonal ``D`` says how the basis functions are normalised before
-their products are taken. It matters: with A-orthonormal eigenfunctions, scaling a mesh by
-``s`` leaves the columns ``sqrt(A) φ_i`` at norm 1 but scales product columns by ``1/s``, so a
-threshold relative to ``σ_max`` selects different product directions in metres and in
-centimetres. ``normalization`` names ``D`` (coefficients are always returned for the basis'
-own columns, ``a = D a'``; only the truncation and the penalties see ``D``):
-
-``"euclidean"``
-    each factor ``φ_i`` (the constant included) scaled to unit Euclidean norm, as a standard
-    eigensolver returns eigenvectors; products of the scaled factors. Free of the mesh's units.
-``"unit_area"``
-    A-orthonormal factors of the mesh scaled to total area 1 (``D`` multiplies a degree-``d``
-    column by ``area^(d/2)``). Free of the mesh's units.
-``"columns"``
-    every column of ``sqrt(A) B`` scaled to unit norm. Free of the mesh's units.
-``"area"``
-    A-orthonormal factors in the mesh's own units (``D = I``): depends on the units of the
-    mesh. Kept to measure that dependence.
-``"area@<s>"`` (e.g. ``"area@100"``)
-    ``"area"`` as if the mesh were scaled by ``s`` first (metres to centimetres: 100): a
-    degree-``d`` column is weighted by ``s^-d``. For studies of the unit dependence.
-
-The default is :data:`DEFAULT_NORMALIZATION`.
+The derivations (Equation 4's ridge path, the lasso's stopping rule, the routes and when the Gram
+route is exact enough, the ordered basis, each normalisation and why the mesh's units matter):
+``docs/guide/approximation.md``.
 """
-
 from __future__ import annotations
 
 import inspect
@@ -116,7 +84,7 @@ def _solver_parts(basis):
 
 
 def column_weights(basis, normalization: str = DEFAULT_NORMALIZATION) -> np.ndarray | None:
-    """The diagonal ``D`` ``(K_u,)`` of the solver columns for ``normalization`` (module doc).
+    """The diagonal ``D`` ``(K_u,)`` of the solver columns for ``normalization`` (``docs/guide/approximation.md``).
 
     ``K_u`` counts the solver's columns: the basis' own for a Basis or a ``pairs="unique"``
     ProductBasis, the unique multisets for ``pairs="ordered"`` (where ``(l, m)`` and ``(m, l)``
@@ -281,7 +249,7 @@ def operator_parameters(**params) -> dict:
 def approximation_operator(basis, method: str = "svd", *, rtol: float = PAPER_RTOL, eps: float = 1e-4,
                            route: str = "auto", tol: float = 1e-6, max_iter: int = 5000,
                            normalization: str | None = None, penalty: str = "squared") -> ApproximationOperator:
-    """Build the approximation operator of ``basis`` for ``method`` (see module doc).
+    """Build the approximation operator of ``basis`` for ``method`` (module doc; ``docs/guide/approximation.md``).
 
     Parameters
     ----------
@@ -291,9 +259,10 @@ def approximation_operator(basis, method: str = "svd", *, rtol: float = PAPER_RT
     eps : Approach A weight, relative (ridge: to σ_max²; lasso: to ||Bᵀ A f||_∞).
     route : Approach B route, ``"auto"`` | ``"svd"`` | ``"gram"``.
     tol, max_iter : lasso stopping rule.
-    normalization : ``D`` of Approaches A and B (module doc; default :data:`DEFAULT_NORMALIZATION`).
+    normalization : ``D`` of Approaches A and B (``docs/guide/approximation.md``; default
+        :data:`DEFAULT_NORMALIZATION`).
     penalty : ridge only: ``"squared"`` (default) or ``"norm"`` (Equation 4 as printed; ``eps``
-        then relative to σ_max; module doc).
+        then relative to σ_max; ``docs/guide/approximation.md``).
 
     Returns
     -------
@@ -392,7 +361,7 @@ def _scaled_svd(basis, d):
 
 
 def _norm_ridge(svd: tuple, d, eps: float, G: np.ndarray, steps: int = 100) -> np.ndarray:
-    """``argmin ||f - B a||_A + ε σ_max ||a'||`` for every column (``penalty="norm"``, module doc).
+    """``argmin ||f - B a||_A + ε σ_max ||a'||`` for every column (``penalty="norm"``, ``docs/guide/approximation.md``).
 
     ``svd = (U, s, Vt)`` of the scaled columns ``X = sqrt(A) B_s D`` (``d`` the diagonal of ``D``
     or None), ``G`` ``(n, m)`` the functions times ``sqrt(A)``. On the ridge path

@@ -3,76 +3,33 @@
 Reference: S. Melzi, E. Rodolà, U. Castellani, M. M. Bronstein, "Localized Manifold Harmonics
 for Spectral Shape Analysis", Computer Graphics Forum 2018, doi:10.1111/cgf.13309 (arXiv 1707.02596).
 
-Formulation (as implemented here)
----------------------------------
-Given a region ``R`` of the surface described by a (soft) indicator ``u: V -> [0, 1]``
-(``u = 1`` inside), and the first ``k_global`` global Laplace–Beltrami eigenfunctions
-``Φ`` ``(n, k_global)`` (A-orthonormal, constant included), the ``k`` localized harmonics
-``Ψ`` ``(n, k)`` minimise::
+Holds :func:`localized_harmonics` (a :class:`LocalizedHarmonics`: the ``k`` localized functions of
+a region), :func:`lmh_basis` (the global basis followed by the localized functions, as one
+:class:`prodmaps.Basis`) and :func:`lmh_operator_parts` (the sparse and low-rank parts of the operator).
 
-    E(Ψ) = trace(Ψᵀ W Ψ)                        Dirichlet energy (smoothness)
-         + μ_R · trace(Ψᵀ A diag(1 - u) Ψ)      region penalty: L² mass outside R
-         + μ_⊥ · ||Φᵀ A Ψ||_F²                  orthogonality penalty against Φ
-    subject to  Ψᵀ A Ψ = I                      (A-orthonormal, area inner product)
-
-``W`` is the PSD cotangent stiffness and ``A`` the lumped mass (see
-:func:`prodmaps.laplacian`). All three terms are quadratic forms, so the minimisers are the
-eigenvectors of the ``k`` smallest eigenvalues of the generalised symmetric problem::
-
-    Q ψ = λ A ψ,   Q = W + μ_R · diag(A (1 - u)) + μ_⊥ · (A Φ)(A Φ)ᵀ.
-
-This is the operator of the LMH paper (its Eq. for the "modified Laplacian"); we write the
-region term with the mass, ``∫ (1-u) ψ²``, i.e. ``diag(A(1-u))``, which is the consistent
-discretisation of the continuous penalty and makes the basis independent of the sampling
-density. The numeric values of μ below are our choice.
-
-Solver: ``Q`` is never formed densely; the eigenpairs come from the package's one eigensolver
-(:func:`prodmaps.eigensolver.smallest_eigenpairs`, with its shift). ``Q = S0 + μ_⊥ U Uᵀ`` with sparse
-``S0 = W + μ_R diag(A(1-u))`` and the thin ``U = A Φ`` ``(n, k_global)``. Shift-invert
-Lanczos (:func:`scipy.sparse.linalg.eigsh`) needs ``(Q - σA)⁻¹``: with ``S = S0 - σA``
-(``σ < 0`` slightly, so ``S`` is positive definite even when ``u ≡ 1``) and one sparse LU of
-``S``, the Sherman–Morrison–Woodbury identity gives
-
-    (S + μ_⊥ U Uᵀ)⁻¹ x = S⁻¹x - S⁻¹U (I/μ_⊥ + Uᵀ S⁻¹ U)⁻¹ Uᵀ S⁻¹ x,
-
-a ``k_global x k_global`` dense system. Memory is O(nnz(W) + n·k_global).
-
-Scale and default penalties
----------------------------
-``W`` is scale invariant while ``A`` scales with area, so eigenvalues scale as
-``1/area``. To make the basis independent of the shape's size, the user-facing weights are
-given **for a shape of unit area**: the operator uses ``μ = mu / area``. Defaults
-``mu_region = mu_orth = 1e4``:
-
-* ``mu_orth`` must exceed the (unit-area) eigenvalues of the localized functions we keep,
-  otherwise the penalised global functions (eigenvalues ``λ_j + μ_⊥``) re-enter the
-  spectrum. For a region covering ~5 % of the area, the ``j``-th localized eigenvalue is
-  about ``4πj/0.05 ≈ 250 j`` (Weyl), i.e. ~2.5e3 for ``j = 10``: ``1e4`` keeps up to ~30–40
-  localized functions clean while staying well conditioned.
-* ``mu_region``: outside ``R`` the functions decay like ``exp(-sqrt(μ_R)·d)``; with
-  ``μ_R = 1e4`` on a unit-area shape the decay length is 1 % of the shape's size, so almost
-  all of the L² mass stays in ``R`` (the test asserts > 90 %), while the penalty stays
-  finite (a soft boundary, as in the LMH paper, unlike Dirichlet eigenfunctions of ``R``).
+Given a region ``R`` as a (soft) indicator ``u: V -> [0, 1]`` (``u = 1`` inside) and the first
+``k_global`` global eigenfunctions ``Φ``, the localized harmonics ``Ψ`` ``(n, k)`` minimise the
+Dirichlet energy ``trace(Ψᵀ W Ψ)`` plus ``μ_R`` times their L² mass outside ``R`` plus ``μ_⊥``
+times ``||Φᵀ A Ψ||_F²`` under ``Ψᵀ A Ψ = I``: the ``k`` smallest eigenpairs of
+``Q ψ = λ A ψ``, ``Q = W + μ_R diag(A (1 - u)) + μ_⊥ (A Φ)(A Φ)ᵀ``, from the package's one
+eigensolver with ``Q`` never formed densely.
 
 Conventions
 -----------
-``k`` of :func:`localized_harmonics` counts localized functions; ``k_global`` counts global
-eigenfunctions **including the constant** (as :func:`prodmaps.eigenbasis`). Signs are fixed
-like the eigenbasis' (entry of largest magnitude positive).
+* ``W`` the PSD cotangent stiffness, ``A`` the lumped mass (:func:`prodmaps.laplacian`); every
+  basis here is A-orthonormal (area inner product, :mod:`prodmaps.conventions`).
+* ``k`` of :func:`localized_harmonics` counts localized functions; ``k_global`` counts global
+  eigenfunctions **including the constant** (as :func:`prodmaps.eigenbasis`). Signs are fixed like
+  the eigenbasis' (entry of largest magnitude positive).
+* The penalties ``mu_region``, ``mu_orth`` (default 1e4 each) are given for a shape of unit area
+  (the operator uses ``mu / area``), so the basis does not depend on the shape's size.
+* :func:`lmh_basis` keeps the global columns first (constant first, as products need) and the
+  localized ones made exactly A-orthogonal to them and A-orthonormalised; its ``evals`` are the
+  global eigenvalues then the localized columns' Dirichlet energies (not globally sorted).
 
-"MH + LMH" basis (Figure 10)
-----------------------------
-Products need a basis whose column 0 is the constant (``pm.Basis`` convention). LMH
-functions are not constant-first, so :func:`lmh_basis` concatenates the global basis
-``Φ`` (``k_global`` columns, constant first) with the ``k`` localized functions, made
-*exactly* A-orthogonal to ``Φ`` (one Gram–Schmidt step ``Ψ - Φ ΦᵀAΨ``, tiny because of the
-penalty) and then A-orthonormalised symmetrically (Löwdin, ``Ψ G^{-1/2}``, the orthonormal
-set closest to ``Ψ``). The result is an A-orthonormal :class:`prodmaps.Basis` of
-``k_global + k`` columns usable with :func:`prodmaps.product_basis`; its ``evals`` are the
-global eigenvalues followed by the Dirichlet energies ``ψᵀWψ`` of the localized columns (so
-they are not globally sorted).
+The formulation and its discretisation, the solver (shift-invert with Sherman–Morrison–Woodbury),
+why the default penalties are 1e4, and the "MH + LMH" construction: ``docs/guide/lmh.md``.
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -153,7 +110,7 @@ def localized_harmonics(mesh: Mesh, region, k: int, *, k_global: int = 10,
                         mu_region: float = DEFAULT_MU_REGION, mu_orth: float = DEFAULT_MU_ORTH,
                         global_basis: Basis | None = None, kind: str = "cotan",
                         tol: float = 0.0) -> LocalizedHarmonics:
-    """The first ``k`` Localized Manifold Harmonics of ``mesh`` on ``region`` (see module doc).
+    """The first ``k`` Localized Manifold Harmonics of ``mesh`` on ``region`` (``docs/guide/lmh.md``).
 
     Parameters
     ----------
@@ -218,7 +175,7 @@ def lmh_basis(mesh: Mesh, region, k: int, *, k_global: int = 10,
 
     Returns an A-orthonormal :class:`prodmaps.Basis` with ``k_global + k`` columns, column 0
     the constant (so :func:`prodmaps.product_basis` applies). The localized columns are
-    made exactly A-orthogonal to the global ones and Löwdin-orthonormalised (module doc).
+    made exactly A-orthogonal to the global ones and Löwdin-orthonormalised (``docs/guide/lmh.md``).
     ``k_global`` counts the constant (``k_global = 10`` is the paper's ``k_M = 9`` MH).
     """
     if k_global < 1:

@@ -1,5 +1,9 @@
 """Spectral point descriptors: HKS, WKS and heat kernels, as pure functions of eigenpairs.
 
+Holds :func:`hks` and :func:`wks` (with their default samplings :func:`hks_times`,
+:func:`wks_energies`, :func:`wks_energies_from_evals` and the filter :func:`wks_weights`),
+:func:`heat_kernel`, and :func:`nonzero_eigenvalues` with its threshold :data:`ZERO_EIGENVALUE_REL`.
+
 Conventions
 -----------
 * A :class:`prodmaps.Basis` holds ``vecs`` ``(n, k)`` orthonormal in the **area inner product**
@@ -9,46 +13,14 @@ Conventions
 * Every descriptor returns an ``(n, d)`` array, one row per vertex, one column per time or energy.
 * An eigenvalue counts as zero (the constant's) when ``|λ| <= ZERO_EIGENVALUE_REL · max |λ|``;
   WKS excludes those eigenpairs (its filter needs ``log λ``).
+* ``hks(basis, times)``: ``h_t(x, x) = Σ_i exp(-λ_i t) φ_i(x)²`` [SOG09], the constant included;
+  ``wks(basis, energies, sigma)``: ``Σ_{i≥1} f_e(λ_i)² φ_i(x)²``, log-normal filter [ASC11],
+  ``scaled=True`` by default. Both lie exactly in the span of the products of the basis.
 
-Spectral descriptors
---------------------
-``hks(basis, times)``: ``h_t(x, x) = Σ_i exp(-λ_i t) φ_i(x)²`` [SOG09], the constant term
-included (it is the diagonal of :func:`heat_kernel`). ``scaled=True`` divides each column by the
-heat trace ``Σ_i exp(-λ_i t)`` (SOG09's scale normalisation; pyFM's ``scaled=True``).
-
-``wks(basis, energies, sigma)``: ``Σ_{i≥1} f_e(λ_i)² φ_i(x)²`` with the log-normal energy
-filter ``f_e(λ)² = exp(-(e - log λ)² / (2σ²))`` [ASC11]; the constant eigenpair (λ = 0, no
-logarithm) is excluded as in ASC11. ``scaled=True`` (default, as in ASC11 and pyFM's
-``auto_WKS``) divides column ``e`` by ``C_e = Σ_{i≥1} f_e(λ_i)²`` so each energy has unit total
-filter weight and the columns are comparable across energies.
-
-Both are of the form ``Σ_i α_i φ_i(x)²``, hence lie exactly in the span of the pairwise
-products of the basis (paper, Section 5.2), whatever the scaling.
-
-Default sampling (``hks_times``, ``wks_energies``):
-
-* times log-spaced between ``4 ln10 / λ_max`` and ``4 ln10 / λ_1`` [SOG09] (λ_1 the first
-  non-zero eigenvalue, λ_max the largest of the basis): at ``t_min`` the highest mode of the
-  basis is damped by ``e^{-4 ln 10} = 1e-4``, at ``t_max`` the first non-constant mode is, so the
-  range covers exactly the scales the basis resolves. The factor is a parameter.
-* energies linearly spaced in log-eigenvalue: ``σ = variance · δ`` with
-  ``δ = (log λ_max - log λ_1) / num`` and ``variance = 7`` [ASC11], and the energies run from
-  ``log λ_1 + margin·σ`` to ``log λ_max - margin·σ`` (``margin = 2`` keeps the Gaussian filter
-  inside the sampled spectrum). With ``variance=7, margin=2`` this is the sampling of pyFM's
-  ``auto_WKS`` (so the two can be cross-checked); ASC11's original code uses ``margin = 0``.
-
-Both HKS and WKS are invariant to rigid motions (they use only the intrinsic eigenpairs).
-Under a uniform scaling ``x -> s x`` eigenvalues scale by ``s⁻²`` and ``φ_i²`` by ``s⁻²``; with
-the automatic sampling (which scales with the spectrum) ``s² · HKS`` and ``s² · WKS`` are
-scale-invariant.
-
-References
-----------
-[SOG09] Sun, Ovsjanikov, Guibas. A concise and provably informative multi-scale signature based
-on heat diffusion. SGP 2009.
-[ASC11] Aubry, Schlickewei, Cremers. The wave kernel signature. ICCV workshops 2011.
+The definitions and scalings in full, the default samplings (SOG09's time range, ASC11's energies,
+pyFM's ``auto_WKS``), the invariances to rigid motions and scaling, and the references:
+``docs/guide/descriptors.md``.
 """
-
 from __future__ import annotations
 
 import numpy as np
@@ -75,7 +47,7 @@ def as_1d_finite(x, name: str, positive: bool = False) -> np.ndarray:
 
 
 def nonzero_eigenvalues(evals) -> np.ndarray:
-    """Boolean mask ``(k,)`` of the eigenvalues that are not zero (see the module doc)."""
+    """Boolean mask ``(k,)`` of the eigenvalues that are not zero (``|λ| > ZERO_EIGENVALUE_REL · max |λ|``)."""
     ev = np.abs(np.asarray(evals, dtype=np.float64))
     keep = ev > ZERO_EIGENVALUE_REL * max(float(ev.max()) if ev.size else 0.0, np.finfo(float).tiny)
     if not np.any(keep):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import lmh
 from ..approx import PAPER_RTOL
 from ..basis import eigenbasis
 from .shared.anatomy import body_coordinates
@@ -31,8 +32,6 @@ def lmh_reconstruction(mesh, *, mh_dim: int, global_dim: int, local_dim: int, re
 
     Returns ``{"results": ..., "region": (n,) bool, "recon": {"MH"|"LMH": (X_std, X_prod)}}``.
     """
-    from .. import lmh
-
     X = mesh.vertices
     z = body_coordinates(X, frame)[:, 2]  # up
     region = z > z.max() - region_top_fraction * (z.max() - z.min())  # (n,) the head

@@ -34,6 +34,7 @@ from ..metrics import relative_error
 from ..p2p import fmap_from_p2p
 from ..products import evaluate_products, product_basis
 from ..transfers import transfer
+from .shared.families import hks_columns
 
 __all__ = ["SCALES", "EXACT_RTOL", "spectral_descriptors", "lemma2_residual", "hks_wks_convergence"]
 
@@ -73,8 +74,6 @@ def spectral_descriptors(basis, s_hks: float, s_wks: float, hks_weights=("revers
 
     Returns ``(F, t, e)`` with the HKS time ``t`` and the WKS energy ``e`` used.
     """
-    from .shared.families import hks_columns
-
     times = descriptors.hks_times(basis, 2)  # [t_min, t_max] of the SOG09 range
     t = float(np.exp(np.log(times[0]) + s_hks * (np.log(times[1]) - np.log(times[0]))))
     energies, sigma = descriptors.wks_energies(basis, 100)  # ASC11 grid (100,) and its sigma

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..datasets import dataset_dir
 from ..io import file_to_mesh_index, save_mesh
 from ..sampling import farthest_point_landmarks
 
@@ -125,7 +126,5 @@ def resolve_path(path, dataset: str) -> Path:
     As given: absolute, or relative to the working directory; the dataset's folder makes the defaults
     point into the embedded data.
     """
-    from ..datasets import dataset_dir
-
     p = Path(path)
     return p if p.exists() else dataset_dir(dataset) / p

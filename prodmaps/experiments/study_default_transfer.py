@@ -22,6 +22,7 @@ from .. import datasets
 from .shared import compare
 from .shared import families as pfam
 from .shared.protocol import PAPER_COLUMNS, ProtocolSettings, family_means, run_protocol
+from .shared.results import setup_matplotlib
 from .shared.store import ShapeStore
 
 __all__ = ["METHODS", "condition_key", "variant_pairs", "default_transfer_study", "single_function_excess", "summary",
@@ -140,8 +141,6 @@ def summary(errors: dict, single: dict | None = None) -> dict:
 def figure(results: dict):
     """Heat maps (paper B, gain rule, default) of log2(error / std's) per condition and family; blue below std."""
     import matplotlib.colors as mcolors
-
-    from .shared.results import setup_matplotlib
 
     plt = setup_matplotlib()
     errors = results["errors"]

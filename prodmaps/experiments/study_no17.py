@@ -22,6 +22,7 @@ import time
 
 import numpy as np
 
+from .. import datasets
 from ..geodesics import map_error
 from ..metrics import relative_error
 from ..p2p import fmap_from_p2p, from_fmap
@@ -88,8 +89,6 @@ def score_recipes(store: ShapeStore, pairs, recipes, *, k_M: int = 29, k_N: int 
 def _score_pair(store: ShapeStore, ip: int, s1: str, s2: str, *, recipes, k1: int, k2: int, fams, seed: int,
                 n_eval) -> tuple:
     """One pair of :func:`score_recipes`."""
-    from .. import datasets
-
     names = ["gt"] + list(recipes)
     gt = datasets.ground_truth(store.dataset, s1, s2)  # (n2,)
     F, G, cols = store.family_functions(s1, gt, ip, fams, k_M=k1 - 1, seed=seed)

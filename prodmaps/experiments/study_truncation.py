@@ -32,6 +32,7 @@ from .shared import compare
 from .shared import families as pfam
 from .shared.maps import no17_demo_map
 from .shared.parallel import map_by_source
+from .shared.results import setup_matplotlib
 from .shared.store import ShapeStore
 
 __all__ = ["QUANTITIES", "CHOOSERS", "run", "report_blocks"]
@@ -197,8 +198,6 @@ def _case_key(s, mk) -> str:
 # ----------------------------------------------------------------------------- figures
 def _figure_setup(summary: dict):
     """``(plt, {size: colour}, family labels)`` of the study's figures."""
-    from .shared.results import setup_matplotlib
-
     plt = setup_matplotlib()
     sizes = sorted({key.split("/")[0] for key in summary}, key=lambda s: [int(v) for v in s[1:].split("_")])
     cc = plt.cm.tab10(np.arange(len(sizes)))

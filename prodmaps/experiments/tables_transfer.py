@@ -32,7 +32,7 @@ from .shared.protocol import (
     with_parameters,
 )
 from .shared.published import published_values, within_draw_noise, within_published
-from .shared.results import to_jsonable
+from .shared.results import setup_matplotlib, to_jsonable
 
 __all__ = ["TABLES", "FMAP_NAMES", "resolve_table", "table_columns", "run_table", "held_out_rows", "write_table_files",
            "table_figure"]
@@ -280,8 +280,6 @@ def write_table_files(out_dir, run: dict, name: str) -> None:
 def table_figure(run: dict, name: str, dataset: str):
     """Heat map of ours (published in brackets); colour = ours - published; extra columns right."""
     import matplotlib.colors as mcolors
-
-    from .shared.results import setup_matplotlib
 
     plt = setup_matplotlib()
     ours, pub, rows, shown = run["ours"], run["published"], run["rows"], run["shown_columns"]

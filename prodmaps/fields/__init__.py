@@ -19,7 +19,7 @@ subpackage implements the pieces on plain arrays:
   cluster (watertight on a closed input).
 
 What follows [ACBCO17] and what is this package's own: the Figure 14 notebook and
-:mod:`.consistency`'s module doc; the experiment and its figures:
+``docs/guide/fields.md`` (the consistency model and the quad pipeline); the experiment and its figures:
 :mod:`prodmaps.experiments.fig14_quad_transfer.crossfields` and :mod:`prodmaps.experiments.fig14_quad_transfer.plots`.
 
 Conventions (the maps' and bases': :mod:`prodmaps.conventions`): face frames ``(u, v, n)`` with
@@ -60,7 +60,7 @@ from .frames import (
     vertex_holonomy,
 )
 from .operators import SpanProjector, field_action, powered_gradients, span_projector
-from .quadmesh import extract_quads, quad_mesh_stats, seamless_parametrization
+from .quadmesh import close_holes, extract_quads, quad_mesh_stats, seamless_parametrization
 
 __all__ = [
     "Frames", "tangent_frames", "mesh_frames", "as_frames", "to_complex", "to_vectors", "complex_gradient",
@@ -72,5 +72,5 @@ __all__ = [
     "pushforward_field_barycentric", "closest_point_correspondence",
     "SpanProjector", "span_projector", "field_action", "powered_gradients",
     "ConsistencyProblem", "consistency_problem", "design_consistent_field", "design_joint",
-    "seamless_parametrization", "extract_quads", "quad_mesh_stats",
+    "seamless_parametrization", "extract_quads", "close_holes", "quad_mesh_stats",
 ]

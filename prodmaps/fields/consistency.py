@@ -1,67 +1,27 @@
 """Consistency of direction fields across two shapes through a functional map.
 
-Only real-valued functions cross the map; no point map is used (except by the ``"p2p"``
-oracle, for evaluation).
+Holds :func:`consistency_problem` (a :class:`ConsistencyProblem`: the energy of a pair of fields
+through ``C`` or ``C~``), its pieces (:func:`images_of_tests`, :func:`scaled_actions`,
+:func:`comparison_span`), and the designs :func:`design_consistent_field` (the target field for a
+fixed source field) and :func:`design_joint` (both fields at once, ACBCO17's setting).
 
-Setting
--------
-Shape 1 carries a unit ``N``-power field ``z1`` (``N = 4``: a cross field), shape 2 the unknown
-``z2``. Fields act on functions by the degree-N action ``Q_z(f) = Re(conj(z) g(f)^N) |g|^(p-N)``
-(:func:`prodmaps.fields.operators.field_action`; ``p = 0`` by default, ``N = p = 1`` is the
-derivation ``<X, ∇f>``).
-Test functions: with the standard basis, the non-constant base functions ``f_j = φ^1_j`` of
-shape 1, ``j = 1..k`` (``k`` = the paper's k, non-constant functions; ``tests="pairs"`` adds the
-sums ``(φ_a + φ_b)/√2``, since a quartic form is not determined by its values on a basis), with
-images ``T f_j = Φ2 C e_j``. With the extended basis, every non-constant extended column: the
-``φ_j`` and their products ``φ_a φ_b``, whose images ``B2 C~ e`` are the exact products of the
-images (Lemma 2): the extended basis replaces the basis everywhere. Consistency asks the action
-to commute with the map,
+Only real-valued functions cross the map; no point map is used (except by the ``"p2p"`` oracle,
+for evaluation). Conventions (:mod:`prodmaps.conventions`): bases A-orthonormal, constant first;
+``C_12`` ``(k2, k1)`` maps coefficients on shape 1 to shape 2, ``k1 - 1`` the paper's k; fields
+are unit ``N``-power fields per face (``N = 4``: a cross field, :mod:`prodmaps.fields.crossfield`),
+acting on functions by the degree-N action ``Q_z(f) = Re(conj(z) g(f)^N) |g|^(p-N)``
+(:func:`prodmaps.fields.operators.field_action`). Consistency asks the action to commute with the
+map, ``T(Q_{z1}(f_j)) ≈ Q_{z2}(T f_j)`` for every test function ``f_j``, compared in an
+A-orthonormal basis of a span of shape 2 (area inner product). ``kind`` (:data:`KINDS`) says how
+``T`` carries functions: ``"std"`` (``C``, the basis), ``"ext"`` (the paper's change: the
+registry's ``"svd"`` transfer, ``C~`` on the extended basis), ``"default"`` (the library's default
+transfer; not in the paper), ``"p2p"`` (the oracle). The energy is normalised: ``E = 1`` for
+``z2 = 0``, ``E = 0`` for perfect consistency. Designs are linear least-squares problems (a
+smoothness weight ``μ``, dimensionless) solved by preconditioned conjugate gradients.
 
-    ``T(Q_{z1}(f_j)) ≈ Q_{z2}(T f_j)``   for every test function,
-
-which for ``N = 1`` and the standard basis is the commutativity ``C D_1 ≈ D_2 C`` of
-[ABCO13] column by column. The two sides are compared in a subspace of functions on shape 2,
-through coordinates in an A-orthonormal basis ``Q2`` of it (area inner product):
-
-* ``"std"``: ``T h = Φ2 C Φ1ᵀ A1 h`` and ``Q2 = Φ2``; the energy is
-  ``Σ_j ||C Φ1ᵀA1 Q_{z1}(f_j) - Φ2ᵀA2 Q_{z2}(T f_j)||²``, i.e. ``||C Q_1 - Q_2 C||²`` for the
-  ``(k+1, k)`` "operators" ``Q_s`` whose columns are the actions on the test functions.
-* ``"ext"`` (the paper's change): ``T h = B2 C~ a(h)``, the registry's ``"svd"`` transfer
-  (``pm.transfer_operator(C, b1, b2, "svd", pairs="unique", rtol=rtol)``: Approach B's
-  coefficients ``a(h)`` in the extended basis ``B1`` of shape 1, one truncation for the whole
-  package, and ``C~`` ``(K2, K1)``), and ``Q2`` an A-orthonormal basis of the span the same operator keeps in ``B2``:
-  ``||C~ Q~_1 - Q~_2 C~||²`` on the extended test functions; products let
-  the map carry the high-frequency functions ``Q_z(f_j)``.
-* ``"default"``: ``T h`` is the library's default extended transfer of ``h``
-  (``pm.transfer_operator(C, b1, b2, "default")``, no threshold), compared in the same
-  span of ``B2`` as ``"ext"``; not in the paper.
-* ``"p2p"`` (oracle, evaluation only): ``T h = h ∘ p2p_21`` and test images ``f_j ∘ p2p_21``,
-  compared in the span of ``B2``: what a perfect transfer would give in that span.
-
-Each test function's action is scaled by ``s_j = 1/||S1 |g(f_j)|^p||_{A1}`` (source side,
-both sides) so that all test functions weigh alike; the energy is divided by the squared
-norm of the data, so ``E = 1`` for ``z2 = 0`` and ``E = 0`` for perfect consistency.
-
-Design
-------
-Because ``Q_z`` is linear in ``z``, the consistency residual is real-linear in the unknown
-field(s). The target field minimises
-
-    ``E(z2) = E_cons(z1, z2) + μ · z2ᴴ L2 z2 / (λ_1 · area_2) + α · Σ_f A_f w_f |z2_f - q_f|² / area_2``
-
-(``L2`` the connection Laplacian, ``λ_1`` the first non-zero Laplace–Beltrami eigenvalue of
-shape 2, so ``μ`` is dimensionless; the optional alignment to the target's own guide ``q``,
-weights ``w``, is off by default so that the map alone carries the field). It is a sparse +
-low-rank real least-squares problem in ``2 m2`` unknowns, solved by preconditioned conjugate
-gradients (preconditioner: the connection Laplacian plus the diagonal of the data term,
-factorised once). The cross is read from ``z2 / |z2|``. :func:`design_joint` optimises both
-fields at once (ACBCO17's joint setting): smoothness and alignment on both shapes plus the
-consistency term, again one linear least-squares problem.
-
-[ABCO13] Azencot, Ben-Chen, Chazal, Ovsjanikov. An operator approach to tangent vector field
-processing. SGP 2013.
+The test functions, each ``kind``'s comparison span and energy, the scaling, the design energy and
+its solver, and the references ([ABCO13], [ACBCO17]): ``docs/guide/fields.md``.
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -355,7 +315,7 @@ def _cg(apply, rhs_c: np.ndarray, precond, tol: float, maxiter: int):
 def design_consistent_field(problem: ConsistencyProblem, z1: np.ndarray, *, smoothness: float = 1e-3,
                             align: float = 0.0, guide: np.ndarray | None = None, tol: float = 1e-6,
                             maxiter: int = 500, normalize: bool = True):
-    """The target field consistent with a fixed source field ``z1`` (see the module doc).
+    """The target field consistent with a fixed source field ``z1`` (the energy: ``docs/guide/fields.md``).
 
     Parameters
     ----------

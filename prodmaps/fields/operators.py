@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..approx import PAPER_RTOL
+from ..approx import PAPER_RTOL, approximation_operator
 from ..basis import Basis
 from ..products import ProductBasis
 
@@ -105,8 +105,6 @@ def span_projector(basis, rtol: float = PAPER_RTOL, normalization: str | None = 
     if isinstance(basis, ProductBasis):
         return SpanProjector(basis.operator("svd", **params))
     if isinstance(basis, Basis):
-        from ..approx import approximation_operator
-
         return SpanProjector(approximation_operator(basis, "svd", **params))
     raise TypeError(f"span_projector takes a ProductBasis or a Basis, got {type(basis).__name__}")
 

@@ -1,46 +1,29 @@
 """Quad meshes from a cross field: an integer-grid parametrisation and its quads.
 
-Pipeline (libigl's building blocks, scipy solves, everything else vectorised numpy):
+Holds :func:`seamless_parametrization` and :func:`extract_quads` (the pipeline below, on libigl's
+building blocks, scipy solves and vectorised numpy), :func:`close_holes`, :func:`quad_mesh_stats`,
+and the pipeline's steps :func:`comb_and_cut`, :func:`continuous_system`, :func:`integer_solve`.
 
-1. **Comb and cut.** The four directions of the cross in every face (``d_0``, ``d_1 = d_0``
-   rotated by 90°) are combed with ``igl.comb_cross_field``; their integer mismatch across every
-   edge (``igl.cross_field_mismatch``, a multiple of 90°) is zero except on a cut graph through
-   the singularities (``igl.cut_mesh_from_singularities``); ``igl.cut_mesh`` duplicates the seam
-   vertices (one copy per side).
-2. **Seamless parametrisation** (:func:`seamless_parametrization`): ``(u, v)`` per cut-mesh vertex
-   minimising ``Σ_f A_f (|∇u - d_0/h|² + |∇v - d_1/h|²)`` (``h`` the quad edge length) with the
-   transition ``p_g = R^{-r} p_f + t`` across every seam edge (``R`` the rotation by 90°, ``r`` the
-   mismatch, ``t`` constant along a seam *chain*, a path of the cut graph between two *nodes*:
-   singular vertices and branch or end points of the cut graph).
-3. **Integer rounding** (``integer=True``, after a first solve with free translations): the
-   chains form a tree whose vertices are the nodes. Walking it from the leaves to a singular root,
-   each node's copies are put at integer points, the first one rounded and the others following
-   through the translations of its child chains (already integers); the translation of the chain
-   to the node's parent is then read off (an integer again). So every translation is an integer,
-   every node but the root sits at an integer point, and no two roundings contradict each other
-   (rounding every chain's translation on its own does, around branch points of the cut). The
-   final solve has these as hard constraints: the seam copies are eliminated
-   (``p_other = R p_ref + t``), the nodes fixed.
-   This is a simplified mixed-integer quadrangulation ([BZK09]'s MIQ rounds greedily with
-   re-solves and keeps singularities apart); singularities closer than ``h`` fold the
-   parametrisation locally (``n_flipped``).
-4. **Extraction** (:func:`extract_quads`): the integer iso-lines cut the surface into cells
-   (a cell is a connected piece of the surface mapped into one unit square ``[i, i+1]×[j, j+1]``,
-   followed across triangles and seams through the transitions). A cell whose four corners are
-   four distinct integer points is a quad. Cells that are not (around a singularity that is not
-   at an integer point, in folded regions) and quads that would make an edge non-manifold leave
-   holes, and every hole is closed by one polygon along its boundary. The result is a watertight
-   polygon mesh (on a closed input) that is all quads away from singularities and folds.
-   :func:`quad_mesh_stats` reports quads, other polygons, valences, irregular vertices and open
-   or non-manifold edges.
+1. **Comb and cut**: the cross is combed (``igl.comb_cross_field``), its integer mismatch across
+   edges (a multiple of 90°) is non-zero only on a cut graph through the singularities, and the
+   mesh is cut there (seam vertices duplicated, one copy per side).
+2. **Seamless parametrisation**: ``(u, v)`` per cut-mesh vertex, gradients along the cross at
+   ``1/h`` (``h`` the quad edge length), with the transition ``p_g = R^{-r} p_f + t`` across every
+   seam edge (``R`` the rotation by 90°, ``r`` the mismatch, ``t`` constant along a seam chain).
+3. **Integer rounding** (``integer=True``): the chains' translations and the nodes (singular
+   vertices, branch and end points of the cut) rounded consistently along the tree of chains,
+   then a final solve with them as hard constraints; a simplified mixed-integer quadrangulation.
+4. **Extraction**: the integer iso-lines cut the surface into cells; a cell whose four corners are
+   four distinct integer points is a quad, and every hole the others leave is closed by one polygon
+   (:func:`close_holes`): watertight on a closed input, all quads away from singularities and folds.
 
 Conventions: faces ``(m, 3)`` of a closed, oriented manifold mesh; ``z`` a unit 4-power field per
 face (:mod:`prodmaps.fields.crossfield`); ``(u, v)`` counter-clockwise with the face orientation,
 so quads come out counter-clockwise seen from outside.
 
-[BZK09] Bommes, Zimmer, Kobbelt. Mixed-integer quadrangulation. SIGGRAPH 2009.
+Every step in full (libigl's calls, the rounding along the tree and why rounding chains on their
+own fails, what a cell is, which cells leave holes) and the reference [BZK09]: ``docs/guide/fields.md``.
 """
-
 from __future__ import annotations
 
 from functools import partial
@@ -54,8 +37,8 @@ from ..mesh import Mesh, check_mesh, graph_components
 from .crossfield import field_vectors
 from .frames import mesh_frames
 
-__all__ = ["seamless_parametrization", "extract_quads", "quad_mesh_stats", "comb_and_cut", "continuous_system",
-           "integer_solve"]
+__all__ = ["seamless_parametrization", "extract_quads", "close_holes", "quad_mesh_stats", "comb_and_cut",
+           "continuous_system", "integer_solve"]
 
 # rotation by k·90° counter-clockwise, k = 0..3
 _ROT = np.array([[[1, 0], [0, 1]], [[0, -1], [1, 0]], [[-1, 0], [0, -1]], [[0, 1], [-1, 0]]], dtype=np.float64)
@@ -701,16 +684,57 @@ def extract_quads(param: dict, *, eps: float = 1e-7) -> dict:
     location = pf_[first]
     Xp = np.einsum("pk,pkd->pd", lam_c, param["Vc"][Fc[location]])
     Q, n_dropped = _manifold_quads(_quads_of_cells(cf, cij, cls, n_cls, charts, pts, pid), n_pts)
-    return {"V": Xp, "location": location, "bary": lam_c, "Q": Q.astype(np.int64), "polygons": _close_holes(Q, n_pts),
+    return {"V": Xp, "location": location, "bary": lam_c, "Q": Q.astype(np.int64), "polygons": close_holes(Q, n_pts),
             "n_cells": int(n_cls), "n_inconsistent": int(charts[3].sum()), "n_dropped": n_dropped}
 
 
-def _close_holes(Q: np.ndarray, n: int) -> list:
-    """Polygons closing the holes of a quad set with manifold edges: every boundary loop, reversed.
+def close_holes(Q, n: int) -> list:
+    """Polygons closing the holes of a quad mesh with manifold edges: every boundary loop, reversed.
 
-    At a vertex where several holes meet, incoming and outgoing boundary edges are paired in a
-    fixed order, so every boundary edge gets exactly one closing polygon.
+    A boundary edge is a directed edge ``a -> b`` of a quad whose reverse ``b -> a`` is in no quad;
+    each hole's boundary loop, traversed the other way, is one polygon, so the quads and the
+    polygons together have no boundary edge. At a vertex where several holes meet, incoming and
+    outgoing boundary edges are paired in a fixed order, so every boundary edge gets exactly one
+    closing polygon. :func:`extract_quads` closes its holes with it.
+
+    Parameters
+    ----------
+    Q : (q, 4) array_like of int
+        Quads (vertex indices, one orientation for all); no directed edge used twice.
+    n : int
+        Number of vertices: every index of ``Q`` is below ``n``.
+
+    Returns
+    -------
+    list of (s,) int64 ndarray
+        One polygon per hole, oriented as the quads (counter-clockwise seen from outside when the
+        quads are); ``[]`` when ``Q`` has no boundary edge.
+
+    Raises
+    ------
+    ValueError
+        If ``Q`` is not ``(q, 4)`` or an index is negative or not below ``n``.
+
+    Examples
+    --------
+    A cube's six quads without their first face: the missing square comes back.
+
+    >>> import numpy as np
+    >>> from prodmaps.fields import close_holes, quad_mesh_stats
+    >>> cube = np.array([[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]])
+    >>> close_holes(cube[1:], 8)
+    [array([0, 1, 3, 2])]
+    >>> [len(p) for p in close_holes(cube[[1, 3, 4, 5]], 8)]  # two neighbouring faces missing: one hexagon
+    [6]
+    >>> quad_mesh_stats(np.zeros((8, 3)), cube[2:], close_holes(cube[2:], 8))["n_boundary_edges"]
+    0
     """
+    Q = np.asarray(Q)
+    if Q.ndim != 2 or Q.shape[1] != 4 or not np.issubdtype(Q.dtype, np.integer):
+        raise ValueError(f"Q must be a (q, 4) integer array of quads, got shape {Q.shape} and dtype {Q.dtype}")
+    if Q.size and (Q.min() < 0 or Q.max() >= n):
+        raise ValueError(f"quad indices must lie in [0, n) = [0, {n}); got {Q.min()}..{Q.max()}: pass n = the "
+                         "number of vertices")
     E = np.stack([Q, np.roll(Q, -1, axis=1)], axis=2).reshape(-1, 2)
     bnd = E[~np.isin(E[:, 1] * n + E[:, 0], E[:, 0] * n + E[:, 1])]  # reverse edge not in the quads
     if bnd.size == 0:

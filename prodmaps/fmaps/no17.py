@@ -1,65 +1,32 @@
 """The NO17 functional-map energy, its explicit quadratic form and two solvers (L-BFGS, direct).
 
-Conventions (bases, ``k``, ``C_12`` ``(k2, k1)``, ``p2p_21`` ``(n2,)``): :mod:`prodmaps.conventions`.
+Holds :func:`fit_no17` (the map minimising the energy), :func:`no17_terms` (the energy's
+precomputed :class:`NO17Terms`), :func:`energy_and_gradient`, :func:`quadratic_form`, and the
+pieces :func:`first_column`, :func:`laplacian_mask`, :func:`multiplication_operators`.
 
-The NO17 energy (Nogneng & Ovsjanikov 2017, "Informative descriptor preservation via
-commutativity for shape matching")
----------------------------------------------------------------------------------------------
-With ``D1 = Φ1ᵀA1 d``, ``D2 = Φ2ᵀA2 d'`` the coefficient matrices ``(k1, p)``, ``(k2, p)`` of
-``p`` paired descriptors and ``M1_q = Φ1ᵀ A1 diag(d_q) Φ1`` ``(k1, k1)``,
-``M2_q = Φ2ᵀ A2 diag(d'_q) Φ2`` ``(k2, k2)`` their multiplication operators::
+Conventions (bases, ``k``, ``C_12`` ``(k2, k1)``, ``p2p_21`` ``(n2,)``): :mod:`prodmaps.conventions`.
+Rectangular maps are allowed: ``k1 = basis_1.k``, ``k2 = basis_2.k`` (constant included; e.g. 30
+and 40 columns for the paper's Table 2 ``k_M = 29, k_N = 39``). Descriptors ``(n1, p)``,
+``(n2, p)`` are paired column by column and projected in the area inner product,
+``D1 = Φ1ᵀA1 d`` ``(k1, p)``, ``D2 = Φ2ᵀA2 d'`` ``(k2, p)``, with multiplication operators
+``M_q = Φᵀ A diag(d_q) Φ``. The energy (Nogneng & Ovsjanikov 2017)::
 
     E(C) = w_descr/τ_descr · ½‖C D1 − D2‖²_F                    (descriptor preservation)
          + w_dcomm/τ_dcomm · ½ Σ_q ‖C M1_q − M2_q C‖²_F           (commutativity with products)
          + w_lap  /τ_lap   · ½ Σ_ij L_ij C_ij²                    (Laplacian commutativity)
 
-* Laplacian term, ``lap="eigdiff"``: ``L_ij = (μ_i − λ_j)²`` with ``μ`` the eigenvalues of
-  shape 2 and ``λ`` those of shape 1, so the term is exactly ``½‖Λ2 C − C Λ1‖²_F``.
-  ``lap="resolvent"`` (default, Ren et al. 2019 "Structured regularization of functional map
-  computations"): the commutator with the bounded operator ``R = (Δ^γ − i)⁻¹`` instead of
-  ``Δ``: ``L_ij = |r(μ_i) − r(λ_j)|²`` with ``r(x) = 1/(x^γ − i)``, both spectra first divided by
-  the same number ``max(λ_max, μ_max)``; ``γ = resolvent_gamma`` (0.5). The unbounded
-  ``eigdiff`` mask grows like ``λ_k²`` and makes the weight depend on ``k``; the resolvent
-  mask is bounded by 4 and has the same null set (``L_ij = 0`` iff ``λ_j = μ_i``).
-* Descriptor normalisation (``normalize_descr=True``): every descriptor column is divided by
-  its area L2 norm on its own shape, ``d_q / sqrt(d_qᵀ A d_q)``, before projection;
-  ``normalize_descr="source"``: both columns of a pair are divided by the **source** column's
-  norm ``sqrt(d_qᵀ A1 d_q)`` (the NO17 authors' MATLAB demo), so a descriptor whose magnitude
-  differs between the shapes keeps that difference.
-* Weights: only ratios matter; ``(w_descr, w_lap, w_dcomm)`` are divided by their sum.
-* Term normalisation ``normalize="expected"`` (default): each term is divided by its expected
-  value ``τ`` when ``C`` has i.i.d. centred entries of variance ``m/(k1 k2)``, ``m = min(k1, k2)``
-  (so ``E‖C‖²_F = m``, the squared norm of a partial isometry of rank ``m``). For a Gaussian
-  ``C`` with entry variance ``σ²``: ``E‖C X‖² = σ² k2 ‖X‖²``, ``E‖Y C‖² = σ² k1 ‖Y‖²``,
-  ``E tr(XᵀCᵀYC) = σ² tr X tr Y``, hence (the factor ½ common to all terms dropped)::
+* ``lap``: ``"resolvent"`` (default, Ren et al. 2019, a mask bounded by 4) or ``"eigdiff"``
+  (``L_ij = (μ_i − λ_j)²``); ``normalize_descr``: descriptor columns divided by their area norm.
+* Weights: only ratios matter, ``(w_descr, w_lap, w_dcomm)`` are divided by their sum;
+  ``normalize="expected"`` (default; pyFM's "canonical") divides each term by its expected value
+  ``τ`` for a random ``C``, so the same ``w_*`` mean the same energy in pyFM and here.
+* The first column is fixed: ``C[0, 0] = s·sqrt(area_2/area_1)``, ``C[1:, 0] = 0``; the solvers
+  optimise ``C[:, 1:]`` (L-BFGS-B with the analytic gradient, or the exact direct solve).
 
-      τ_descr = (m/k1) ‖D1[1:]‖²_F / p_eff          (constant row excluded: column 0 of C is fixed)
-      τ_lap   = (m/(k1 k2)) Σ_ij L_ij
-      τ_dcomm = (m/(k1 k2)) Σ_q (k2‖M1_q‖² + k1‖M2_q‖² − 2 tr M1_q tr M2_q) / p_eff
-
-  where ``p_eff = (tr G)²/‖G‖²_F``, ``G = D[1:]ᵀ D[1:]`` (averaged over the two shapes) is the
-  effective number of linearly independent descriptors, so that adding redundant descriptor
-  columns does not change the balance between descriptor and Laplacian terms. A degenerate
-  ``τ`` (zero) is replaced by 1. This is the normalisation pyFM >= 1.3 calls "canonical", so
-  the same ``w_*`` mean the same energy in both packages (checked in
-  ``tests/test_pyfmaps_crosscheck.py``). ``normalize="sum"``: ``τ_descr = τ_dcomm = 1`` and
-  ``τ_lap = Σ_ij L_ij`` (pyFM's ``normalize_weights=False``); ``normalize="frobenius"``:
-  ``τ_descr = τ_dcomm = 1`` and ``τ_lap = ‖L‖²_F`` (the NO17 authors' MATLAB demo divides its
-  ``eigdiff`` mask by its squared Frobenius norm); ``normalize=None``: all ``τ = 1``.
-* First column: ``C[0, 0] = s·sqrt(area_2/area_1)`` and ``C[1:, 0] = 0`` with
-  ``s = sign(φ0¹ φ0²)`` (= +1 with prodmaps bases). Derivation: for any point map ``T``,
-  ``T φ0¹`` is the constant ``1/sqrt(area_1)`` on shape 2, so
-  ``C[i, 0] = ⟨φ_i², T φ0¹⟩_A2 = (1/sqrt(area_1)) ∫ φ_i²``, which is 0 for ``i ≥ 1``
-  (orthogonal to the constant) and ``area_2/(sqrt(area_1) sqrt(area_2)) = sqrt(area_2/area_1)``
-  for ``i = 0``. (The ratio is area_2 over area_1, not the reverse.) The optimisation runs
-  over ``C[:, 1:]`` only; the energy still includes column 0.
-* Optimiser: ``scipy.optimize.minimize(method="L-BFGS-B")`` with the analytic gradient,
-  started from zeros (``init="zeros"``) or the rectangular identity (``init="identity"``) in
-  the free columns; ``factr``/``pgtol`` as scipy's ``fmin_l_bfgs_b`` (defaults 1e7, 1e-5).
-* Rectangular maps are allowed: ``k1 = basis_1.k``, ``k2 = basis_2.k`` (e.g. 30 and 40
-  columns for the paper's Table 2 ``k_M = 29, k_N = 39``).
+Every term in full (the resolvent mask, the descriptor normalisations, the expected values ``τ``
+and ``p_eff``, the other ``normalize`` options), the first column's derivation and the solvers'
+settings: ``docs/guide/no17.md``.
 """
-
 from __future__ import annotations
 
 import time
@@ -87,7 +54,7 @@ DESCR_NORMALIZATIONS = (True, False, "source")
 def first_column(basis_1: Basis, basis_2: Basis, k2: int | None = None) -> np.ndarray:
     """The fixed first column of every point-map-induced ``C_12``: ``(k2,)``.
 
-    ``[s·sqrt(area_2/area_1), 0, …, 0]`` with ``s = sign(φ0¹ φ0²)`` (see module doc).
+    ``[s·sqrt(area_2/area_1), 0, …, 0]`` with ``s = sign(φ0¹ φ0²)`` (derivation: ``docs/guide/no17.md``).
     """
     k2 = basis_2.k if k2 is None else k2
     col = np.zeros(k2)
@@ -120,7 +87,7 @@ def multiplication_operators(basis: Basis, descr: np.ndarray) -> np.ndarray:
 
 
 def laplacian_mask(evals_1: np.ndarray, evals_2: np.ndarray, lap: str = "resolvent", gamma: float = 0.5) -> np.ndarray:
-    """Mask ``L`` ``(k2, k1)`` of the Laplacian term ``½ Σ L_ij C_ij²`` (module doc)."""
+    """Mask ``L`` ``(k2, k1)`` of the Laplacian term ``½ Σ L_ij C_ij²`` (``docs/guide/no17.md``)."""
     lam = np.abs(np.asarray(evals_1, dtype=np.float64))
     mu = np.abs(np.asarray(evals_2, dtype=np.float64))
     if lap == "eigdiff":
@@ -144,7 +111,7 @@ def _effective_p(*coefs: np.ndarray) -> float:
 
 @dataclass
 class NO17Terms:
-    """Precomputed pieces of the NO17 energy (see module doc); build with :func:`no17_terms`.
+    """Precomputed pieces of the NO17 energy (module doc); build with :func:`no17_terms`.
 
     Attributes: ``D1 (k1, p)``, ``D2 (k2, p)`` descriptor coefficients; ``M1 (p, k1, k1)``,
     ``M2 (p, k2, k2)`` multiplication operators (None if ``mu_dcomm == 0``); ``L (k2, k1)``
@@ -176,8 +143,8 @@ def no17_terms(basis_1: Basis, basis_2: Basis, descr_1: np.ndarray, descr_2: np.
     """Precompute the NO17 energy terms for ``C_12`` of shape ``(basis_2.k, basis_1.k)``.
 
     ``descr_1`` ``(n1, p)`` and ``descr_2`` ``(n2, p)`` are paired descriptor columns
-    (column q on shape 1 corresponds to column q on shape 2). See the module doc for every
-    weight and normalisation. ``w_orient`` (the orientation term of Ren et al. 2018) is not
+    (column q on shape 1 corresponds to column q on shape 2). Every weight and normalisation:
+    ``docs/guide/no17.md``. ``w_orient`` (the orientation term of Ren et al. 2018) is not
     implemented: it must be 0.
     """
     check_basis(basis_1, "basis_1")
@@ -318,7 +285,7 @@ def fit_no17(basis_1: Basis, basis_2: Basis, descr_1: np.ndarray, descr_2: np.nd
         commutativity and descriptor-operator commutativity (divided by their sum).
         Defaults are the NO17 demo weights of pyFM (1, 1e-2, 1e-1).
     w_orient : must be 0 (orientation term not implemented).
-    lap, resolvent_gamma, normalize, normalize_descr : see the module doc.
+    lap, resolvent_gamma, normalize, normalize_descr : see ``docs/guide/no17.md``.
     init : ``"zeros"`` or ``"identity"`` for the free columns ``C[:, 1:]``.
     factr, pgtol, maxiter : L-BFGS-B stopping rules (scipy ``fmin_l_bfgs_b`` meaning).
     solver : ``"lbfgs"`` (default; L-BFGS-B with the analytic gradient, as NO17 and pyFM) or

@@ -26,7 +26,10 @@ import tempfile
 import zipfile
 from pathlib import Path, PurePosixPath
 
+from ..errors import MeshError
 from ..files import sha256_file, swap_into_place
+from ..io import read_mesh_arrays, save_mesh
+from ..mesh import Mesh
 
 MAX_MEMBER_BYTES = 1 << 30  # 1 GiB per member
 
@@ -137,21 +140,17 @@ def write_manifest_and_sums(folder: Path, manifest: dict) -> None:
 
 def write_shape(folder: Path, sid: str, vertices, faces, label: str, cls: str, triangulation: str) -> dict:
     """Validate one shape, write it as ``<folder>/shapes/<sid>.ply`` and return its manifest entry."""
-    import prodmaps as pm
-
     try:
-        mesh = pm.Mesh(vertices, faces, name=sid)
-    except pm.MeshError as exc:
+        mesh = Mesh(vertices, faces, name=sid)
+    except MeshError as exc:
         raise PrepareError(f"{label}: invalid mesh: {exc}") from None
-    pm.save_mesh(folder / "shapes" / f"{sid}.ply", mesh)
+    save_mesh(folder / "shapes" / f"{sid}.ply", mesh)
     return {"id": sid, "file": f"shapes/{sid}.ply", "class": cls, "triangulation": triangulation,
             "n_vertices": mesh.n_vertices, "n_faces": mesh.n_faces}
 
 
 def parse_mesh_bytes(data: bytes, suffix: str, scratch: Path):
     """Parse mesh bytes with the package's strict reader (no validation); returns (V, F)."""
-    from ..io import read_mesh_arrays
-
     tmp = scratch / f"_member{suffix}"
     tmp.write_bytes(data)
     try:

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import datasets
+from ..errors import MeshError
 from .archive import (
     Archive,
     PrepareError,
@@ -80,8 +81,6 @@ def prepare_faust(archive, data_root=None, *, force: bool = False, n_shapes: int
         No registration found, an id outside ``0..n_shapes-1``, two different copies of one shape,
         wrong counts, a triangulation that differs, a damaged archive or member (nothing is written).
     """
-    import prodmaps as pm
-
     say = print if verbose else (lambda *a, **k: None)
     sources = [Path(archive)] if isinstance(archive, (str, Path)) else [Path(a) for a in archive]
     if not sources:
@@ -124,7 +123,7 @@ def prepare_faust(archive, data_root=None, *, force: bool = False, n_shapes: int
                     label = f"{arc.path.name}/{member}"
                     try:
                         v, f = parse_mesh_bytes(arc.read(member), Path(member).suffix.lower(), tmp)
-                    except pm.MeshError as exc:
+                    except MeshError as exc:
                         raise PrepareError(f"{label}: {exc}") from None
                     copies.append((label, v, f))
                 label, v, f = copies[0]

@@ -42,6 +42,9 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 
 from .. import datasets
+from ..errors import MeshError
+from ..io import save_mesh
+from ..mesh import Mesh
 from .archive import (
     Archive,
     PrepareError,
@@ -210,8 +213,6 @@ def prepare_collection(dataset: str, archive, data_root=None, *, force: bool = F
     ...
     prodmaps.prepare.archive.PrepareError: unknown collection 'shrec_r'; choose from ['faust_r', 'tosca_r', ...]
     """
-    import prodmaps as pm
-
     if dataset not in COLLECTIONS:
         raise PrepareError(f"unknown collection {dataset!r}; choose from {sorted(COLLECTIONS)}")
     coll = COLLECTIONS[dataset]
@@ -266,12 +267,12 @@ def prepare_collection(dataset: str, archive, data_root=None, *, force: bool = F
                     if not n_vertices[0] <= v.shape[0] <= n_vertices[1]:
                         raise InvalidShapeError(f"{src.name}/{member}: {v.shape[0]} vertices; the shapes of "
                                                 f"{dataset} have {n_vertices[0]}..{n_vertices[1]} (about 5000)")
-                    mesh = pm.Mesh(v, f, name=sid)
-                except pm.MeshError as exc:
+                    mesh = Mesh(v, f, name=sid)
+                except MeshError as exc:
                     raise InvalidShapeError(f"{src.name}/{member}: {exc}; restore it from {REPOSITORY}") from None
                 samples = _read_indices(arc, f"{prefix}corres/{sid}.vts", n_samples, mesh.n_vertices,
                                         f"the vertex of each sample on {sid}.off")
-                pm.save_mesh(tmp / "shapes" / f"{sid}.ply", mesh)
+                save_mesh(tmp / "shapes" / f"{sid}.ply", mesh)
                 np.savetxt(tmp / "samples" / f"{sid}.txt", samples, fmt="%d")
                 extent = mesh.vertices.max(axis=0) - mesh.vertices.min(axis=0)
                 entries.append({"id": sid, "file": f"shapes/{sid}.ply", "class": coll.class_of(sid),

@@ -33,6 +33,9 @@ from pathlib import Path
 import numpy as np
 
 from .. import datasets
+from ..errors import MeshError
+from ..mesh import Mesh
+from ..mesh import repair as repair_mesh
 from .archive import (
     Archive,
     PrepareError,
@@ -77,9 +80,6 @@ def _parse_table(data: bytes, member: str, width: int, dtype) -> np.ndarray:
 def prepare_tosca(archive, data_root=None, *, force: bool = False, repair: bool = False,
                   expected_vertices: dict | None = None, classes=CLASSES, verbose: bool = True) -> Path:
     """Read, verify and write TOSCA; returns the dataset folder. Raises :class:`PrepareError`."""
-    import prodmaps as pm
-    from prodmaps.mesh import repair as repair_mesh
-
     say = print if verbose else (lambda *a, **k: None)
     expected_vertices = EXPECTED_VERTICES if expected_vertices is None else expected_vertices
     root = Path(data_root) if data_root is not None else datasets.data_root()
@@ -136,9 +136,9 @@ def prepare_tosca(archive, data_root=None, *, force: bool = False, repair: bool 
                     if faces0 is None:
                         faces0, nv0 = f, v.shape[0]
                         try:
-                            pm.Mesh(v, f)
+                            Mesh(v, f)
                             kept, faces_out = np.arange(nv0), f
-                        except pm.MeshError as exc:
+                        except MeshError as exc:
                             if not repair:
                                 raise PrepareError(f"{sid}: invalid mesh: {exc}. Re-run with --repair to apply "
                                                    "the same topological repair to the whole class") from None

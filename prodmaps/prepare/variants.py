@@ -31,8 +31,10 @@ from unittest import mock
 
 import numpy as np
 
+from .. import datasets as ds
 from ..files import atomic_path
-from ..mesh import face_radius_ratio, mean_edge_length
+from ..io import save_mesh
+from ..mesh import face_radius_ratio, mean_edge_length, repair
 from .archive import PrepareError, argument_parser, run_cli
 
 RECIPES = ("remesh_iso", "remesh_nonuniform", "thin")
@@ -102,8 +104,6 @@ def make_variant(mesh, recipe: str, **params):
     """Return ``(variant pm.Mesh, gt_to_family (n_variant,) int64, stats dict)``."""
     from scipy.spatial import cKDTree
 
-    from prodmaps.mesh import repair
-
     if recipe not in _FUNCS:
         raise PrepareError(f"unknown recipe {recipe!r}; choose from {RECIPES}")
     v, f = _FUNCS[recipe](np.asarray(mesh.vertices), np.asarray(mesh.faces), **params)
@@ -126,9 +126,6 @@ def make_variants(dataset: str, shape_ids, recipes=RECIPES, data_root=None, *, s
                   coarse_ratio: float = 0.25, iso_scale: float = 1.15, force: bool = False,
                   verbose: bool = True) -> list[Path]:
     """Write the ``recipes`` variants of ``shape_ids`` and their ground truth; returns the files written."""
-    import prodmaps as pm
-    import prodmaps.datasets as ds
-
     root = Path(data_root) if data_root is not None else ds.data_root()
     with mock.patch.dict(os.environ, PRODMAPS_DATA=str(root)):  # restored afterwards
         folder = ds.dataset_dir(dataset)
@@ -157,7 +154,7 @@ def make_variants(dataset: str, shape_ids, recipes=RECIPES, data_root=None, *, s
                     print(f"{dataset}/{sid}: {r} ...", flush=True)
                 var, gt, stats = make_variant(mesh, r, seed=seed, axis=axis, coarse_ratio=coarse_ratio,
                                               scale=iso_scale)
-                pm.save_mesh(ply, var)  # atomic (temporary name + rename), as the two below
+                save_mesh(ply, var)  # atomic (temporary name + rename), as the two below
                 with atomic_path(gtf) as tmp:
                     np.savetxt(tmp, gt, fmt="%d")
                 meta = {"base": sid, "recipe": r, "seed": seed, "axis": axis, "coarse_ratio": coarse_ratio,

@@ -159,7 +159,8 @@ def test_area_curves_are_measured_in_workers_with_the_same_numbers(store):
                         np.testing.assert_allclose(got[c][st][m][f], ref[c][st][m][f], rtol=1e-13, atol=0)
     one = curves[1].mean()["paper"]["transfer"]["B"]["Indicator"]
     assert one.shape == gamma.shape and np.all(np.diff(one) >= 0)  # a fraction grows with gamma
-    assert len(curves[2]._curves["paper"]["approx"]["std"]) == len(PAIRS)
+    per_pair = curves[2].auc_per_pair()["paper"]["approx"]["std"]
+    assert per_pair and all(len(v) == len(PAIRS) for v in per_pair.values())  # one curve per pair, every family
 
 
 def test_point_map_recovery_does_not_depend_on_the_number_of_workers(store):

@@ -16,6 +16,30 @@ def store(tmp_path_factory):
     return ShapeStore(DS, 40, cache_folder=tmp_path_factory.mktemp("cache"))
 
 
+def eps_section(ridge_eps: dict | None) -> list:
+    """The report's section on Approach A's ε (``ns.report_blocks`` of a study with these ``ridge_eps`` results).
+
+    The blocks from the section's heading on (``[]`` without one); the study's own scores are one row
+    beside it, with no per-cell errors, so nothing follows the section.
+    """
+    scores = {"library": {"std": {"cells": 1, "within": 1, "mean_abs": 0.0, "max_abs": 0.0}}}
+    blocks = ns.report_blocks({"scores": scores, "ridge_eps": ridge_eps}, "the embedded humans")
+    head = [i for i, b in enumerate(blocks) if b == ("h", 3, "Approach A's ε (not in the paper)")]
+    assert len(head) <= 1 and blocks[0][0] == "h"  # the study's own section comes first, then at most one ε section
+    return blocks[head[0]:] if head else []
+
+
+SQUARED = {"3e-05": {"cells": 30, "within": 21, "mean_abs": 0.024, "max_abs": 0.09}}  # the squared ridge's scores
+
+
+def norm_penalty_section(norm_penalty: dict | None) -> list:
+    """The blocks on Equation 4 as printed: what follows the squared ridge's four (heading, text, table, conclusion)."""
+    section = eps_section({"tables_eps": 1e-6, "best": "3e-05", "scores": SQUARED, "hks": {},
+                           "norm_penalty": norm_penalty})
+    assert section[3][1].startswith("Conclusion, computed from the numbers: the published Approach A column")
+    return section[4:]
+
+
 def test_ridge_columns_at_two_weights_are_the_registry_ridge_at_those_weights(store):
     """Two ridge columns of one run give the numbers of a run with either alone; a larger ε shrinks more."""
     fams = ["XYZ", "HKS", "Random"]
@@ -77,18 +101,18 @@ def test_ridge_eps_report_orders_eps_by_value_and_computes_its_conclusion():
          "hks": {e: {"published": {"T6 29/39 approx": 0.14}, "published reading": {"T6 29/39 approx": v},
                      "textbook": {"T6 29/39 approx": w}}
                  for e, v, w in (("0.0001", 0.22, 0.002), ("1e-06", 0.014, 0.0004), ("3e-05", 0.123, 0.001))}}
-    blocks = ns._ridge_eps_blocks(r)
+    blocks = eps_section(r)
     table = next(b for b in blocks if b[0] == "table")
     assert [row[0] for row in table[2]] == ["1e-06 (the tables')", "3e-05", "0.0001"]
     text = blocks[-1][1]
     assert "ε = 3e-05 (21 of 30" in text and "against 14 at the tables' 1e-06" in text
     assert "gives 0.000 to 0.002 over the ε tried, none within ±0.02" in text and "0.014 to 0.220" in text
-    assert ns._ridge_eps_blocks(None) == [] and ns._ridge_eps_blocks({"scores": {}}) == []
+    assert eps_section(None) == [] and eps_section({"scores": {}}) == []
     # other data: the textbook HKS near the published value is said so, with its ε; the tables' ε the best
     r["hks"]["0.0001"]["textbook"]["T6 29/39 approx"] = 0.135
     r["tables"], r["best"] = {"T1": [[9, 9]], "T6": [[29, 39]]}, "1e-06"
     r["scores"]["1e-06"]["within"] = 25
-    blocks = ns._ridge_eps_blocks(r)
+    blocks = eps_section(r)
     text = blocks[-1][1]
     assert "within ±0.02 of it at ε = 0.0001 (0.135)" in text and "none within" not in text
     assert "ε = 1e-06 (the tables' ε) (25 of 30" in text and "against" not in text
@@ -131,14 +155,13 @@ def test_equation_4_as_printed_is_scored_beside_the_squared_ridge(store):
 
 
 def test_norm_penalty_report_computes_which_form_fits():
-    sq = {"3e-05": {"cells": 30, "within": 21, "mean_abs": 0.024, "max_abs": 0.09}}
     r = {"best": "0.003",
          "scores": {"0.01": {"cells": 30, "within": 15, "mean_abs": 0.042, "max_abs": 0.37},
                     "0.003": {"cells": 30, "within": 18, "mean_abs": 0.033, "max_abs": 0.22}},
          "hks": {e: {"published": {"T5 29/29 transfer": 0.43, "T1 9/9 transfer": 0.15},
                      "published reading": {"T5 29/29 transfer": v, "T1 9/9 transfer": 0.146}}
                  for e, v in (("0.01", 0.70), ("0.003", 0.653))}}
-    blocks = ns._norm_penalty_blocks(r, sq, "3e-05")
+    blocks = norm_penalty_section(r)
     table = next(b for b in blocks if b[0] == "table")
     assert [row[0] for row in table[2]] == ["0.003", "0.01"]
     assert table[2][0][-1] == "0.653 (T5 29/29 transfer, published 0.43)"
@@ -148,12 +171,11 @@ def test_norm_penalty_report_computes_which_form_fits():
     assert "the squared form (the tables') fits the published column better" in text
     assert "transfer cell farthest from the paper is T5 29/29 transfer: 0.653 (published 0.43)" in text
     r["scores"]["0.003"]["within"] = 24
-    assert "the printed form fits the published column better" in ns._norm_penalty_blocks(r, sq, "3e-05")[-1][1]
+    assert "the printed form fits the published column better" in norm_penalty_section(r)[-1][1]
     r["scores"]["0.003"]["within"] = 21  # a tie in cells: the smaller mean |diff| decides, as best_reading
-    assert "the squared form (the tables') fits" in ns._norm_penalty_blocks(r, sq, "3e-05")[-1][1]
+    assert "the squared form (the tables') fits" in norm_penalty_section(r)[-1][1]
     r["scores"]["0.003"]["mean_abs"] = 0.024
-    assert "the two forms fit the published column equally" in ns._norm_penalty_blocks(r, sq, "3e-05")[-1][1]
-    assert ns._norm_penalty_blocks(None, sq, "3e-05") == []
-    # the whole ε section carries it after the squared ridge's conclusion
-    full = {"tables_eps": 1e-6, "best": "3e-05", "scores": sq, "hks": {}, "norm_penalty": r}
-    assert ns._ridge_eps_blocks(full)[-1] == ns._norm_penalty_blocks(r, sq, "3e-05")[-1]
+    assert "the two forms fit the published column equally" in norm_penalty_section(r)[-1][1]
+    assert norm_penalty_section(None) == [] and norm_penalty_section({"scores": {}}) == []
+    # the whole ε section ends with it, after the squared ridge's conclusion
+    assert len(norm_penalty_section(r)) == 3 and norm_penalty_section(r)[0][1].startswith("Equation 4 as printed")

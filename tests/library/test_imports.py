@@ -16,6 +16,10 @@ notebooks); ``prodmaps.__main__`` is the command line, on top of everything.
 * **Private reach-ins**: ``from prodmaps.x import _name`` or ``x._name`` (``x`` a prodmaps module
   bound by an import), and ``obj._name`` where ``_name`` is not defined in the module using it
   but is a private function, method or attribute of another prodmaps module.
+* **Imports at module level**: a prodmaps module imported inside a function is listed in
+  ``FUNCTION_LEVEL_IMPORTS`` with its reason (a cycle, or a heavy optional dependency), or moved up.
+* **Tests use the public API**: at most ``MAX_PRIVATE_IN_TESTS`` private functions of the library are
+  called, imported or monkeypatched by the tests (``tests/**/*.py``).
 """
 
 from __future__ import annotations
@@ -151,6 +155,63 @@ def test_imports_only_go_down_the_layers():
     assert upward == []
 
 
+# Every import of a prodmaps module inside a function (or a class body), keyed by (importing module,
+# imported module or name), with the one-line reason it cannot be at module level: a cycle it would close
+# (name the cycle), or a prodmaps module that loads a heavy optional dependency at import time. Empty:
+# every package-internal import is at module level.
+FUNCTION_LEVEL_IMPORTS: dict[tuple[str, str], str] = {}
+
+
+def _module_level_statements(tree) -> set[int]:
+    """ids of the statements that run when the module is imported (the body, through if/try/with blocks)."""
+    out, todo = set(), list(tree.body)
+    while todo:
+        node = todo.pop()
+        out.add(id(node))
+        if isinstance(node, (ast.If, ast.Try, ast.With)):
+            todo += node.body + node.orelse if not isinstance(node, ast.With) else node.body
+            if isinstance(node, ast.Try):
+                todo += node.finalbody + [s for h in node.handlers for s in h.body]
+    return out
+
+
+def _function_level_imports() -> dict[tuple[str, str], list[int]]:
+    """``(importing module, imported module or module.name) -> [lines]`` of imports below module level."""
+    out: dict[tuple[str, str], list[int]] = {}
+    for name, tree in TREES.items():
+        top = _module_level_statements(tree)
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.Import, ast.ImportFrom)) and id(node) not in top:
+                for mod, what in _targets(name, node):
+                    if mod in MODULES:
+                        out.setdefault((name, mod if what is None else f"{mod}.{what}"), []).append(node.lineno)
+    return out
+
+
+def test_package_internal_imports_are_at_module_level_unless_listed_with_a_reason():
+    found = _function_level_imports()
+    new = {f"{m}:{lines} imports {what}" for (m, what), lines in found.items()
+           if (m, what) not in FUNCTION_LEVEL_IMPORTS}
+    gone = set(FUNCTION_LEVEL_IMPORTS) - set(found)
+    print("\n".join(f"{m} imports {what} in a function: {why}" for (m, what), why in FUNCTION_LEVEL_IMPORTS.items()))
+    assert not new, f"move to module level, or list with the cycle or heavy dependency: {sorted(new)}"
+    assert not gone, f"no longer imported in a function, drop from FUNCTION_LEVEL_IMPORTS: {sorted(gone)}"
+    assert all(why.strip() and "\n" not in why for why in FUNCTION_LEVEL_IMPORTS.values())
+
+
+def test_the_function_level_import_check_finds_local_imports(monkeypatch):
+    source = ("from .approx import PAPER_RTOL\n"
+              "try:\n    from . import basis\nexcept ImportError:\n    basis = None\n"
+              "def f():\n    from .products import product_basis\n    import prodmaps.mesh as m\n    return m\n"
+              "class C:\n    def g(self):\n        from . import approx\n        return approx\n")
+    monkeypatch.setitem(MODULES, "prodmaps.probe", ROOT / "probe.py")
+    monkeypatch.setitem(TREES, "prodmaps.probe", ast.parse(source))
+    found = {k: v for k, v in _function_level_imports().items() if k[0] == "prodmaps.probe"}
+    assert found == {("prodmaps.probe", "prodmaps.products.product_basis"): [7],
+                     ("prodmaps.probe", "prodmaps.mesh"): [8],
+                     ("prodmaps.probe", "prodmaps.approx"): [12]}
+
+
 def _private_defined(tree) -> set[str]:
     """Private names a module defines: functions, classes, methods, assigned names and attributes."""
     out = set()
@@ -223,3 +284,154 @@ def test_the_private_check_finds_reach_ins(monkeypatch, source, expected):
     monkeypatch.setitem(PRIVATE, "prodmaps.other", {"_gram_eig", "_solver_scale"})
     found = _private_uses("prodmaps.probe")
     assert len(found) == len(expected) and all(e in f for e, f in zip(expected, found))
+
+
+# ----------------------------------------------------------------- the tests' calls of private functions
+# Tests exercise the public API: at most MAX_PRIVATE_IN_TESTS private functions of the library (functions,
+# methods and classes whose name starts with one underscore) are called, imported, passed around or
+# monkeypatched by name anywhere under tests/. Names the library does not define (pytest's and
+# monkeypatch's internals, third-party privates such as pyFM's ``model._set_k``) and names a test file
+# defines itself are not the library's and do not count; private data (module constants, attributes) is
+# not a function and does not count either.
+TESTS = ROOT.parent / "tests"
+MAX_PRIVATE_IN_TESTS = 5
+
+
+def _private_callables() -> dict[str, set[str]]:
+    """``name -> {qualified name}`` of every private module-level function, class and method of the library.
+
+    A private module-level name bound by assignment counts when its module calls it (``_clock =
+    time.perf_counter`` then ``_clock()``): a function by another name.
+    """
+    out: dict[str, set[str]] = {}
+    for name, tree in TREES.items():
+        called = {n.func.id for n in ast.walk(tree) if isinstance(n, ast.Call) and isinstance(n.func, ast.Name)}
+        for node in tree.body:
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target] \
+                if isinstance(node, ast.AnnAssign) else []
+            for t in targets:
+                if isinstance(t, ast.Name) and t.id in called and t.id.startswith("_") and not t.id.startswith("__"):
+                    out.setdefault(t.id, set()).add(f"{name}.{t.id}")
+
+    def visit(body, prefix):
+        for node in body:
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                qual = f"{prefix}.{node.name}"
+                if node.name.startswith("_") and not node.name.startswith("__"):
+                    out.setdefault(node.name, set()).add(qual)
+                if isinstance(node, ast.ClassDef):
+                    visit(node.body, qual)
+
+    for name, tree in TREES.items():
+        visit(tree.body, name)
+    return out
+
+
+PRIVATE_CALLABLES = _private_callables()
+
+
+def _test_defined(tree) -> set[str]:
+    """Names a test file binds itself (helpers, fixtures, variables, arguments, attributes it sets)."""
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            out.add(node.name)
+        elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+            out.add(node.id)
+        elif isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store):
+            out.add(node.attr)
+        elif isinstance(node, ast.arg):
+            out.add(node.arg)
+    return out
+
+
+def _test_module_aliases(tree) -> dict[str, str]:
+    """Local names a test file binds to prodmaps modules by its imports."""
+    out = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.split(".")[0] == "prodmaps":
+                    out[a.asname or "prodmaps"] = a.name if a.asname else "prodmaps"
+        elif isinstance(node, ast.ImportFrom) and not node.level and (node.module or "").split(".")[0] == "prodmaps":
+            for a in node.names:
+                if f"{node.module}.{a.name}" in MODULES:
+                    out[a.asname or a.name] = f"{node.module}.{a.name}"
+    return out
+
+
+def _label(name: str, module: str | None = None) -> str:
+    quals = sorted(PRIVATE_CALLABLES[name])
+    inside = [q for q in quals if module and q.startswith(module + ".")]
+    return " | ".join(inside or quals)
+
+
+def _private_calls_in(source: str) -> list[tuple[int, str]]:
+    """``(line, qualified name)`` of every use of a private library function in one test file's source."""
+    tree = ast.parse(source)
+    own, aliases = _test_defined(tree), _test_module_aliases(tree)
+    found = []
+
+    def private(name) -> bool:
+        return (isinstance(name, str) and name.startswith("_") and not name.startswith("__")
+                and name in PRIVATE_CALLABLES and name not in own)
+
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and not node.level and (node.module or "").split(".")[0] == "prodmaps":
+            found += [(node.lineno, _label(a.name, node.module)) for a in node.names
+                      if a.name.startswith("_") and not a.name.startswith("__") and a.name in PRIVATE_CALLABLES]
+        elif isinstance(node, ast.Attribute) and private(node.attr):  # x._f(...), x._f passed or wrapped
+            module = aliases.get(node.value.id) if isinstance(node.value, ast.Name) else None
+            found.append((node.lineno, _label(node.attr, module)))
+        elif isinstance(node, ast.Call) and node.args:
+            func = node.func.attr if isinstance(node.func, ast.Attribute) else getattr(node.func, "id", "")
+            strings = [a.value for a in node.args if isinstance(a, ast.Constant) and isinstance(a.value, str)]
+            if func in ("setattr", "delattr") and len(node.args) >= 2 and private(getattr(node.args[1], "value", None)):
+                target = node.args[0]
+                module = aliases.get(target.id) if isinstance(target, ast.Name) else None
+                found.append((node.lineno, _label(node.args[1].value, module)))  # monkeypatch.setattr(mod, "_f", ...)
+            elif func in ("setattr", "delattr", "patch", "object"):  # monkeypatch.setattr("prodmaps.x._f", ...)
+                for s in strings:
+                    head, _, leaf = s.rpartition(".")
+                    if head.split(".")[0] == "prodmaps" and private(leaf):
+                        found.append((node.lineno, _label(leaf, head)))
+    return sorted(set(found))
+
+
+def _private_calls_in_tests() -> dict[str, list[str]]:
+    """``qualified name -> ["tests/...py:line", ...]`` over every test file."""
+    out: dict[str, list[str]] = {}
+    for path in sorted(TESTS.rglob("*.py")):
+        for line, label in _private_calls_in(path.read_text(encoding="utf-8")):
+            out.setdefault(label, []).append(f"{path.relative_to(TESTS.parent)}:{line}")
+    return out
+
+
+def test_tests_call_at_most_five_private_functions_of_the_library():
+    found = _private_calls_in_tests()
+    listing = "\n".join(f"{label}: {', '.join(where)}" for label, where in sorted(found.items()))
+    print(f"{len(found)} private functions of the library used by the tests:\n{listing}")
+    assert len(found) <= MAX_PRIVATE_IN_TESTS, listing
+
+
+@pytest.mark.parametrize("source, expected", [
+    ("from prodmaps.approx import _lasso_violation\n", ["prodmaps.approx._lasso_violation"]),
+    ("from prodmaps.fields import quadmesh as qm\nqm._close_holes(Q, 8)\n", ["prodmaps.fields.quadmesh._close_holes"]),
+    ("def test(ext):\n    assert ext._materialize_solver()\n", ["prodmaps.products.ProductBasis._materialize_solver"]),
+    ("from prodmaps import eigensolver\ndef test(monkeypatch):\n"
+     "    monkeypatch.setattr(eigensolver, '_cholesky_inverse', None)\n", ["prodmaps.eigensolver._cholesky_inverse"]),
+    ("def test(monkeypatch):\n    monkeypatch.setattr('prodmaps.geodesics._HeatSolver', None)\n",
+     ["prodmaps.geodesics._HeatSolver"]),
+    ("def _close_holes(Q):\n    return Q\n_close_holes(1)\nx._close_holes(2)\n", []),  # the test's own helper
+    ("model._set_k(10)\nrequest._pyfuncitem\nmonkeypatch._setattr\n", []),  # not the library's
+    ("from prodmaps import transfers\ndef test(monkeypatch):\n"
+     "    monkeypatch.setattr(transfers, '_BLOCK_ROWS', 8)\n", []),  # private data, not a function
+])
+def test_the_private_call_check_finds_private_functions(monkeypatch, source, expected):
+    for name, qual in (("_lasso_violation", "prodmaps.approx._lasso_violation"),
+                       ("_close_holes", "prodmaps.fields.quadmesh._close_holes"),
+                       ("_materialize_solver", "prodmaps.products.ProductBasis._materialize_solver"),
+                       ("_cholesky_inverse", "prodmaps.eigensolver._cholesky_inverse"),
+                       ("_HeatSolver", "prodmaps.geodesics._HeatSolver")):
+        monkeypatch.setitem(PRIVATE_CALLABLES, name, {qual})
+    assert [label for _, label in _private_calls_in(source)] == expected

@@ -29,19 +29,23 @@ def test_quad_mesh_stats_on_a_cube_and_a_grid():
 
 def test_close_holes_gives_one_reversed_polygon_per_hole():
     V, Q = _cube()
-    polys = qm._close_holes(Q[1:], 8)  # one face missing: its square comes back, same orientation
+    polys = pf.close_holes(Q[1:], 8)  # one face missing: its square comes back, same orientation
     assert len(polys) == 1 and len(polys[0]) == 4
     p = polys[0]
     k = int(np.flatnonzero(p == Q[0][0])[0])
     np.testing.assert_array_equal(np.roll(p, -k), Q[0])
     s = qm.quad_mesh_stats(V, Q[1:], polys)
     assert s["n_boundary_edges"] == 0 and s["n_quads"] == 5 and s["n_polygons"] == 1
-    assert [len(p) for p in qm._close_holes(Q[2:], 8)] == [4, 4]  # two opposite faces: two holes
+    assert [len(p) for p in pf.close_holes(Q[2:], 8)] == [4, 4]  # two opposite faces: two holes
     rest = Q[[1, 3, 4, 5]]  # faces 0 and 2 share the edge 0-1: one hexagon
-    polys = qm._close_holes(rest, 8)
+    polys = pf.close_holes(rest, 8)
     assert [len(p) for p in polys] == [6]
     assert qm.quad_mesh_stats(V, rest, polys)["n_boundary_edges"] == 0
-    assert qm._close_holes(Q, 8) == []
+    assert pf.close_holes(Q, 8) == []
+    with pytest.raises(ValueError, match="number of vertices"):
+        pf.close_holes(Q, 7)
+    with pytest.raises(ValueError, match=r"\(q, 4\)"):
+        pf.close_holes(Q[:, :3], 8)
 
 
 @pytest.fixture(scope="module")
@@ -65,10 +69,12 @@ def test_seamless_parametrization_is_integer_and_follows_the_field(ellipsoid_par
     TT, TTi = igl.triangle_triangle_adjacency(p["F"])
     f, e = np.nonzero(p["rot"] != 0)
     g, eg = TT[f, e], TTi[f, e]
+    quarter = np.array([[0.0, -1.0], [1.0, 0.0]])  # the rotation by 90° counter-clockwise
+    R = np.stack([np.linalg.matrix_power(quarter, r) for r in p["rot"][f, e] % 4])  # (s, 2, 2) R^rot
     for end_f, end_g in ((e, (eg + 1) % 3), ((e + 1) % 3, eg)):
         pf_ = p["uv"][p["Fc"][f, end_f]]
         pg_ = p["uv"][p["Fc"][g, end_g]]
-        np.testing.assert_allclose(qm._apply(p["rot"][f, e], p["trans"][f, e], pf_), pg_, atol=1e-9)
+        np.testing.assert_allclose(np.einsum("sij,sj->si", R, pf_) + p["trans"][f, e], pg_, atol=1e-9)
     # singular vertices at integer points (all but at most the root of the rounding)
     sc = np.isin(p["I"], p["singular"])
     off = np.abs(p["uv"][sc] - np.round(p["uv"][sc])).max(axis=1)

@@ -43,6 +43,7 @@ from pathlib import Path
 from ...files import parse_toml, read_json
 from . import compare
 from .compare import ROUNDING_REL
+from .families import PAPER_LABELS
 from .results import flatten, to_jsonable
 
 __all__ = ["Claim", "Verdict", "Paired", "paired", "span_ties", "load_ledger", "evaluate", "evaluate_folder",
@@ -464,8 +465,6 @@ def _reading_rows(values: dict, reading: str | None) -> tuple[dict, set]:
     Rows labelled ``"HKS (textbook)"`` (a family under a reading other than the run's) are dropped, or,
     for ``reading="textbook"``, take the place of ``"HKS"``.
     """
-    from .families import PAPER_LABELS
-
     labels = set(PAPER_LABELS.values())
     found, out = set(), {}
     for key, v in values.items():

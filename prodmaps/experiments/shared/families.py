@@ -1,70 +1,29 @@
 """The paper's families of test functions (Section 5.1), as seeded generators.
 
-Every family produces a matrix ``F_1`` ``(n1, m)`` of ``m`` functions on the source shape
-(one function per column). The ground truth of a transfer to a target shape is the
-**pull-back through the ground-truth point map** ``p2p_21`` (:mod:`prodmaps.conventions`):
-``G_2_true = F_1[p2p_21]`` ``(n2, m)``. No family is recomputed on the target.
+Holds one :class:`FamilySpec` per family (:data:`FAMILIES`: name, the paper's row label, default
+count, whether it depends on ``k_M``), :func:`make_family` (the functions of one family on a source
+shape), :func:`pull_back` (their ground truth on a target), the readings of the definitions the
+paper leaves open (:data:`READINGS`, :data:`PUBLISHED_READINGS`, :func:`resolve_reading`) and
+:func:`hks_columns`, :func:`descriptor_key`, :func:`family_seed`.
 
-Families (``FAMILIES``; ``m`` is the default number of columns; "k_M" marks the families that
-depend on the source basis size, computed from ``basis_1.truncate(k_M + 1)``; the paper's
-``k_M`` counts non-constant functions, so ``k_M = 9`` uses 10 columns):
+Conventions (:mod:`prodmaps.conventions`)
+-----------------------------------------
+* Every family produces a matrix ``F_1`` ``(n1, m)`` of ``m`` functions on the source shape (one
+  function per column). The ground truth of a transfer is the **pull-back through the
+  ground-truth point map** ``p2p_21``: ``G_2_true = F_1[p2p_21]`` ``(n2, m)``. No family is
+  recomputed on the target.
+* ``k_M`` is the paper's: it counts non-constant functions. A family marked "k_M" (``hk_k``,
+  ``HKS``, ``WKS``, ``Random``) is computed from ``basis_1.truncate(k_M + 1)``: ``k_M = 9`` uses 10
+  columns. The others (``hk_K``, ``XYZ``, ``Indicator``, ``SHOT``, ``AWFT``) do not depend on it.
+* The module's defaults are each family's **textbook** reading; the experiments use the published
+  readings unless told ``family_reading="textbook"``; ``"HKS:textbook"`` names one family under
+  one reading.
+* Seeds are parameters (:func:`family_seed`); expensive per-shape pieces (SHOT, AWFT, the
+  200-eigenpair basis) are reused through a caller-owned ``cache`` (:class:`prodmaps.cache.Cache`).
 
-=========== ==== ===== =================================================================
-name         m   k_M   definition
-=========== ==== ===== =================================================================
-hk_k         10  yes   heat kernels ``h_t(x, ·)`` at ``m`` random distinct vertices ``x``
-                       (``rng.choice(n1, m, replace=False)``, the first draw),
-                       from the ``k_M + 1`` eigenpairs (so in the span of the basis)
-hk_K         10  no    the same kernels from 200 eigenpairs (constant included)
-HKS          10  yes   HKS at 10 random times, log-uniform in ``[4 ln10/λ_max, 4 ln10/λ_1]``
-                       of the ``k_M + 1`` basis (SOG09 range), unscaled ``h_t(x, x)``
-WKS          10  yes   WKS at 10 random energies, uniform in the energy range of
-                       :func:`prodmaps.descriptors.wks_energies` (100-energy grid:
-                       σ = 7·δ, margins 2σ), ASC11 scaling, from the ``k_M + 1`` basis
-Random       10  yes   ``B a`` with ``B`` the order-2 extended basis of the ``k_M + 1`` basis
-                       (``pm.product_basis(..., pairs="unique")``: constant, ``φ_l``, and
-                       ``φ_l φ_m`` for ``1 <= l <= m <= k_M``; 55 columns for ``k_M = 9``),
-                       each column scaled to unit area norm, ``a ~ N(0, 1)`` i.i.d.
-XYZ           3  no    the x, y, z vertex coordinates of the source
-Indicator    10  no    indicators of geodesic balls (edge-graph Dijkstra distance) around
-                       random vertices, the radius chosen so the ball covers a random
-                       fraction ``U[0.1, 0.5]`` of the area (the region size is not
-                       stated in the paper; up to half the surface, beyond which the
-                       complement is the smaller region)
-SHOT         10  no    10 random columns of :func:`prodmaps.descriptors.shot` (352 dims,
-                       default radius ``0.1·sqrt(area)``), chosen among columns non-zero on
-                       at least 1 % of the vertices (the others have no meaningful
-                       relative error)
-AWFT         10  no    10 random columns of :func:`prodmaps.descriptors.awft` (30 dims with
-                       the defaults; the published reading, :data:`AWFT_RELEASE`, has 90)
-=========== ==== ===== =================================================================
-
-The table above gives each family's **textbook** reading (this module's defaults). The paper does
-not state the parameters: :data:`READINGS` names every plausible reading of each definition as
-options of :func:`make_family`, and :data:`PUBLISHED_READINGS` those that reproduce the paper's
-standard columns. The experiments (:mod:`prodmaps.experiments.shared.protocol`, the store) use the
-published readings unless told ``family_reading="textbook"``; an entry ``"HKS:textbook"`` names one
-family under one reading.
-
-HKS and WKS use the ``k_M + 1`` source eigenpairs by default, as Section 5.2 describes them
-(``h_t(x,x) = Σ_{i<=k_M} α_i φ_i²``, exactly in the product span); the option ``n_eig``
-computes them from more eigenpairs instead (then they are no longer in that span).
-
-Heat kernel time (not stated in the paper): ``t = t_rel · area`` with ``t_rel = 1e-3`` by
-default (a localised kernel, Gaussian width ``~sqrt(4t) ≈ 0.06·sqrt(area)``); a parameter. The
-kernels' "random point x" is a vertex drawn uniformly (``points="vertices"``, the default) or a
-point uniform on the surface (``points="area"``: a vertex drawn with probability proportional to
-its lumped area).
-Relative errors are computed column by column, so the per-column scaling of HKS/WKS does not
-change any reported number.
-
-Caching: SHOT, AWFT and the 200-eigenpair basis cost seconds per shape; pass the same
-``cache`` (a :class:`prodmaps.cache.Cache`, one per source mesh, owned by the caller, e.g.
-:meth:`prodmaps.experiments.shared.store.ShapeStore.family_cache`) to reuse them across calls. The keys
-are :func:`descriptor_key` (SHOT/AWFT), ``("basis", n_eig)`` and AWFT's own (its operators'
-eigenpairs, shared by every AWFT reading of the mesh: :func:`prodmaps.descriptors.awft`).
+Each family's definition, the readings, the heat kernels' time and points, and the cache keys:
+``docs/guide/function_families.md``.
 """
-
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -74,7 +33,9 @@ import numpy as np
 from ... import descriptors as _d
 from ...basis import Basis, eigenbasis
 from ...cache import Cache
+from ...geodesics import distances
 from ...mesh import Mesh, check_mesh, check_vertex_indices
+from ...products import evaluate_products, product_basis
 
 __all__ = ["FAMILIES", "PAPER_LABELS", "AWFT_RELEASE", "HEAT_TIMES", "HEAT_POINTS", "READINGS", "TIED_READINGS",
            "PUBLISHED_READINGS", "READING_SETS", "resolve_reading", "split_entry", "entry_label", "sort_entries",
@@ -350,8 +311,6 @@ def _gen_random(ctx, rng, m, *, coefficients: str = "normal", pairs: str = "uniq
     ``φ·sqrt(area)``, and their products as they come). ``coefficients``: i.i.d. ``N(0, 1)`` or
     uniform on ``[0, 1]``. Every reading is free of the mesh's units.
     """
-    from ...products import evaluate_products, product_basis
-
     if coefficients not in RANDOM_COEFFICIENTS:
         raise ValueError(f"coefficients must be one of {RANDOM_COEFFICIENTS}, got {coefficients!r}")
     if scaling not in RANDOM_SCALINGS:
@@ -369,8 +328,6 @@ def _gen_random(ctx, rng, m, *, coefficients: str = "normal", pairs: str = "uniq
 
 
 def _gen_indicator(ctx, rng, m, *, min_frac: float = 0.1, max_frac: float = 0.5, method: str = "graph"):
-    from ...geodesics import distances
-
     if not 0 < min_frac <= max_frac < 1:
         raise ValueError(f"need 0 < min_frac <= max_frac < 1, got {min_frac}, {max_frac}")
     mesh = ctx["mesh"]
@@ -452,7 +409,7 @@ def make_family(name: str, mesh_1: Mesh, basis_1: Basis, *, k_M: int, seed: int,
     p2p_21 : optional ``(n2,)`` ground-truth point map (target vertex -> source vertex).
     m : number of functions (default ``FAMILIES[name].m``; XYZ always has 3).
     cache : optional :class:`prodmaps.cache.Cache`, one per source mesh, reused for
-        SHOT/AWFT/200-eigenpair bases (see the module doc for the keys).
+        SHOT/AWFT/200-eigenpair bases (the keys: ``docs/guide/function_families.md``).
     options : family parameters (``t_rel``, ``n_eig_K``, ``points`` for the heat kernels; ``num_grid``,
         ``variance``, ``margin``, ``n_eig`` for WKS; ``factor``, ``n_eig`` for HKS; ``min_frac``, ``max_frac``,
         ``method`` for Indicator; :func:`~prodmaps.descriptors.shot` /

@@ -28,6 +28,8 @@ from __future__ import annotations
 import atexit
 import os
 
+from .store import ShapeStore
+
 __all__ = ["WORKERS_ENV", "default_workers", "map_by_source", "map_tasks", "one_blas_thread", "shutdown_workers",
            "store_spec", "worker_store"]
 
@@ -230,8 +232,6 @@ _STORES: dict = {}
 
 def worker_store(spec):
     """The ShapeStore of ``spec`` in this process, built once and kept (a ShapeStore is returned as is)."""
-    from .store import ShapeStore
-
     if isinstance(spec, ShapeStore):
         return spec
     if spec not in _STORES:

@@ -1,25 +1,10 @@
 """The paper's published Tables 1–6 (package data) and how our values are matched to them.
 
-Table values: how a notebook reports them
------------------------------------------
-A notebook that reproduces (part of) a paper table puts a list under ``"table"`` in its
-results (``nbtools.write_results(out_dir, {"table": [...], ...}, params)``), one entry per
-number, in the long format of ``paper/published_tables.csv``
-(columns ``table,fmap,k_M,k_N,function,stage,method,value``)::
-
-    {"table": 1, "function": "HKS", "stage": "transfer", "method": "std", "value": 0.5412,
-     "fmap": "ground_truth", "k_M": 9, "k_N": 9}
-
-* ``table``: the paper's table number (``1``, ``"1"``, ``"T1"`` and ``"Table 1"`` all work);
-* ``function``: exactly as in the CSV (case matters: ``"hk k"`` and ``"hk K"`` differ):
-  ``hk k``, ``hk K``, ``HKS``, ``WKS``, ``Random``, ``XYZ``, ``Indicator``, ``SHOT``, ``AWFT``;
-* ``stage``: ``"approx"`` or ``"transfer"``; ``method``: ``std``, ``our_l1``, ``our_l2``,
-  ``our_A``, ``our_B`` (as in the CSV); instead of ``stage`` and ``method`` a single
-  ``"column": "transfer_our_B"`` (``<stage>_<method>``) is accepted;
-* ``value``: our number (float, same normalisation as the paper: the relative error);
-* ``fmap`` (``ground_truth`` / ``computed_NO17``), ``k_M``, ``k_N`` (the paper's k, constant
-  not counted): optional, but needed where a table has several settings (Table 3 has both
-  ``k_M=6, k_N=7`` and ``k_M=27, k_N=35``). Given values must agree with the CSV row.
+Holds the published values (:data:`PUBLISHED_CSV`, :func:`load_published`, :func:`published_values`),
+the matching of a notebook's ``"table"`` entries to them (:func:`normalize_entry`, :func:`match_entries`;
+the entry format: ``docs/guide/adding_a_run.md``), the comparisons below and :func:`score_cells`.
+An entry is one number in the long format of the CSV (``table, fmap, k_M, k_N, function, stage,
+method, value``; ``k_M``, ``k_N`` the paper's k, the constant not counted).
 
 An entry is matched to the CSV row that agrees on every field it gives (table, function,
 stage, method and whichever of fmap, k_M, k_N are present). Entries matching no row, or

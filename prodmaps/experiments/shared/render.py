@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...plotting import Camera, headless_gl, probe_rendering, render
+from .results import setup_matplotlib
 
 __all__ = ["probe_rendering", "render_mesh", "render_grid", "VIEWS", "error_colormap", "function_colormap",
            "camera_bounds", "rendering_available", "headless_gl"]
@@ -66,8 +67,6 @@ def render_grid(panels, *, ncols=None, titles=None, captions=None, suptitle=None
     ``panels`` is a list of images (from :func:`render_mesh`). ``colorbar`` is an optional
     ``(cmap, clim, label)`` drawn once for the whole figure. Returns the figure.
     """
-    from .results import setup_matplotlib
-
     plt = setup_matplotlib()
     n = len(panels)
     ncols = ncols or n

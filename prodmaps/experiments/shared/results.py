@@ -18,7 +18,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import scipy
 
+from ... import __version__
 from ...files import atomic_path
 
 __all__ = ["write_results", "read_results", "save_figure", "setup_matplotlib", "to_jsonable", "flatten"]
@@ -43,10 +45,6 @@ def to_jsonable(obj):
 
 def write_results(out_dir, results: dict, parameters: dict) -> Path:
     """Write ``results.json`` atomically into ``out_dir`` and return its path."""
-    import scipy
-
-    from ... import __version__
-
     doc = {"parameters": to_jsonable(parameters), "results": to_jsonable(results), "prodmaps_version": __version__,
            "versions": {"numpy": np.__version__, "scipy": scipy.__version__}}
     path = Path(out_dir) / "results.json"

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ... import datasets, descriptors
 from ...basis import Basis, eigenbasis
 from ...cache import Cache
 from ...files import atomic_path, sha256_bytes
@@ -109,8 +110,6 @@ class ShapeStore:
     def mesh(self, sid: str) -> Mesh:
         """The validated mesh of shape ``sid``."""
         if sid not in self._mesh:
-            from ... import datasets
-
             self._mesh[sid] = datasets.load_shape(self.dataset, sid)
         return self._mesh[sid]
 
@@ -148,8 +147,6 @@ class ShapeStore:
 
     def descriptor(self, sid: str, name: str, **options) -> np.ndarray:
         """The SHOT (``"shot"``) or AWFT (``"awft"``) matrix of ``sid`` (:mod:`prodmaps.descriptors`, ``options``)."""
-        from ... import descriptors
-
         if name not in DESCRIPTOR_CODE:
             raise ValueError(f"descriptor must be 'shot' or 'awft', got {name!r}")
         fn = descriptors.shot if name == "shot" else descriptors.awft
