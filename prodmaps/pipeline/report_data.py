@@ -11,9 +11,11 @@ studies (:class:`Study`, blocks of :mod:`.document`). It is either
   (:meth:`DatasetReport.load`: ``paper/report_data/<dataset>.json``), for a dataset that was not
   rerun; :meth:`DatasetReport.save` writes it, image paths relative to the report's folder.
 
-Each dataset contributes a verdict column and a section of the report the same way, whichever
-of the two it came from. :func:`collect_runs` reads the run folders themselves (status, time,
-figures), which the main results' Runs and Figures sections show.
+Each dataset contributes a verdict column, an appendix of every table cell (:func:`table_cells`)
+and its panels of the figure gallery the same way, whichever of the two it came from; a stored
+file of an older format is migrated on load. :func:`collect_runs` reads the run folders
+themselves (status, time, figures). :func:`reading_scores` reads what the studies scored for each
+reading the paper leaves open (the report's forking paths, :mod:`.forking`).
 
 The experiments modules the report needs (the claims ledger, the comparison rules, the published
 tables) are imported here, in one block, and nowhere else in the report's modules: the names the
@@ -25,25 +27,32 @@ from __future__ import annotations
 
 import importlib
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, is_dataclass
 from pathlib import Path
 
 from .. import datasets
+from ..approx import DEFAULT_NORMALIZATION, PAPER_RTOL
 from ..experiments.shared import claims as ledger  # the one import block of the experiments layer (see the module doc)
 from ..experiments.shared import compare
+from ..experiments.shared import families as pfam
 from ..experiments.shared import published as pub
+from ..experiments.shared.protocol import standard_error
 from ..files import atomic_path, read_json
 from .execute import DEFAULT_DATASET
+from .forking import EXPECTED as READING_ROWS
 from .registry import load_registry
 
 __all__ = ["DATASET_NAMES", "DATA_FOLDER", "VERDICTS", "TABLE_KEYS", "CRITERIA", "LEDGER_FILE", "BEAT_METHODS",
            "RunInfo", "collect_runs", "table_entries", "run_dataset", "overridden_parameters", "other_datasets",
-           "ClaimResult", "claim_results", "TableSummary", "table_summaries", "Figure", "Study", "DatasetReport",
-           "dataset_report", "load_claims", "load_published_rows", "match_published"]
+           "ClaimResult", "claim_results", "verdict_counts", "TableSummary", "table_summaries", "table_cells",
+           "reading_scores",
+           "Figure", "Study", "DatasetReport", "dataset_report", "migrate", "load_claims", "load_published_rows",
+           "match_published", "within_published", "within_draw_noise"]
 
-DATASET_NAMES = {"anny_humans": "embedded humans", "faust": "FAUST", "tosca": "TOSCA"}  # as the report names them
+DATASET_NAMES = {"anny_humans": "embedded humans", "faust": "FAUST", "tosca": "TOSCA", "faust_r": "FAUST_r",
+                 "tosca_r": "TOSCA_r", "tosca_r_noniso": "TOSCA_r non-isometric"}  # as the report names them
 DATA_FOLDER = "report_data"  # beside the committed report: report_data/<dataset>.json
-_FORMAT = 1  # of the stored JSON
+_FORMAT = 2  # of the stored JSON (1: before the table cells, run times and reading scores were stored)
 
 VERDICTS = ledger.VERDICTS
 TABLE_KEYS = pub.TABLE_KEYS
@@ -53,6 +62,8 @@ CRITERIA = {"within": pub.WITHIN, "draw_z": pub.DRAW_Z, "rounding_rel": compare.
 LEDGER_FILE = Path(ledger.LEDGER).resolve().relative_to(Path(__file__).resolve().parents[2]).as_posix()  # as shown
 load_claims = ledger.load_ledger
 match_published = pub.match_entries
+within_published = pub.within_published
+within_draw_noise = pub.within_draw_noise
 
 
 def load_published_rows(path=None) -> list[dict]:
@@ -77,6 +88,7 @@ class RunInfo:
     figures: list = field(default_factory=list)
     report: str = ""  # the module owning the run's report section (registry key `report`)
     dataset_figures: bool = False  # its figures in every dataset's section (registry key `dataset_figures`)
+    datasets: tuple = ()  # the datasets with values of their own in the registry (`[runs.<run>.datasets.<dataset>]`)
 
 
 def collect_runs(results_dir, registry=None) -> list[RunInfo]:
@@ -98,6 +110,7 @@ def collect_runs(results_dir, registry=None) -> list[RunInfo]:
         if n in runs:
             info.reproduces, info.title = runs[n].reproduces, runs[n].title
             info.report, info.dataset_figures = runs[n].report, runs[n].dataset_figures
+            info.datasets = tuple(runs[n].datasets)
         info.doc = read_json(folder / "results.json", {})
         info.manifest = read_json(folder / "manifest.json", {})
         if info.manifest:
@@ -146,8 +159,11 @@ class ClaimResult:
 
     ``paper``, ``rule``, ``default``: whether the rule holds at the paper's settings, with the
     threshold rule and with the default transfer (``"yes"``, ``"no"``, ``"—"`` not measured; None:
-    not recorded). ``readings``: the verdict under each other family reading (``{"textbook": ...}``);
-    ``subsets``: per pair kind (``{"intra": ..., "inter": ...}``).
+    not recorded). ``readings``: the verdict under each other reading (``{"textbook": ...}``);
+    ``subsets``: per pair kind (``{"intra": ..., "inter": ...}``). ``source``: ``"paper"`` (a claim
+    of the paper) or ``"package"`` (this package's own); ``paired``: the paired comparison that
+    decides it (mean paired difference, its standard error, n, the margin and why), when the ledger
+    records one; ``excluded``: what the claim leaves out and why (ties by construction).
     """
 
     verdict: str
@@ -157,6 +173,41 @@ class ClaimResult:
     default: str | None = "—"
     subsets: dict = field(default_factory=dict)
     evidence: str | None = ""
+    source: str = "paper"
+    paired: dict = field(default_factory=dict)
+    excluded: str = ""
+
+
+def _plain(x) -> dict:
+    """A record of the ledger (a dict, a dataclass or an object with attributes) as a JSON-ready dict."""
+    if x is None:
+        return {}
+    if is_dataclass(x):
+        x = asdict(x)
+    elif not isinstance(x, dict):
+        x = {k: v for k, v in vars(x).items() if not k.startswith("_")}
+    return {str(k): (v if isinstance(v, (str, int, float, bool, type(None))) else str(v)) for k, v in x.items()}
+
+
+def _source(v) -> str:
+    """Whether a verdict's claim is the paper's or the package's (``"paper"`` until the ledger says)."""
+    return getattr(v, "source", None) or getattr(v.claim, "source", None) or "paper"
+
+
+def _paired(v) -> dict:
+    """The paired statistics the ledger records for a verdict (``{}`` where it records none)."""
+    return _plain(getattr(v, "paired", None) or getattr(v, "stats", None)
+                  or v.settings.get("paper", {}).get("paired"))
+
+
+def _excluded(v) -> str:
+    """What a claim leaves out and why (ties by construction), as one text."""
+    x = getattr(v, "excluded", None) or getattr(v.claim, "excluded", None)
+    if not x:
+        return ""
+    if isinstance(x, dict):
+        return "; ".join(f"{k}: {r}" for k, r in x.items())
+    return x if isinstance(x, str) else "; ".join(map(str, x))
 
 
 def claim_results(verdicts) -> dict[str, ClaimResult]:
@@ -169,8 +220,20 @@ def claim_results(verdicts) -> dict[str, ClaimResult]:
         v = subs.get("all", next(iter(subs.values())))
         out[cid] = ClaimResult(v.verdict, ledger.reading_verdicts(v), *(ledger.setting_mark(v, s) for s in
                                                                         ("paper", "rule", "default")),
-                               {k: subs[k].verdict for k in ("intra", "inter") if k in subs}, v.evidence)
+                               {k: subs[k].verdict for k in ("intra", "inter") if k in subs}, v.evidence,
+                               _source(v), _paired(v), _excluded(v))
     return out
+
+
+def verdict_counts(results: dict, source: str | None = "paper") -> dict:
+    """``{verdict: number of claims}`` over :data:`VERDICTS` of ``{claim: ClaimResult}``, of ``source`` (None: all).
+
+    Examples
+    --------
+    >>> verdict_counts({"a": ClaimResult("holds"), "b": ClaimResult("holds", source="package")})["holds"]
+    1
+    """
+    return {k: sum(1 for c in results.values() if c.verdict == k and source in (None, c.source)) for k in VERDICTS}
 
 
 # ------------------------------------------------------------------------------ tables
@@ -226,6 +289,147 @@ def table_summaries(infos, published_rows, matches, *, only_run: bool = False) -
     return out
 
 
+def table_cells(published_rows, matches, tables=None) -> list[dict]:
+    """Every published cell beside ours, in the CSV's order (``tables``: only these tables, e.g. ``{"1", "3"}``).
+
+    Each cell is ``{table, fmap, k_M, k_N, function, stage, method, published, value, se, run}``:
+    ``value`` (ours), ``se`` (its standard error) and ``run`` are None / ``""`` where we have no value.
+    """
+    by_key = {tuple(r[k] for k in TABLE_KEYS): e for r, e in matches}
+    out = []
+    for r in published_rows:
+        if tables is not None and r["table"] not in tables:
+            continue
+        e = by_key.get(tuple(r[k] for k in TABLE_KEYS)) or {}
+        out.append({**{k: r[k] for k in TABLE_KEYS}, "published": r["value"], "value": e.get("value"),
+                    "se": e.get("se"), "run": e.get("run", "")})
+    return out
+
+
+# ------------------------------------------------------------------------------ readings (forking paths)
+def _tables_text(sizes, fmap: str = "ground_truth", published_rows=None) -> str:
+    """``"Tables 1, 3, 5 and 6"``: the published tables of ``fmap`` holding cells at ``sizes`` ``[(k_M, k_N)]``."""
+    rows = load_published_rows() if published_rows is None else published_rows
+    sizes = {(int(a), int(b)) for a, b in sizes}
+    ts = sorted({r["table"] for r in rows if r["fmap"] == fmap and (int(r["k_M"]), int(r["k_N"])) in sizes}, key=int)
+    return ("Table " + ts[0]) if len(ts) == 1 else "Tables " + ", ".join(ts[:-1]) + " and " + ts[-1] if ts else "—"
+
+
+def _noise_count(cells) -> tuple[int, int, int | None]:
+    """``(n, within ±WITHIN, within draw noise or None)`` of ``[(ours − published, se or None)]``."""
+    cells = list(cells)
+    noise = None if any(se is None for _, se in cells) else sum(pub.within_draw_noise(d, se) for d, se in cells)
+    return len(cells), sum(pub.within_published(d) for d, _ in cells), noise
+
+
+def _family_scores(res: dict, published_rows) -> dict:
+    """Rows of ``study_family_readings``: per family (tied families together), its frozen reading's ``std`` cells."""
+    gt = {(int(r["k_M"]), int(r["k_N"]), r["stage"], r["method"], r["function"]): r["value"]
+          for r in published_rows if r["fmap"] == "ground_truth"}
+    sizes = [tuple(z) for v in res.get("groups", {}).values() for z in v]
+    out: dict = {}
+    for fam, by_r in res.get("scores", {}).items():
+        names = list(res.get("readings", {}).get(fam, by_r))
+        if len(names) < 2 or fam not in pfam.PAPER_LABELS:
+            continue
+        group = next((g for g in pfam.TIED_READINGS if fam in g), (fam,))
+        key = "+".join(f for f in group if f in res["scores"])
+        frozen = res.get("published_readings", {}).get(fam) or pfam.PUBLISHED_READINGS.get(fam, "textbook")
+        label = pfam.PAPER_LABELS[fam]
+        errs = res.get("errors", {}).get(fam, {}).get(frozen, {})
+        ses = res.get("standard_errors", {}).get(fam, {}).get(frozen, {})
+        cells = []
+        for size, by_stage in errs.items():
+            a, b = map(int, size[1:].split("_"))
+            for st, by_m in by_stage.items():
+                p = gt.get((a, b, st, "std", label))
+                if p is not None and "std" in by_m:
+                    cells.append((by_m["std"] - p, ses.get(size, {}).get(st, {}).get("std")))
+        n, within, noise = _noise_count(cells)
+        row = out.setdefault(f"families:{key}", {
+            "label": READING_ROWS.get(f"families:{key}", f"{label}: parameters"), "alternatives": len(names) - 1,
+            "cells": f"published std cells of {_tables_text(sizes, published_rows=published_rows)}",
+            "frozen": frozen, "choice": res.get("chosen", {}).get(fam, ""), "n": 0, "within": 0, "in_noise": 0})
+        row["n"] += n
+        row["within"] += within
+        row["in_noise"] = None if noise is None or row["in_noise"] is None else row["in_noise"] + noise
+    return out
+
+
+def _normalization_scores(res: dict, published_rows) -> dict:
+    """The row of ``study_normalization``: the library's normalisation, its Approach B cells."""
+    readings = res.get("readings", {})
+    frozen = next((n for n, r in readings.items() if r.get("normalization") == DEFAULT_NORMALIZATION
+                   and r.get("rtol") == PAPER_RTOL), None)
+    if frozen is None or frozen not in res.get("errors", {}):
+        return {}
+    sems = res.get("standard_errors", {}).get(frozen)
+    cells, sizes = [], []
+    for t, by_size in res["errors"][frozen].items():
+        pubt = {(int(r["k_M"]), int(r["k_N"]), r["stage"], r["method"], r["function"]): r["value"]
+                for r in published_rows if r["fmap"] == "ground_truth" and r["table"] == t.lstrip("T")}
+        for size, by_stage in by_size.items():
+            a, b = map(int, size[1:].split("_"))
+            sizes.append((a, b))
+            for st, by_m in by_stage.items():
+                for fam, v in by_m.get("our_B", {}).items():
+                    p = pubt.get((a, b, st, "our_B", fam))
+                    if p is not None:
+                        se = (sems or {}).get(t, {}).get(size, {}).get(st, {}).get("our_B", {}).get(fam)
+                        cells.append((v - p, se))
+    n, within, noise = _noise_count(cells)
+    return {"normalization": {"label": READING_ROWS["normalization"], "alternatives": len(readings) - 1,
+                              "cells": "published Approach B cells of "
+                                       + _tables_text(sizes, published_rows=published_rows),
+                              "frozen": frozen, "choice": res.get("best") or "", "n": n, "within": within,
+                              "in_noise": noise}}
+
+
+def _no17_scores(res: dict, published_rows) -> dict:
+    """The row of ``study_no17``: the default recipe, its standard-transfer cells of Table 2."""
+    comp, frozen = res.get("comparison", {}), res.get("default_recipe")
+    per_pair = res.get("scores", {}).get("transfer", {}).get(frozen, {})
+    if not comp.get("rows"):
+        return {}
+    rows = [r for r in comp["rows"] if r.get("recipe") == frozen and r.get("published") is not None]  # [] unscored
+    cells = [(r["diff"], standard_error(per_pair[r["family"]]) if r["family"] in per_pair else None) for r in rows]
+    n, within, noise = _noise_count(cells)
+    sizes = [tuple(res.get("scores", {}).get("sizes", (29, 39)))]
+    recipes = [r for r in comp.get("summary", {}) if r != "gt"]
+    return {"no17": {"label": READING_ROWS["no17"], "alternatives": len(recipes) - 1,
+                     "cells": "published std transfer cells of "
+                              + _tables_text(sizes, "computed_NO17", published_rows=published_rows),
+                     "frozen": frozen, "choice": res.get("best") or "", "n": n, "within": within, "in_noise": noise}}
+
+
+_READING_RUNS = {"study_family_readings": _family_scores, "study_normalization": _normalization_scores,
+                 "study_no17": _no17_scores}
+
+
+def reading_scores(infos, published_rows=None) -> dict:
+    """What the studies of ``infos`` scored for each open reading, as this dataset's forking-path rows.
+
+    ``{row id: {"label", "alternatives", "cells", "frozen", "choice", "n", "within", "in_noise"}}``:
+    the reading the library uses (``frozen``, chosen on FAUST's eight registrations), how many
+    alternatives were scored (``alternatives``) on which published cells (``cells``), the reading
+    these results would choose (``choice``), and the frozen reading's cells here: ``n`` compared,
+    ``within`` ±0.02, ``in_noise`` within draw noise (None without standard errors). Read from the
+    runs ``study_family_readings`` (a row per family), ``study_normalization`` and ``study_no17``;
+    a run's ``results["forking_paths"]`` (the same rows) is taken as it is, over those.
+    """
+    rows = load_published_rows() if published_rows is None else published_rows
+    out: dict = {}
+    for i in infos:
+        res = i.doc.get("results", {}) if i.doc else {}
+        if isinstance(res, dict) and i.name in _READING_RUNS:
+            out.update(_READING_RUNS[i.name](res, rows))
+    for i in infos:
+        res = i.doc.get("results", {}) if i.doc else {}
+        if isinstance(res, dict) and isinstance(res.get("forking_paths"), dict):
+            out.update({k: dict(v) for k, v in res["forking_paths"].items()})
+    return out
+
+
 # ------------------------------------------------------------------------------ one dataset
 @dataclass
 class Figure:
@@ -260,15 +464,18 @@ class DatasetReport:
     tables: list = field(default_factory=list)  # [TableSummary]
     figures: list = field(default_factory=list)  # [Figure]
     studies: list = field(default_factory=list)  # [Study]
+    cells: list | None = None  # table_cells of its tables (None: not stored, a format-1 file)
+    run_times: dict = field(default_factory=dict)  # {run: [status, seconds or None]}
+    readings: dict = field(default_factory=dict)  # reading_scores: {row id: {...}}
 
     @property
     def name(self) -> str:
         """The dataset as the report names it (``FAUST``, ``embedded humans``)."""
         return DATASET_NAMES.get(self.dataset, self.dataset)
 
-    def counts(self) -> dict:
-        """``{verdict: number of claims}`` over :data:`VERDICTS`."""
-        return {k: sum(1 for c in self.verdicts.values() if c.verdict == k) for k in VERDICTS}
+    def counts(self, source: str | None = "paper") -> dict:
+        """``{verdict: number of claims}`` of ``source`` (``"paper"``, ``"package"``; None: all)."""
+        return verdict_counts(self.verdicts, source)
 
     def images(self) -> list:
         """Every image the dataset's section shows."""
@@ -306,15 +513,38 @@ class DatasetReport:
         if not path.is_file():
             return None
         doc = json.loads(path.read_text(encoding="utf-8"))
-        if not isinstance(doc, dict) or doc.get("format") != _FORMAT or doc.get("dataset") != dataset:
+        if not isinstance(doc, dict) or doc.get("dataset") != dataset or doc.get("format") not in (1, _FORMAT):
             raise ValueError(f"{path}: not the report data of {dataset!r} (format {_FORMAT}); delete it and "
                              f"publish a run of {dataset} (prodmaps reproduce --dataset {dataset}, make publish)")
+        doc = migrate(doc)
         return cls(doc["dataset"], doc["folder"], doc["commit"], doc["runs"], doc["shapes"], doc["pairs"],
                    {c: ClaimResult(**v) for c, v in doc["verdicts"].items()},
                    [TableSummary(**t) for t in doc["tables"]],
                    [Figure(f["run"], f["reproduces"], [folder / p for p in f["images"]]) for f in doc["figures"]],
                    [Study(s["run"], s["dataset"], [tuple(b) for b in s["blocks"]], [folder / p for p in s["images"]])
-                    for s in doc["studies"]])
+                    for s in doc["studies"]], doc["cells"], doc["run_times"], doc["readings"])
+
+
+def migrate(doc: dict) -> dict:
+    """A stored report data document brought to the current format (a copy; the current format as it is).
+
+    Format 1 (before the table cells, the run times and the reading scores were stored) gains
+    ``cells = None`` (the report says they were not stored), ``run_times = {}`` and ``readings = {}``;
+    its verdicts gain the defaults of the fields added since (``source = "paper"``, no paired
+    statistics, nothing excluded).
+
+    Examples
+    --------
+    >>> migrate({"format": 1, "dataset": "faust", "verdicts": {}})["format"]
+    2
+    """
+    fmt = doc.get("format")
+    if fmt == _FORMAT:
+        return doc
+    if fmt != 1:
+        raise ValueError(f"report data of format {fmt!r}: this version reads formats 1 and {_FORMAT}")
+    return {**doc, "format": _FORMAT, "cells": None, "run_times": {}, "readings": {},
+            "verdicts": {c: {**v, "source": v.get("source", "paper")} for c, v in doc.get("verdicts", {}).items()}}
 
 
 def _studies(infos, *, dataset: str | None = None) -> list[Study]:
@@ -335,10 +565,11 @@ def dataset_report(folder, dataset: str = DEFAULT_DATASET, *, main: bool = False
                    published_rows=(), infos=None, shown: str | None = None, commit: str = "unknown") -> DatasetReport:
     """One dataset's report data, built from its results folder (``OUT/<profile>[-<dataset>]``).
 
-    ``main``: the report's own results (every run's table values, studies under their own heading),
-    else a prepared dataset's section (the runs with results, their figures with ``dataset_figures``).
-    ``infos``: the folder's :func:`collect_runs`, if already read; ``shown``: how the report names
-    the folder; ``commit``: the code's commit.
+    ``main``: the report's own results (every run's table values and figures, studies computed on
+    another dataset shown as that dataset's), else a prepared dataset's (the runs with results; the
+    figures of the runs with ``dataset_figures`` or values of their own for this dataset in the
+    registry). ``infos``: the folder's :func:`collect_runs`, if already read; ``shown``: how the
+    report names the folder; ``commit``: the code's commit.
     """
     folder = Path(folder)
     infos = collect_runs(folder, registry) if infos is None else infos
@@ -352,10 +583,17 @@ def dataset_report(folder, dataset: str = DEFAULT_DATASET, *, main: bool = False
                 shapes.update(p)
     used = infos if main else present
     entries = [e for i in used for e in table_entries(i)]
-    tables = (table_summaries(used, published_rows, match_published(entries, published_rows)[0], only_run=not main)
+    matches = match_published(entries, published_rows)[0] if published_rows else []
+    tables = (table_summaries(used, published_rows, matches, only_run=not main)
               if published_rows and (main or entries) else [])
-    figures = [] if main else [Figure(i.name, i.reproduces, list(i.figures)) for i in present
-                               if i.dataset_figures and i.figures]
+    cells = table_cells(published_rows, matches, {t.table for t in tables}) if tables else []
+    studies = _studies(infos) if main else _studies(present, dataset=dataset)
+    in_studies = {s.run for s in studies}  # a study's figures are shown with its section
+    figures = [Figure(i.name, i.reproduces, list(i.figures)) for i in present if i.figures
+               and i.name not in in_studies and (main or i.dataset_figures or dataset in i.datasets)]
+    own = [i for i in present if not main or run_dataset(i) == dataset]  # a main study run on FAUST is FAUST's
     return DatasetReport(dataset, shown if shown is not None else str(folder), commit, [i.name for i in present],
                          sorted(shapes), pairs, claim_results(ledger.evaluate_folder(folder)), tables, figures,
-                         _studies(infos) if main else _studies(present, dataset=dataset))
+                         studies, cells,
+                         {i.name: [i.status, i.seconds] for i in infos if i.doc or i.manifest},
+                         reading_scores(own, published_rows or None))
