@@ -129,9 +129,11 @@ def forking_blocks(paths: dict, names: dict, datasets: list, chosen_on: str = CH
 def reading_verdict_blocks(reports, names: dict, claim_ids) -> list:
     """The claims of ``claim_ids`` (the table claims) whose verdict changes under another reading the ledger judged.
 
-    One row per claim and dataset where a verdict under another reading (``ClaimResult.readings``:
-    the textbook families, a rejected normalisation, ...) differs from the verdict as chosen, then
-    a sentence counting the verdicts that do not change; none when no dataset records a reading.
+    One row per claim where, on some dataset, a verdict under another reading
+    (``ClaimResult.readings``: the textbook families, a rejected normalisation, ...) differs from the
+    verdict as chosen; one column per dataset: the verdict as chosen, then each reading that
+    changes it. Then a sentence counting the verdicts that do not change; none when no dataset
+    records a reading.
 
     Examples
     --------
@@ -140,24 +142,31 @@ def reading_verdict_blocks(reports, names: dict, claim_ids) -> list:
     >>> blocks = reading_verdict_blocks([R(dataset="faust", verdicts={"tab01.a": same, "tab01.b": other})],
     ...                                 {"faust": "FAUST"}, ["tab01.a", "tab01.b"])
     >>> blocks[0][1:]
-    (['claim', 'dataset', 'as chosen', 'textbook families', 'metres'], [['`tab01.b`', 'FAUST', 'holds', '—', 'x']])
+    (['claim', 'FAUST'], [['`tab01.b`', 'holds; metres: x']])
     >>> blocks[1][1]
     'Under every other reading judged, the other 1 verdict of the table claims is the same as under the chosen one.'
     """
+    def changes(c) -> dict:
+        return {k: v for k, v in (getattr(c, "readings", None) or {}).items() if v != c.verdict}
+
     judged = [(cid, r) for cid in claim_ids for r in reports
               if cid in r.verdicts and getattr(r.verdicts[cid], "readings", None)]
-    labels = list(dict.fromkeys(k for cid, r in judged for k in r.verdicts[cid].readings))
-    if not labels:
+    if not judged:
         return []
-    changed = [(cid, r) for cid, r in judged if any(v != r.verdicts[cid].verdict
-                                                    for v in r.verdicts[cid].readings.values())]
+    changed = [cid for cid in claim_ids if any(c == cid and changes(r.verdicts[c]) for c, r in judged)]
+    cols = [r for r in reports if any(changes(r.verdicts[cid]) for cid in changed if cid in r.verdicts)]
     out = []
     if changed:
-        heads = [lab if lab != "textbook" else "textbook families" for lab in labels]
-        out.append(("table", ["claim", "dataset", "as chosen"] + heads,
-                    [[f"`{cid}`", names.get(r.dataset, r.dataset), r.verdicts[cid].verdict]
-                     + [r.verdicts[cid].readings.get(lab, "—") for lab in labels] for cid, r in changed]))
-    rest = len(judged) - len(changed)
+        def cell(r, cid):
+            c = r.verdicts.get(cid)
+            if c is None:
+                return "—"
+            return "; ".join([c.verdict] + [f"{'textbook families' if k == 'textbook' else k}: {v}"
+                                            for k, v in changes(c).items()])
+
+        out.append(("table", ["claim"] + [names.get(r.dataset, r.dataset) for r in cols],
+                    [[f"`{cid}`"] + [cell(r, cid) for r in cols] for cid in changed]))
+    rest = sum(1 for cid, r in judged if not changes(r.verdicts[cid]))
     if rest:
         out.append(("p", f"Under every other reading judged, the {'other ' if changed else ''}{rest} "
                          f"verdict{'s' if rest > 1 else ''} of the table claims "

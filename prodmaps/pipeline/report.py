@@ -45,7 +45,7 @@ from pathlib import Path
 
 from ..datasets import names as datasets_names
 from ..files import atomic_path, parse_toml
-from .document import Document, anchor
+from .document import Document, anchor, words
 from .execute import DEFAULT_DATASET, git_commit, package_versions
 from .forking import forking_blocks, forking_paths, reading_verdict_blocks
 from .registry import RegistryError, project_root, registry_path
@@ -332,42 +332,85 @@ def _datasets(inputs: ReportInputs) -> list:
     return [inputs.main, *others]
 
 
-def _summary(d: Document, inputs: ReportInputs, text, all_ds: list) -> None:
-    main, claims = inputs.main, load_claims()
-    d.h(2, "Summary")
-    d.extend(text("summary.md"))
-    counts = {ds.dataset: ds.counts("paper") for ds in all_ds}
-    shown = [v for v in VERDICTS if any(c.get(v) for c in counts.values())]
-    n_paper = sum(1 for c in main.verdicts.values() if c.source == "paper")
-    d.table([f"verdict (of the paper's {n_paper} claims)"] + [ds.name for ds in all_ds],
-            [[v] + [str(counts[ds.dataset].get(v, 0)) for ds in all_ds] for v in shown])
-    package = {ds.dataset: ds.counts("package") for ds in all_ds}
-    if any(sum(c.values()) for c in package.values()):
-        d.p("This package's own claims, counted apart (see *Beyond the paper*): " + "; ".join(
-            f"{ds.name}: " + ", ".join(f"{n} {v}" for v, n in package[ds.dataset].items() if n) for ds in all_ds
-            if sum(package[ds.dataset].values())) + ".")
-    weak = []
-    for cid in main.verdicts:
-        if cid not in claims or main.verdicts[cid].source != "paper":
+SUMMARY_WORDS = 600  # the summary's budget: one page
+
+
+def _weak_claims(main, claims, all_ds) -> list:
+    """``[(claim id, where, {verdict: [DatasetReport]})]``: the paper's claims that do not hold or are inconclusive."""
+    out = []
+    for cid, c in main.verdicts.items():
+        if cid not in claims or c.source != "paper":
             continue
         by_verdict: dict = {}
         for ds in all_ds:
-            c = ds.verdicts.get(cid)
-            if c is not None and c.verdict in ("does not hold", "inconclusive"):
-                by_verdict.setdefault(c.verdict, []).append(ds.name)
+            v = ds.verdicts.get(cid)
+            if v is not None and v.verdict in ("does not hold", "inconclusive"):
+                by_verdict.setdefault(v.verdict, []).append(ds)
         if by_verdict:
-            weak.append(f"`{cid}` ({claims[cid].where}): " + "; ".join(
-                f"{v} on {', '.join(names)}" for v, names in by_verdict.items()))
-    if weak:
-        d.p("**Does not hold, or inconclusive**, on at least one dataset (each dataset's appendix gives the "
-            "evidence):")
-        d.ul(weak)
-    d.extend(text("not_reproduced.md"))
+            out.append((cid, claims[cid].where, by_verdict))
+    return out
+
+
+def _weak_blocks(weak, detail: int) -> list:
+    """The summary's list of the claims that do not hold or are inconclusive.
+
+    ``detail`` 2: per claim, its datasets and the first one's evidence; 1: without the evidence; 0:
+    the claims' ids per verdict.
+    """
+    if not weak:
+        return []
+    lead = ("p", "**Does not hold, or inconclusive**, on at least one dataset" + (
+        ", with the evidence on the first (each dataset's appendix gives all of it):" if detail == 2 else
+        " (each dataset's appendix gives the evidence):"))
+    if detail == 0:
+        verdicts = list(dict.fromkeys(v for _, _, by in weak for v in by))
+        return [lead, ("ul", [f"{v}: " + ", ".join(f"`{cid}`" for cid, _, by in weak if v in by) for v in verdicts])]
+    items = []
+    for cid, where, by in weak:
+        item = f"`{cid}` ({where}): " + "; ".join(f"{v} on {', '.join(x.name for x in sets)}" for v, sets in by.items())
+        first = next(iter(by.values()))[0]
+        if detail == 2 and first.verdicts[cid].evidence:
+            item += f". {first.name}: {_short(first.verdicts[cid].evidence)}"
+        items.append(item)
+    return [lead, ("ul", items)]
+
+
+def _summary(d: Document, inputs: ReportInputs, text, all_ds: list) -> None:
+    """The summary: scope, verdict table, what does not hold, what is not reproduced, the rerun command.
+
+    What does not hold is listed as detailed as keeps the summary within :data:`SUMMARY_WORDS`.
+    """
+    main, claims = inputs.main, load_claims()
+    head = Document(text("summary.md"))
+    counts = {ds.dataset: ds.counts("paper") for ds in all_ds}
+    shown = [v for v in VERDICTS if any(c.get(v) for c in counts.values())]
+    n_paper = sum(1 for c in main.verdicts.values() if c.source == "paper")
+    head.table([f"verdict (of the paper's {n_paper} claims)"] + [ds.name for ds in all_ds],
+               [[v] + [str(counts[ds.dataset].get(v, 0)) for ds in all_ds] for v in shown])
+    package = {ds.dataset: ds.counts("package") for ds in all_ds}
+    if any(sum(c.values()) for c in package.values()):
+        head.p("This package's own claims, counted apart (see *Beyond the paper*): " + "; ".join(
+            f"{ds.name}: " + ", ".join(f"{n} {v}" for v, n in package[ds.dataset].items() if n) for ds in all_ds
+            if sum(package[ds.dataset].values())) + ".")
+    tail = Document(text("not_reproduced.md"))
     unmeasured = [f"`{cid}`" for cid, c in main.verdicts.items() if c.source == "paper" and all(
         ds.verdicts.get(cid) is None or ds.verdicts[cid].verdict == "not measured here" for ds in all_ds)]
     if unmeasured:
-        d.p("Not measured on any dataset of this report: " + ", ".join(unmeasured) + ".")
-    d.extend(text("rerun.md"))
+        tail.p("Not measured on any dataset of this report: " + ", ".join(unmeasured) + ".")
+    tail.extend(text("rerun.md"))
+    weak = _weak_claims(main, claims, all_ds)
+    for detail in (2, 1, 0):  # the most detailed list of what does not hold that keeps the summary on one page
+        middle = _weak_blocks(weak, detail)
+        if words(Document([*head.blocks, *middle, *tail.blocks]).markdown()) <= SUMMARY_WORDS:
+            break
+    d.h(2, "Summary")
+    d.extend([*head.blocks, *middle, *tail.blocks])
+
+
+def _short(text: str, n: int = 120) -> str:
+    """``text`` cut at a word boundary to at most ``n`` characters (``…`` where cut)."""
+    text = str(text)
+    return text if len(text) <= n else text[:n].rsplit(" ", 1)[0].rstrip(",;:") + " …"
 
 
 def _glossary(d: Document, text) -> None:
@@ -390,8 +433,7 @@ def _claims_table(d: Document, inputs: ReportInputs, settings: ReportSettings, a
         claim = claims[cid]
         links = ", ".join(_nb_link(inputs.results_dir / r, base, claim.notebook or r if len(claim.runs) == 1 else r,
                                    settings.notebooks) for r in claim.runs)  # one notebook per run it is judged on
-        quote = claim.quote if len(claim.quote) <= 90 else claim.quote[:90].rsplit(" ", 1)[0] + " …"
-        rows.append([f"`{cid}`", claim.where, f"“{quote}”"]
+        rows.append([f"`{cid}`", claim.where, f"“{_short(claim.quote, 70)}”"]
                     + [_verdict_text(ds.verdicts[cid]) if cid in ds.verdicts else "not measured here" for ds in all_ds]
                     + [links])
     d.table(["claim", "where", "the paper's words"] + [ds.name for ds in all_ds] + ["notebook"], rows)
@@ -435,7 +477,8 @@ def _forking_section(d: Document, text, all_ds) -> None:
     d.extend(text("forking_paths.md"))
     d.extend(forking_blocks(paths, {ds.dataset: ds.name for ds in all_ds}, [ds.dataset for ds in all_ds]))
     if verdicts and verdicts[0][0] == "table":
-        d.p("The table claims whose verdict changes under another reading the ledger judged:")
+        d.p("The table claims whose verdict changes under another reading the ledger judged (per dataset: the "
+            "verdict as chosen, then each reading that changes it):")
     d.extend(verdicts)
 
 
