@@ -222,13 +222,17 @@ def _badge(verdict: str, text: str | None = None) -> str:
 
 
 def _cell(text, header: str = "") -> str:
-    """One table cell: verdicts as badges, quotes folded, numbers right-aligned."""
+    """One table cell: verdicts as badges, quotes folded, numbers right-aligned.
+
+    A cell is a verdict when it starts with a verdict phrase followed by nothing or by ``(``, ``;``,
+    ``,``, ``.``, ``:`` (a verdict with its notes), not by more words ("holds with a rule" is text).
+    """
     t = str(text)
     plain = t.strip("*")
     for phrase, _ in _BADGES:
-        if plain.startswith(phrase):
-            head, rest = plain[: len(phrase)], plain[len(phrase):].replace("**", "")
-            return "<td>" + _badge(head) + _inline(rest) + "</td>"
+        rest = plain[len(phrase):]
+        if plain.startswith(phrase) and (not rest or rest.startswith((" (", ";", ",", ".", ":"))):
+            return "<td>" + _badge(phrase) + _inline(rest.replace("**", "")) + "</td>"
     if header == "the paper's words" and len(t) > 48:
         short = t[:40].rsplit(" ", 1)[0] + " …"
         return f"<td><details><summary>{html.escape(short)}</summary>{_inline(t)}</details></td>"

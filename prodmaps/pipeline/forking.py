@@ -78,7 +78,7 @@ def forking_paths(reports, chosen_on: str = CHOSEN_ON) -> dict:
 
 def _score_cell(score: dict, frozen: str, chosen_here: bool) -> str:
     n, noise, within, choice = score.get("n"), score.get("in_noise"), score.get("within"), score.get("choice")
-    text = (f"{noise} of {n}" if noise is not None else f"{within} of {n} within ±0.02 (no SE)") if n else "—"
+    text = (f"{noise} of {n}" if noise is not None else f"{within} of {n} within ±0.02 (no SE)") if n else "not scored"
     if choice and choice != frozen:
         text += f"; would choose {choice}"
     elif choice and not chosen_here:
@@ -122,7 +122,7 @@ def forking_blocks(paths: dict, names: dict, datasets: list, chosen_on: str = CH
     if other:
         out.append(("p", "Readings another dataset would choose: " + "; ".join(
             f"{k}: {', '.join(v)}" for k, v in other.items()) + ". The frozen reading stays (no reading is chosen "
-            "again on the data that judge it); the claims' verdicts under the other readings are below."))
+            "again on the data that judge it); the table claims under the other readings follow."))
     return out
 
 
