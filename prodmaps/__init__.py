@@ -32,6 +32,7 @@ from . import (  # noqa: F401
                datasets,
                descriptors,
                eigensolver,
+               errors,
                fields,
                fmaps,
                geodesics,
@@ -42,20 +43,27 @@ from . import (  # noqa: F401
                metrics,
                operators,
                p2p,
+               plotting,
+               pointcloud,
                products,
                progress,
                sampling,
+               storage,
                transfers,
                truncation,
 )
 from .approx import ApproximationOperator, approximate, approximation_operator
-from .basis import Basis, eigenbasis, fourier_basis
-from .io import load_mesh, save_mesh
+from .basis import Basis, eigenbases, eigenbasis, fourier_basis, load_basis
+from .errors import MeshError, MeshWarning, NeedsFacesError
+from .io import load_mesh, load_point_cloud, save_mesh
 from .mapping import extend_fmap, fmap_from_p2p
-from .mesh import Mesh, MeshError
+from .mesh import Mesh
 from .metrics import area_fraction_curve, relative_error
 from .operators import laplacian
+from .plotting import plot, plot_map
+from .pointcloud import PointCloud
 from .products import ProductBasis, product_basis
+from .storage import load_map, save_map
 from .transfers import (
                TransferOperator,
                transfer,
@@ -63,8 +71,9 @@ from .transfers import (
 )
 
 __all__ = [
-    "Mesh", "MeshError", "load_mesh", "save_mesh", "laplacian", "Basis", "eigenbasis",
-    "fourier_basis", "ProductBasis", "product_basis", "ApproximationOperator", "approximate",
-    "approximation_operator", "extend_fmap", "fmap_from_p2p", "transfer_operator", "TransferOperator", "transfer",
-    "area_fraction_curve", "relative_error",
+    "Mesh", "MeshError", "MeshWarning", "NeedsFacesError", "PointCloud", "load_mesh", "load_point_cloud", "save_mesh",
+    "laplacian", "Basis", "eigenbasis", "eigenbases", "fourier_basis", "load_basis", "ProductBasis", "product_basis",
+    "ApproximationOperator", "approximate", "approximation_operator", "extend_fmap", "fmap_from_p2p",
+    "transfer_operator", "TransferOperator", "transfer", "save_map", "load_map", "area_fraction_curve",
+    "relative_error", "plot", "plot_map",
 ]

@@ -1,24 +1,44 @@
-"""Functional bases: Laplace–Beltrami eigenbases of meshes and the 1D periodic Fourier basis.
+"""Functional bases: Laplace–Beltrami eigenbases of meshes and point clouds, the 1D periodic Fourier basis.
 
 A :class:`Basis` holds ``vecs`` ``(n, k)`` whose columns are functions on the ``n`` points,
 ``evals`` ``(k,)`` ascending, and the mass (``(n,)`` lumped diagonal, or a sparse ``(n, n)`` FEM
 mass). Orthonormality, the constant column 0, what ``k`` counts and the deterministic signs:
-:mod:`prodmaps.conventions`.
+:mod:`prodmaps.conventions`. A mesh's basis and a point cloud's are built by the same
+eigensolver with the same conventions, so everything downstream takes either.
+
+Saved work: :meth:`Basis.save` writes a checked ``.npz`` (``vecs``, ``evals``, ``mass`` and a
+metadata record: ``n``, ``k``, ``kind`` (the operator: ``"cotan"``, ``"robust"``,
+``"point_cloud"``, ``"fourier"``, or ``""`` when unknown), ``name``, the library version and a
+SHA-256 checksum of the arrays); :func:`load_basis` reads it back bit for bit, after checking it.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 
 from .cache import Cache
 from .eigensolver import smallest_eigenpairs
-from .mesh import Mesh, MeshError, face_components
+from .errors import MeshError
+from .files import read_checked_npz, write_checked_npz
+from .mesh import Mesh, face_components
 from .operators import laplacian
+from .pointcloud import PointCloud
+from .progress import progress_bar
 
-__all__ = ["Basis", "eigenbasis", "eigenbases", "fourier_basis", "fix_signs", "from_arrays"]
+__all__ = ["Basis", "eigenbasis", "eigenbases", "fourier_basis", "fix_signs", "from_arrays", "load_basis",
+           "PROGRESS_MIN_WORK", "BASIS_FORMAT"]
+
+PROGRESS_MIN_WORK = 5e6
+"""``progress=None``: eigenbases show a bar when ``Σ n·k`` exceeds this (about 10 s of work and more)."""
+BASIS_FORMAT = "prodmaps.basis"
+"""The ``format`` of a saved basis (:meth:`Basis.save`)."""
+FILE_READERS = {"prodmaps.basis": "pm.load_basis(path)", "prodmaps.fmap": "pm.load_map(path)",
+                "prodmaps.p2p": "pm.load_map(path)"}
+"""What reads each kind of saved file (named in the error for a file of the wrong kind)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,6 +56,8 @@ class Basis:
     name : label for messages.
     cache : a :class:`prodmaps.cache.Cache` of derived values (product bases), shared with
         every truncation of this basis; keys name the column count they depend on.
+    kind : the operator the basis diagonalises (``"cotan"``, ``"robust"``, ``"point_cloud"``,
+        ``"fourier"``; ``""`` when unknown), recorded by :meth:`save`.
 
     The basis owns its arrays: ``vecs`` and ``evals`` are made read-only (its caches depend on
     them). :func:`prodmaps.basis.from_arrays` copies the caller's arrays first.
@@ -64,6 +86,7 @@ class Basis:
     mass: np.ndarray | sp.spmatrix
     name: str = ""
     cache: Cache = field(default_factory=Cache, repr=False, compare=False)
+    kind: str = ""
 
     def __post_init__(self):
         vecs = np.asarray(self.vecs, dtype=np.float64)
@@ -139,7 +162,7 @@ class Basis:
         s = float(s)
         if not (np.isfinite(s) and s > 0):
             raise ValueError(f"scale must be a positive number, got {s}")
-        return Basis(self.vecs / s, self.evals / s**2, self.mass * s**2, name=self.name)
+        return Basis(self.vecs / s, self.evals / s**2, self.mass * s**2, name=self.name, kind=self.kind)
 
     def truncate(self, k: int) -> "Basis":
         """The first ``k`` columns (constant included), sharing this basis' cache.
@@ -150,11 +173,88 @@ class Basis:
         if not 1 <= k <= self.k:
             raise ValueError(f"k must be in [1, {self.k}], got {k}")
         return self if k == self.k else Basis(self.vecs[:, :k], self.evals[:k], self.mass, name=self.name,
-                                              cache=self.cache)
+                                              cache=self.cache, kind=self.kind)
+
+    def save(self, path) -> Path:
+        """Write the basis to ``path`` (an ``.npz``, exactly that name) with its metadata; returns the path.
+
+        Arrays ``vecs``, ``evals`` and the mass (its diagonal, or the CSR arrays of a sparse mass)
+        are stored bit for bit, with ``n``, ``k``, ``kind``, ``name``, the library version and a
+        SHA-256 checksum of the arrays (module doc). Read it back with :func:`prodmaps.load_basis`.
+
+        Examples
+        --------
+        >>> import tempfile, pathlib
+        >>> import numpy as np
+        >>> import prodmaps as pm
+        >>> b = pm.eigenbasis(pm.mesh.ellipsoid(2), 6)
+        >>> path = b.save(pathlib.Path(tempfile.mkdtemp()) / "ellipsoid_basis.npz")
+        >>> back = pm.load_basis(path)
+        >>> bool(np.array_equal(back.vecs, b.vecs)), back.kind, back.name
+        (True, 'cotan', 'ellipsoid')
+        """
+        if self.mass_is_diagonal:
+            arrays = {"vecs": self.vecs, "evals": self.evals, "mass": self.mass}
+        else:
+            M = sp.csr_matrix(self.mass)
+            arrays = {"vecs": self.vecs, "evals": self.evals, "mass_data": M.data, "mass_indices": M.indices,
+                      "mass_indptr": M.indptr}
+        return write_checked_npz(path, BASIS_FORMAT, arrays, {"n": self.n, "k": self.k, "kind": self.kind,
+                                                              "name": self.name})
 
     def __repr__(self) -> str:
         label = f"{self.name!r}, " if self.name else ""
         return f"Basis({label}n={self.n}, k={self.k})"
+
+
+def load_basis(path) -> Basis:
+    """The :class:`Basis` saved by :meth:`Basis.save` at ``path``, checked, bit for bit.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The ``.npz`` file.
+
+    Returns
+    -------
+    Basis
+        ``vecs``, ``evals``, ``mass``, ``name`` and ``kind`` as saved.
+
+    Raises
+    ------
+    FileNotFoundError
+        For a missing file.
+    ValueError
+        Naming the path: not a prodmaps archive, a saved map instead of a basis (the error names
+        :func:`prodmaps.load_map`), a checksum that does not match the arrays (a changed or damaged
+        file), or arrays whose shapes contradict the recorded ``n`` and ``k``.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> b = pm.eigenbasis(pm.mesh.ellipsoid(1), 5)
+    >>> back = pm.load_basis(b.save(pathlib.Path(tempfile.mkdtemp()) / "b.npz"))
+    >>> back.n, back.k, bool(np.array_equal(back.evals, b.evals) and np.array_equal(back.mass, b.mass))
+    (42, 5, True)
+    """
+    arrays, meta = read_checked_npz(path, BASIS_FORMAT, FILE_READERS)
+    try:
+        n, k = int(meta["n"]), int(meta["k"])
+        vecs, evals = arrays["vecs"], arrays["evals"]
+        if "mass" in arrays:
+            mass = arrays["mass"]
+            mass_shape = mass.shape
+        else:
+            mass = sp.csr_matrix((arrays["mass_data"], arrays["mass_indices"], arrays["mass_indptr"]), shape=(n, n))
+            mass_shape = (n,) if arrays["mass_indptr"].shape == (n + 1,) else arrays["mass_indptr"].shape
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: a damaged basis file (missing or malformed {exc})") from None
+    if vecs.shape != (n, k) or evals.shape != (k,) or mass_shape != (n,):
+        raise ValueError(f"{path}: the arrays contradict the metadata (n={n}, k={k}): vecs {vecs.shape}, "
+                         f"evals {evals.shape}, mass {mass_shape}")
+    return Basis(vecs, evals, mass, name=str(meta.get("name", "")), kind=str(meta.get("kind", "")))
 
 
 SIGN_TIE_RTOL = 1e-6
@@ -193,41 +293,56 @@ def fix_signs(vecs: np.ndarray, rtol: float = SIGN_TIE_RTOL) -> np.ndarray:
     return vecs * s
 
 
-def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped", *, solver: str = "auto") -> Basis:
-    """First ``k`` Laplace–Beltrami eigenpairs of ``mesh`` (constant included).
+def eigenbasis(mesh, k: int, kind: str | None = None, mass: str = "lumped", *, solver: str = "auto",
+               progress: bool | None = None) -> Basis:
+    """First ``k`` Laplace–Beltrami eigenpairs of a mesh or a point cloud (constant included).
 
     Solves ``W φ = λ A φ`` (see :func:`prodmaps.laplacian`) with the package's one eigensolver
     (:func:`prodmaps.eigensolver.smallest_eigenpairs`: shift-invert Lanczos around a small
-    negative shift, or dense LAPACK for small meshes).
+    negative shift, or dense LAPACK for small meshes). A mesh gets the cotangent Laplacian, or
+    with ``kind="robust"`` the intrinsic-Delaunay one, which is also defined on meshes that
+    validation refuses (duplicate faces, non-manifold edges: build them with
+    ``pm.Mesh(v, f, validate=False)`` or ``pm.load_mesh(path, validate=False)``). A point cloud
+    gets the point-cloud Laplacian of ``robust-laplacian`` with its lumped mass. The conventions
+    are the same for both (:mod:`prodmaps.conventions`).
 
     Parameters
     ----------
-    mesh : Mesh
-        A connected mesh.
+    mesh : Mesh or PointCloud
+        A connected mesh, or a point cloud sampling one connected surface.
     k : int
         Number of columns including the constant; the paper's ``k_M = 9`` is ``k = 10``.
-    kind, mass : passed to :func:`prodmaps.laplacian`.
+    kind : ``None`` (default: ``"cotan"`` for a mesh, the point-cloud Laplacian for a cloud),
+        ``"cotan"`` or ``"robust"``; passed to :func:`prodmaps.laplacian` with ``mass``.
+    mass : ``"lumped"`` (default) or ``"full"`` (cotangent only).
     solver : ``"auto"`` (default), ``"superlu"`` or ``"cholesky"``: the sparse factorisation of
         the eigensolver (:func:`prodmaps.eigensolver.smallest_eigenpairs`). ``"auto"`` uses the
         optional sparse Cholesky (``cholespy``) from ``CHOLESKY_MIN_N`` = 100,000 vertices and
         SuperLU below; the two agree to the Lanczos tolerance (eigenvalues 1e-10 relative,
         subspaces 1e-8).
+    progress : ``True`` shows a progress bar (operator, eigenpairs), ``False`` never, ``None``
+        (default) on large problems (``n·k > PROGRESS_MIN_WORK``) when stderr is a terminal.
 
     Returns
     -------
     Basis
         ``vecs`` ``(n, k)`` A-orthonormal, column 0 the constant ``1/sqrt(area)``; ``evals``
-        ``(k,)`` ascending, the first 0.
+        ``(k,)`` ascending, the first 0; ``kind`` the operator used (``"cotan"``, ``"robust"`` or
+        ``"point_cloud"``).
 
     Raises
     ------
     TypeError
-        If ``mesh`` is not a :class:`prodmaps.Mesh` or ``k`` not an integer.
+        If ``mesh`` is not a :class:`prodmaps.Mesh` or :class:`prodmaps.PointCloud`, or ``k`` not
+        an integer.
     ValueError
         If ``k`` is not in ``[1, n)``.
     MeshError
-        If the mesh has more than one connected component (the constant would not be the only
-        zero mode).
+        If the mesh has more than one connected component, or a point cloud falls apart into
+        several (the constant would not be the only zero mode), or vertices have no area
+        (unreferenced by any face).
+    NeedsFacesError
+        For ``kind="cotan"`` on a point cloud.
 
     Examples
     --------
@@ -240,51 +355,95 @@ def eigenbasis(mesh: Mesh, k: int, kind: str = "cotan", mass: str = "lumped", *,
     ((162, 6), (6,))
     >>> bool(np.allclose(b.vecs[:, 0], 1 / np.sqrt(mesh.area))), bool(b.evals[0] == 0)
     (True, True)
+    >>> c = pm.eigenbasis(pm.PointCloud(mesh.vertices), 6)  # the same points, no faces
+    >>> c.kind, bool(np.allclose(c.evals[1:] / b.evals[1:], 1, atol=0.1))
+    ('point_cloud', True)
     """
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"eigenbasis expects a prodmaps.Mesh, got {type(mesh).__name__}")
+    cloud = isinstance(mesh, PointCloud)
+    if not (cloud or isinstance(mesh, Mesh)):
+        raise TypeError(f"eigenbasis expects a prodmaps.Mesh or prodmaps.PointCloud, got {type(mesh).__name__}")
     n = mesh.n_vertices
     if not isinstance(k, (int, np.integer)) or isinstance(k, bool):
         raise TypeError(f"k must be an integer, got {type(k).__name__}")
     if not 1 <= k < n:
-        raise ValueError(f"k={k} is out of range for a mesh with {n} vertices: need 1 <= k < {n} "
-                         "(k counts the constant; the paper's k_M = 9 is k = 10)")
-    ncomp, labels = face_components(n, mesh.faces)
-    if ncomp > 1:  # a mesh loaded with validate=False: the constant is not the only zero mode
-        sizes = sorted(np.bincount(labels).tolist(), reverse=True)[:5]
-        raise MeshError(f"eigenbasis needs a connected mesh: {mesh.name or 'this mesh'} has {ncomp} connected "
-                        f"components (vertex counts {sizes}); each has its own constant eigenfunction, so the "
-                        "conventions (one constant column, A-orthonormal) cannot hold. Keep the largest with "
-                        "pm.mesh.largest_component(mesh.vertices, mesh.faces), or load with "
-                        "pm.io.load_mesh_repaired(path)")
+        raise ValueError(f"k={k} is out of range for a {'point cloud' if cloud else 'mesh'} with {n} "
+                         f"{'points' if cloud else 'vertices'}: need 1 <= k < {n} (k counts the constant; the "
+                         "paper's k_M = 9 is k = 10)")
+    if not cloud:
+        lone = np.setdiff1d(np.arange(n), mesh.faces)
+        if lone.size:  # a mesh built with validate=False
+            raise MeshError(f"eigenbasis: {lone.size} vertices have no area (first {lone[:5].tolist()}): they belong "
+                            "to no face; drop them with pm.mesh.remove_unreferenced_vertices(vertices, faces)")
+        ncomp, labels = face_components(n, mesh.faces)
+        if ncomp > 1:  # a mesh loaded with validate=False: the constant is not the only zero mode
+            sizes = sorted(np.bincount(labels).tolist(), reverse=True)[:5]
+            raise MeshError(f"eigenbasis needs a connected mesh: {mesh.name or 'this mesh'} has {ncomp} connected "
+                            f"components (vertex counts {sizes}); each has its own constant eigenfunction, so the "
+                            "conventions (one constant column, A-orthonormal) cannot hold. Keep the largest with "
+                            "pm.mesh.largest_component(mesh.vertices, mesh.faces), or load with "
+                            "pm.io.load_mesh_repaired(path)")
+    label = kind if kind is not None else ("robust" if cloud else "cotan")
+    bar = progress_bar(2, f"eigenbasis {mesh.name or ''}".strip(), progress=progress, work=float(n) * k,
+                       min_work=PROGRESS_MIN_WORK)
     W, A = laplacian(mesh, kind=kind, mass=mass)
+    bar.update(1)
+    if not sp.issparse(A) and np.any(A <= 0):
+        bad = np.flatnonzero(A <= 0)
+        raise MeshError(f"eigenbasis: {bad.size} {'points' if cloud else 'vertices'} have no area (first "
+                        f"{bad[:5].tolist()})" + ("" if cloud else "; they belong to no face: drop them with "
+                                                   "pm.mesh.remove_unreferenced_vertices(vertices, faces)"))
     evals, vecs = smallest_eigenpairs(W, A, k, solver=solver)  # ascending, A-normalised
+    bar.update(1)
+    bar.close()
+    if cloud and k > 1 and evals[1] <= 1e-8 * max(float(evals[-1]), np.finfo(float).tiny):
+        raise MeshError(f"eigenbasis: the point cloud {mesh.name or ''} falls apart into several pieces (a second "
+                        f"zero eigenvalue, λ1 = {evals[1]:.2e}): its point-cloud Laplacian joins each point to its "
+                        "nearest neighbours only; keep one piece, or sample the surface more densely")
     # fix the constant exactly (round-off only) and the signs
     area = float(A.sum())
     evals = np.maximum(evals, 0.0)
     evals[0] = 0.0
     vecs[:, 0] = 1.0 / np.sqrt(area)
     vecs[:, 1:] = fix_signs(vecs[:, 1:])
-    return Basis(vecs, evals, A, name=mesh.name)
+    return Basis(vecs, evals, A, name=mesh.name, kind="point_cloud" if cloud else label)
 
 
 def _eigenbasis_arrays(vertices, faces, name, k, kind, mass, solver="auto"):
     """Worker of :func:`eigenbases`: plain arrays in and out (cheap to send between processes)."""
-    b = eigenbasis(Mesh(vertices, faces, name=name, validate=False), k, kind=kind, mass=mass,
-                   solver=solver)  # validated by the caller
-    return b.vecs, b.evals, b.mass
+    shape = PointCloud(vertices, name=name) if faces is None else Mesh(vertices, faces, name=name, validate=False)
+    b = eigenbasis(shape, k, kind=kind, mass=mass, solver=solver, progress=False)  # validated by the caller
+    return b.vecs, b.evals, b.mass, b.kind
 
 
-def eigenbases(meshes, k: int, kind: str = "cotan", mass: str = "lumped", *, jobs: int | None = None,
-               solver: str = "auto") -> list:
-    """:func:`eigenbasis` of several meshes, in ``jobs`` worker processes (``solver`` as in :func:`eigenbasis`).
-
-    ``jobs`` defaults to one per mesh, at most the number of CPUs; ``jobs=1`` runs in this process.
+def eigenbases(meshes, k: int, kind: str | None = None, mass: str = "lumped", *, jobs: int | None = None,
+               solver: str = "auto", progress: bool | None = None) -> list:
+    """:func:`eigenbasis` of several meshes or point clouds, in ``jobs`` worker processes.
 
     The sparse LU factorisation and the triangular solves of shift-invert Lanczos run on one core,
     so the eigenbases of a pair of large meshes take about the time of one on a 2-core machine
-    (``docs/benchmarks.md``). Each basis is what :func:`eigenbasis` returns for that mesh (same
+    (``docs/benchmarks.md``). Each basis is what :func:`eigenbasis` returns for that shape (same
     solver, same arrays; the test compares them bit for bit).
+
+    Parameters
+    ----------
+    meshes : iterable of Mesh or PointCloud
+    k, kind, mass, solver : as in :func:`eigenbasis` (the same for every shape).
+    jobs : worker processes; default one per shape, at most the number of CPUs; ``1`` runs in
+        this process.
+    progress : a bar of one step per shape (``True``), none (``False``), or on large problems
+        (``Σ n·k > PROGRESS_MIN_WORK``) when stderr is a terminal (``None``, default).
+
+    Returns
+    -------
+    list of Basis
+        In the order of ``meshes``.
+
+    Raises
+    ------
+    TypeError
+        If a shape is neither a mesh nor a point cloud.
+    ValueError
+        For a bad ``jobs`` or ``k`` (and what :func:`eigenbasis` raises for a shape).
 
     Examples
     --------
@@ -299,21 +458,33 @@ def eigenbases(meshes, k: int, kind: str = "cotan", mass: str = "lumped", *, job
 
     meshes = list(meshes)
     for m in meshes:
-        if not isinstance(m, Mesh):
-            raise TypeError(f"eigenbases expects prodmaps.Mesh objects, got {type(m).__name__}")
+        if not isinstance(m, (Mesh, PointCloud)):
+            raise TypeError(f"eigenbases expects prodmaps.Mesh or prodmaps.PointCloud objects, got {type(m).__name__}")
     if jobs is None:
         jobs = min(len(meshes), os.cpu_count() or 1)
     if not isinstance(jobs, (int, np.integer)) or jobs < 1:
         raise ValueError(f"jobs must be a positive integer, got {jobs!r}")
+    work = float(sum(m.n_vertices for m in meshes)) * k
+    bar = progress_bar(len(meshes), "eigenbases", progress=progress, work=work, min_work=PROGRESS_MIN_WORK,
+                       unit="shape")
     if jobs == 1 or len(meshes) <= 1:
-        return [eigenbasis(m, k, kind=kind, mass=mass, solver=solver) for m in meshes]
+        out = []
+        for m in meshes:
+            out.append(eigenbasis(m, k, kind=kind, mass=mass, solver=solver, progress=False))
+            bar.update(1)
+        bar.close()
+        return out
     import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures import ProcessPoolExecutor, as_completed
 
     with ProcessPoolExecutor(max_workers=int(jobs), mp_context=mp.get_context("spawn")) as ex:
-        futs = [ex.submit(_eigenbasis_arrays, m.vertices, m.faces, m.name, k, kind, mass, solver) for m in meshes]
+        futs = [ex.submit(_eigenbasis_arrays, m.vertices, None if isinstance(m, PointCloud) else m.faces, m.name, k,
+                          kind, mass, solver) for m in meshes]
+        for _ in as_completed(futs):
+            bar.update(1)
         out = [f.result() for f in futs]
-    return [Basis(v, e, a, name=m.name) for m, (v, e, a) in zip(meshes, out)]
+    bar.close()
+    return [Basis(v, e, a, name=m.name, kind=kd) for m, (v, e, a, kd) in zip(meshes, out)]
 
 
 def fourier_basis(n: int, k: int, period: float = 2 * np.pi) -> Basis:
@@ -358,7 +529,7 @@ def fourier_basis(n: int, k: int, period: float = 2 * np.pi) -> Basis:
     phase = np.outer(x, freq)  # (n, k - 1)
     trig = np.where(c % 2 == 1, np.cos(phase), np.sin(phase)) * np.sqrt(2.0 / period)
     vecs = np.column_stack([np.full(n, 1.0 / np.sqrt(period)), trig])
-    return Basis(vecs, np.concatenate([[0.0], freq ** 2]), np.full(n, period / n), name="fourier")
+    return Basis(vecs, np.concatenate([[0.0], freq ** 2]), np.full(n, period / n), name="fourier", kind="fourier")
 
 
 def diagonal_if_lumped(M) -> np.ndarray | sp.csr_matrix:

@@ -55,7 +55,7 @@ def principal_curvatures(mesh: Mesh, smooth: int = 1):
     a sphere with outward normals).
     Directions are defined up to sign; everything is invariant to rigid motions.
     """
-    mesh = check_mesh(mesh)
+    mesh = check_mesh(mesh, "principal_curvatures")
     V, F = mesh.vertices, mesh.faces
     n, m = V.shape[0], F.shape[0]
     N = mesh.vertex_normals()

@@ -1,4 +1,4 @@
-"""Geodesic distances on triangle meshes and the geodesic error of point maps.
+"""Geodesic distances on triangle meshes and point clouds, and the geodesic error of point maps.
 
 Three ways to compute distances from a set of source vertices, all returning an array of
 shape ``(n_sources, n_vertices)`` (row ``s`` holds the distance of every vertex to
@@ -15,6 +15,11 @@ shape ``(n_sources, n_vertices)`` (row ``s`` holds the distance of every vertex 
   a few percent to ~15 % too long (zig-zag paths across the triangulation).
 * ``method="exact"``: the exact polyhedral geodesic (MMP/Surazhsky) via
   ``igl.exact_geodesic`` (libigl's Python bindings). Slow; for checks on few sources.
+
+A :class:`prodmaps.PointCloud` has the heat method only (``potpourri3d.PointCloudHeatSolver``,
+the heat method on the point-cloud Laplacian's tufted cover); ``"graph"`` and ``"exact"`` need
+edges and raise :class:`prodmaps.NeedsFacesError`. Its area (for :func:`map_error`) is the sum of
+its point-cloud Laplacian's lumped mass.
 
 :func:`all_pairs` computes the full ``(n, n)`` matrix with the heat method (symmetrised,
 ``(D + Dᵀ)/2``) and caches it on disk as float32 ``.npy`` under ``$PRODMAPS_CACHE`` (default
@@ -38,9 +43,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from .files import atomic_path, sha256_bytes
-from .mesh import Mesh, check_vertex_indices, edges
+from .mesh import Mesh, check_mesh, check_vertex_indices, edges, needs_faces
+from .operators import laplacian
+from .pointcloud import PointCloud
 
-__all__ = ["distances", "DistanceRows", "all_pairs", "map_error", "error_curve", "cache_dir", "mesh_key", "edge_graph"]
+__all__ = ["distances", "DistanceRows", "all_pairs", "map_error", "error_curve", "cache_dir", "mesh_key", "edge_graph",
+           "shape_area"]
 
 _METHODS = ("heat", "graph", "exact")
 
@@ -52,9 +60,27 @@ def cache_dir() -> Path:
 
 
 def mesh_key(mesh: Mesh) -> str:
-    """SHA-256 (hex) of the mesh's float64 vertex bytes and int64 face bytes."""
+    """SHA-256 (hex) of the mesh's float64 vertex bytes and int64 face bytes (a point cloud: of its points)."""
+    if isinstance(mesh, PointCloud):
+        return sha256_bytes(b"point cloud|" + np.ascontiguousarray(mesh.points, dtype="<f8").tobytes())
     return sha256_bytes(np.ascontiguousarray(mesh.vertices, dtype="<f8").tobytes()
                         + np.ascontiguousarray(mesh.faces, dtype="<i8").tobytes())
+
+
+def _check_method(shape, method: str) -> None:
+    """``ValueError`` for an unknown method, :class:`prodmaps.NeedsFacesError` for edges on a point cloud."""
+    if method not in _METHODS:
+        raise ValueError(f"unknown method {method!r}; choose one of {_METHODS}")
+    if isinstance(shape, PointCloud) and method != "heat":
+        raise needs_faces(f"geodesic distances with method={method!r}", shape,
+                          "a point cloud has the heat method, method='heat' (potpourri3d's PointCloudHeatSolver)")
+    if not isinstance(shape, PointCloud):
+        check_mesh(shape)
+
+
+def shape_area(shape) -> float:
+    """The area of a mesh, or of a point cloud (the sum of its point-cloud Laplacian's lumped mass)."""
+    return float(laplacian(shape)[1].sum()) if isinstance(shape, PointCloud) else float(shape.area)
 
 
 def _check_sources(mesh: Mesh, sources) -> np.ndarray:
@@ -66,7 +92,7 @@ def _check_sources(mesh: Mesh, sources) -> np.ndarray:
 
 def edge_graph(mesh: Mesh) -> sp.csr_matrix:
     """The mesh's edges as a symmetric sparse graph ``(n, n)`` weighted by their lengths."""
-    e, _ = edges(mesh.faces)  # (E, 2)
+    e, _ = edges(check_mesh(mesh, "edge_graph").faces)  # (E, 2)
     w = np.linalg.norm(mesh.vertices[e[:, 0]] - mesh.vertices[e[:, 1]], axis=1)  # (E,)
     n = mesh.n_vertices
     return sp.csr_matrix((np.concatenate([w, w]), (np.concatenate([e[:, 0], e[:, 1]]),
@@ -84,9 +110,12 @@ class _HeatSolver:
                 "method='heat' needs potpourri3d (pip install potpourri3d); "
                 "use method='graph' for a scipy-only upper bound"
             ) from exc
-        self.solver = pp3d.MeshHeatMethodDistanceSolver(
-            np.asarray(mesh.vertices), np.asarray(mesh.faces), t_coef=t_coef, use_robust=True
-        )
+        if isinstance(mesh, PointCloud):
+            self.solver = pp3d.PointCloudHeatSolver(np.asarray(mesh.points), t_coef=t_coef)
+        else:
+            self.solver = pp3d.MeshHeatMethodDistanceSolver(
+                np.asarray(mesh.vertices), np.asarray(mesh.faces), t_coef=t_coef, use_robust=True
+            )
         self.n = mesh.n_vertices
 
     def __call__(self, sources: np.ndarray, dtype=np.float64) -> np.ndarray:
@@ -108,8 +137,7 @@ class DistanceRows:
     """
 
     def __init__(self, mesh: Mesh, method: str = "heat", *, max_bytes: float = 1e9):
-        if method not in _METHODS:
-            raise ValueError(f"unknown method {method!r}; choose one of {_METHODS}")
+        _check_method(mesh, method)
         self.mesh, self.method, self.n = mesh, method, mesh.n_vertices
         self.max_rows = max(1, int(max_bytes // (8 * self.n)))
         self._solver = _HeatSolver(mesh) if method == "heat" else None
@@ -157,19 +185,34 @@ def distances(mesh: Mesh, sources, method: str = "heat", *, t_coef: float = 1.0)
 
     Parameters
     ----------
-    mesh : pm.Mesh
+    mesh : pm.Mesh or pm.PointCloud
     sources : int or (s,) int array of vertex indices (0-based)
-    method : "heat" (potpourri3d heat method, default), "graph" (Dijkstra on edges; an upper
-        bound, scipy only) or "exact" (libigl exact polyhedral geodesics; slow).
+    method : "heat" (potpourri3d heat method, default; the only one for a point cloud), "graph"
+        (Dijkstra on edges; an upper bound, scipy only) or "exact" (libigl exact polyhedral
+        geodesics; slow).
     t_coef : heat-method time step multiplier (``t = t_coef * mean_edge_length**2``).
 
     Returns
     -------
     (s, n) float64 array; row ``i`` = distances to ``sources[i]``. A scalar ``sources``
     still gives a ``(1, n)`` array.
+
+    Raises
+    ------
+    NeedsFacesError
+        For ``method="graph"`` or ``"exact"`` on a point cloud.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> sphere = pm.mesh.icosphere(3)
+    >>> d_mesh = distances(sphere, 0)[0]
+    >>> d_cloud = distances(pm.PointCloud(sphere.vertices), 0)[0]  # the same points, no faces
+    >>> round(float(d_mesh.max()), 1), round(float(d_cloud.max()), 1)  # the antipode: π
+    (3.1, 3.1)
     """
-    if method not in _METHODS:
-        raise ValueError(f"unknown method {method!r}; choose one of {_METHODS}")
+    _check_method(mesh, method)
     src = _check_sources(mesh, sources)
     if method == "graph":
         from scipy.sparse.csgraph import dijkstra
@@ -190,6 +233,7 @@ def all_pairs(mesh: Mesh, *, cache: bool = True, method: str = "heat", verbose: 
     """
     if method not in ("heat", "graph"):
         raise ValueError("all_pairs supports method='heat' or 'graph' ('exact' is far too slow)")
+    _check_method(mesh, method)
     path = cache_dir() / f"geodesics_{method}_{mesh_key(mesh)}.npy"
     if cache and path.is_file():
         d = np.load(path, allow_pickle=False)
@@ -221,8 +265,8 @@ def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=N
 
     Parameters
     ----------
-    mesh_1 : pm.Mesh, the **target of the point map** (shape 1; ``p2p_21`` maps vertices of
-        shape 2 to vertices of shape 1).
+    mesh_1 : pm.Mesh or pm.PointCloud, the **target of the point map** (shape 1; ``p2p_21``
+        maps vertices of shape 2 to vertices of shape 1). A point cloud takes ``method="heat"``.
     p2p_21 : (n2,) int array of vertex indices of shape 1, or (m, n2) for m maps evaluated
         against the same truth (the distances are then computed once for all of them).
     p2p_21_true : (n2,) int array of vertex indices of shape 1.
@@ -253,6 +297,8 @@ def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=N
             "p2p_21 ((n2,) or (m, n2)) and p2p_21_true ((n2,)) must have the same length n2; "
             f"got {p.shape} and {q.shape}"
         )
+    if dist is None:
+        _check_method(mesh_1, method)
     P = np.stack([_check_sources(mesh_1, row) for row in P])
     q = _check_sources(mesh_1, q)
     err = np.zeros(P.shape, dtype=np.float64)  # (m, n2)
@@ -281,7 +327,7 @@ def map_error(mesh_1: Mesh, p2p_21, p2p_21_true, *, method: str = "heat", dist=N
             vals[:, sel] = rows[np.arange(sel.size)[None, :], targets[:, sel]]
         err[:, wrong] = vals
     err[P == q[None, :]] = 0.0
-    err = np.maximum(err, 0.0) / np.sqrt(mesh_1.area)
+    err = np.maximum(err, 0.0) / np.sqrt(shape_area(mesh_1))
     return err if stacked else err[0]
 
 

@@ -1,4 +1,4 @@
-"""Reading and writing triangle meshes: PLY (ASCII and binary), OFF, OBJ; positions only.
+"""Reading and writing triangle meshes (PLY, OFF, OBJ) and point clouds (also XYZ text, ``.npy``).
 
 * PLY: the header is parsed here (strictly). Binary triangle meshes of fixed-size records are
   read as numpy structured views of the file; ASCII triangle meshes with
@@ -20,7 +20,11 @@
   Any line ending (LF, CRLF) is accepted.
 
 Vertices are returned in file order, exactly (ground-truth correspondences index them), and
-faces as written: polygons are kept (padded), so that validation can refuse them by name.
+faces as written by :func:`read_mesh_arrays` (polygons padded); :func:`load_mesh` triangulates
+polygons (fans, with a :class:`prodmaps.MeshWarning` saying how many) unless ``triangulate=False``.
+:func:`load_point_cloud` reads positions and, when the file has them, normals (PLY ``nx ny nz``,
+``NOFF``, OBJ ``vn`` lines, a text or ``.npy`` table of 6 columns); a file without faces given to
+:func:`load_mesh` raises an error that names :func:`load_point_cloud`.
 
 Readers are strict: a missing, unreadable, truncated or malformed file raises
 :class:`MeshError` whose message starts with the file path and names the problem; the result
@@ -41,12 +45,18 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .mesh import Mesh, MeshError, repair
+from .errors import MeshError, MeshWarning
+from .mesh import COINCIDENT_TOL, Mesh, repair, triangulate_polygons
+from .pointcloud import PointCloud
 
-__all__ = ["load_mesh", "read_mesh_arrays", "save_mesh", "load_mesh_repaired", "file_to_mesh_index"]
+__all__ = ["load_mesh", "read_mesh_arrays", "save_mesh", "load_mesh_repaired", "file_to_mesh_index",
+           "load_point_cloud", "read_point_arrays", "POINT_CLOUD_SUFFIXES"]
+
+POINT_CLOUD_SUFFIXES = (".ply", ".off", ".obj", ".xyz", ".txt", ".pts", ".npy")
+"""The files :func:`load_point_cloud` reads (``.xyz``, ``.txt``, ``.pts``: one point per line)."""
 
 
-def load_mesh(path, *, validate: bool = True, name: str | None = None) -> Mesh:
+def load_mesh(path, *, validate: bool = True, name: str | None = None, triangulate: bool = True) -> Mesh:
     """Load a triangle mesh from ``.ply``, ``.off`` or ``.obj`` (positions and faces only).
 
     Parameters
@@ -54,9 +64,15 @@ def load_mesh(path, *, validate: bool = True, name: str | None = None) -> Mesh:
     path : str or pathlib.Path
         The mesh file; the format is chosen by its suffix.
     validate : bool
-        Validate the mesh (see :func:`prodmaps.mesh.validate`); default true.
+        Validate the mesh (see :func:`prodmaps.mesh.validate`); default true. Validation also
+        warns (:class:`prodmaps.MeshWarning`, the message starting with the path) about coincident
+        vertices, bowtie vertices and inconsistent orientation, naming the repair.
     name : str, optional
         The mesh's label (default: the file's stem).
+    triangulate : bool
+        Split polygon faces (quads and larger) into triangles (fans,
+        :func:`prodmaps.mesh.triangulate_polygons`), with a :class:`prodmaps.MeshWarning` saying
+        how many (default); ``False`` refuses them (``MeshError`` "non-triangular faces").
 
     Returns
     -------
@@ -66,7 +82,8 @@ def load_mesh(path, *, validate: bool = True, name: str | None = None) -> Mesh:
     Raises
     ------
     MeshError
-        If the file is missing, unreadable, truncated, not a text OBJ, or if the mesh fails
+        If the file is missing, unreadable, truncated, not a text OBJ, holds no faces (a point
+        cloud: the message names :func:`prodmaps.load_point_cloud`), or if the mesh fails
         validation (the message names the fix, e.g. :func:`prodmaps.io.load_mesh_repaired`).
 
     Examples
@@ -81,36 +98,78 @@ def load_mesh(path, *, validate: bool = True, name: str | None = None) -> Mesh:
     ((162, 3), (320, 3), 'ellipsoid')
     """
     v, f = read_mesh_arrays(path)
+    _refuse_points(path, v, f)
+    if triangulate and f.ndim == 2 and f.shape[1] > 3:
+        tri, src = triangulate_polygons(f)
+        per_face = np.bincount(src, minlength=f.shape[0])  # triangles of each face (1 for a triangle)
+        poly = per_face > 1
+        warnings.warn(f"{path}: {int(poly.sum())} polygon faces (quads or larger) triangulated into "
+                      f"{int(per_face[poly].sum())} triangles (fans), {tri.shape[0]} triangles in all; pass "
+                      "triangulate=False to refuse polygons", MeshWarning, stacklevel=2)
+        f = tri
     try:
-        return Mesh(v, f, name=Path(path).stem if name is None else name, validate=validate)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", MeshWarning)
+            mesh = Mesh(v, f, name=Path(path).stem if name is None else name, validate=validate)
     except MeshError as exc:
         raise MeshError(f"{path}: {exc}") from None
+    for w in caught:  # the validation's warnings, with the file named
+        if issubclass(w.category, MeshWarning):
+            warnings.warn(f"{path}: {w.message}", MeshWarning, stacklevel=2)
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return mesh
 
 
-def load_mesh_repaired(path, *, name: str | None = None, verbose: bool = True) -> tuple[Mesh, np.ndarray]:
-    """Load a mesh, applying the standard repairs if validation fails: ``(mesh, kept)``.
+def _refuse_points(path, v, f) -> None:
+    """A ``MeshError`` naming :func:`load_point_cloud` for a file without faces."""
+    if len(v) and (f.ndim != 2 or f.shape[0] == 0):
+        raise MeshError(f"{path}: no faces: the file holds {len(v)} points without faces, a point cloud; load it "
+                        "with pm.load_point_cloud(path) (its basis: pm.eigenbasis(cloud, k))")
+
+
+def load_mesh_repaired(path, *, name: str | None = None, verbose: bool = True,
+                       coincident_tol: float | None = COINCIDENT_TOL, return_report: bool = False):
+    """Load a mesh, applying the standard repairs if validation fails or warns: ``(mesh, kept)``.
 
     ``kept[i]`` is the vertex of the *file* that mesh vertex ``i`` came from (the identity when
     nothing was repaired), so landmark indices and ground-truth files written for the file can be
-    translated with :func:`file_to_mesh_index`. The repairs (:func:`prodmaps.mesh.repair`) drop
-    degenerate and duplicate faces, small floating components and unreferenced vertices; a problem
-    they cannot fix (non-manifold edges, polygons) raises ``MeshError`` "cannot be repaired
-    automatically: ...". With ``verbose`` the problem found and what changed are printed.
+    translated with :func:`file_to_mesh_index`. The repairs (:func:`prodmaps.mesh.repair`)
+    triangulate polygons, merge coincident vertices (within ``coincident_tol`` of the bounding-box
+    diagonal; a duplicated seam or a triangle soup becomes the closed surface), drop degenerate and
+    duplicate faces, split bowtie vertices, drop small floating components and unreferenced
+    vertices, and orient the faces consistently; they run when validation fails or warns
+    (:class:`prodmaps.MeshWarning`). A problem they cannot fix (non-manifold edges) raises
+    ``MeshError`` "cannot be repaired automatically: ..." naming the way out (the robust Laplacian
+    on the unrepaired mesh); a file without faces raises ``MeshError`` naming
+    :func:`prodmaps.load_point_cloud`. With ``verbose`` the problem found and what changed (the
+    :class:`prodmaps.mesh.RepairReport`) are printed; ``return_report`` also returns the report
+    (``None`` when nothing was repaired), whose ``vertex_map`` gives every file vertex's mesh vertex
+    (merged vertices included).
     """
     try:
-        mesh = load_mesh(path, name=name)
-        return mesh, np.arange(mesh.n_vertices)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", MeshWarning)
+            mesh = load_mesh(path, name=name, triangulate=False)
+        found = [str(w.message) for w in caught if issubclass(w.category, MeshWarning)]
+        if not found:
+            ident = np.arange(mesh.n_vertices)
+            return (mesh, ident, None) if return_report else (mesh, ident)
+        problem = found[0]
     except MeshError as exc:
-        if verbose:
-            print(f"needs cleaning -> {exc}")
+        problem = str(exc)
+    if verbose:
+        print(f"needs cleaning -> {problem}")
     v, f = read_mesh_arrays(path)  # raw arrays; raises MeshError if the file is unreadable
+    _refuse_points(path, v, f)
     try:
-        mesh, kept = repair(v, f, name=Path(path).stem if name is None else name)
+        mesh, kept, report = repair(v, f, name=Path(path).stem if name is None else name,
+                                    coincident_tol=coincident_tol, return_report=True)
     except MeshError as exc:
         raise MeshError(f"{path}: cannot be repaired automatically: {exc}") from None
     if verbose:
-        print(f"repaired: {len(v)} -> {mesh.n_vertices} vertices, {len(f)} -> {mesh.n_faces} faces")
-    return mesh, kept
+        print(f"repaired: {report}")
+    return (mesh, kept, report) if return_report else (mesh, kept)
 
 
 def file_to_mesh_index(kept: np.ndarray, n_file: int) -> np.ndarray:
@@ -118,6 +177,96 @@ def file_to_mesh_index(kept: np.ndarray, n_file: int) -> np.ndarray:
     inv = np.full(int(n_file), -1, dtype=np.int64)
     inv[np.asarray(kept)] = np.arange(len(kept))
     return inv
+
+
+def load_point_cloud(path, *, name: str | None = None, normals: bool = True) -> PointCloud:
+    """Load a point cloud: positions and, when the file has them, normals.
+
+    Formats (by suffix): ``.ply`` (the vertex element's ``x y z`` and ``nx ny nz``; ASCII or
+    binary; faces, if any, ignored), ``.off`` (``NOFF`` carries normals; in ``NCOFF`` and the other
+    variants writers disagree on the order of normals and colours, so they are not read), ``.obj``
+    (``v`` lines; ``vn`` lines as normals when there is one per ``v``), ``.xyz`` / ``.txt`` /
+    ``.pts`` (one point per line, ``x y z`` or ``x y z nx ny nz``, whitespace or commas, ``#``
+    comments) and ``.npy`` (an ``(n, 3)`` or ``(n, 6)`` array). A mesh file gives the cloud of its
+    vertices, in file order.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file.
+    name : str, optional
+        The cloud's label (default: the file's stem).
+    normals : bool
+        Read the normals when the file has them (default); ``False`` drops them.
+
+    Returns
+    -------
+    PointCloud
+        ``points`` ``(n, 3)`` float64 in file order, ``normals`` ``(n, 3)`` unit or ``None``.
+
+    Raises
+    ------
+    MeshError
+        Naming the path: a missing, unreadable or malformed file, an unsupported suffix, a table
+        that is neither 3 nor 6 columns wide, or points the cloud refuses (:class:`prodmaps.PointCloud`).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "cloud.xyz"
+    >>> P = pm.mesh.ellipsoid(2).vertices
+    >>> np.savetxt(path, np.hstack([P, P / np.linalg.norm(P, axis=1, keepdims=True)]))
+    >>> cloud = pm.load_point_cloud(path)
+    >>> cloud.n_points, cloud.normals.shape, cloud.name, bool(np.allclose(cloud.points, P))
+    (162, (162, 3), 'cloud', True)
+    """
+    points, nrm = read_point_arrays(path)
+    try:
+        return PointCloud(points, nrm if normals else None, name=Path(path).stem if name is None else name)
+    except MeshError as exc:
+        raise MeshError(f"{path}: {exc}") from None
+
+
+def read_point_arrays(path) -> tuple[np.ndarray, np.ndarray | None]:
+    """Return raw ``(points (n, 3) float64, normals (n, 3) float64 or None)`` of a point-cloud file, unchecked.
+
+    See :func:`load_point_cloud` for the formats.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise MeshError(f"{path}: no such file")
+    ext = path.suffix.lower()
+    if ext not in POINT_CLOUD_SUFFIXES:
+        raise MeshError(f"{path}: unsupported point-cloud format {ext!r}; use {', '.join(POINT_CLOUD_SUFFIXES)}")
+    try:
+        if ext == ".npy":
+            table = np.load(path, allow_pickle=False)
+            return _point_table(table)
+        if ext in (".xyz", ".txt", ".pts"):
+            text = path.read_text(encoding="utf-8-sig", errors="replace").replace(",", " ")
+            table = np.loadtxt(io.StringIO(text), dtype=np.float64, comments="#", ndmin=2)
+            return _point_table(table)
+        readers = {".ply": _read_ply_points, ".off": _read_off_points, ".obj": _read_obj_points}
+        with open(path, "rb") as fh:
+            return readers[ext](fh)
+    except MeshError as exc:
+        raise MeshError(f"{path}: {exc}") from None
+    except OSError as exc:
+        raise MeshError(f"{path}: unreadable ({exc})") from None
+    except (ValueError, IndexError, KeyError, UnicodeDecodeError, OverflowError) as exc:
+        raise MeshError(f"{path}: malformed {ext[1:].upper()} file ({exc})") from None
+
+
+def _point_table(table: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """``(points, normals or None)`` of an ``(n, 3)`` or ``(n, 6)`` table."""
+    t = np.asarray(table)
+    if t.dtype.kind not in "biuf" or t.ndim != 2 or t.shape[1] not in (3, 6):
+        raise MeshError(f"a point table must be (n, 3) (x y z) or (n, 6) (x y z nx ny nz) numbers; got shape "
+                        f"{t.shape}, dtype {t.dtype}")
+    t = t.astype(np.float64)
+    return t[:, :3], (t[:, 3:] if t.shape[1] == 6 else None)
 
 
 def read_mesh_arrays(path) -> tuple[np.ndarray, np.ndarray]:
@@ -132,7 +281,9 @@ def read_mesh_arrays(path) -> tuple[np.ndarray, np.ndarray]:
     ext = path.suffix.lower()
     readers = {".ply": _read_ply, ".off": _read_off, ".obj": _read_obj}
     if ext not in readers:
-        raise MeshError(f"{path}: unsupported format {ext!r}; use .ply, .off or .obj")
+        cloud = (f"; a {ext} file holds points without faces, a point cloud: load it with pm.load_point_cloud(path)"
+                 if ext in POINT_CLOUD_SUFFIXES else "")
+        raise MeshError(f"{path}: unsupported format {ext!r}; use .ply, .off or .obj" + cloud)
     try:
         with open(path, "rb") as fh:
             return readers[ext](fh)
@@ -238,18 +389,29 @@ def _ply_header(buf: bytes):
     return fmt, elements, pos
 
 
-def _ply_mesh_elements(elements):
-    """The vertex element, the face element and the face's index-list property, or a named error."""
+def _ply_vertex_element(elements):
+    """The vertex element (with scalar x, y, z), or a named error."""
     names = [el.name for el in elements]
-    if "vertex" not in names or "face" not in names:
+    if "vertex" not in names:
         hint = " (triangle strips are not supported)" if "tristrips" in names else ""
-        raise MeshError(f"PLY file has no vertex or no face element (elements: {names}){hint}")
+        raise MeshError(f"PLY file has no vertex element (elements: {names}){hint}")
     vert = elements[names.index("vertex")]
-    face = elements[names.index("face")]
     scalars = {p.name for p in vert.props if p.count is None}
     missing = [c for c in "xyz" if c not in scalars]
     if missing:
         raise MeshError(f"PLY vertex element has no {'/'.join(missing)} property")
+    return vert
+
+
+def _ply_mesh_elements(elements):
+    """The vertex element, the face element (None if absent) and the face's index-list property, or a named error."""
+    names = [el.name for el in elements]
+    vert = _ply_vertex_element(elements)
+    if "face" not in names:
+        if "tristrips" in names:
+            raise MeshError(f"PLY file has no face element (elements: {names}); triangle strips are not supported")
+        return vert, None, None
+    face = elements[names.index("face")]
     lists = [p.name for p in face.props if p.count is not None]
     lists = [n for n in lists if n in _FACE_LISTS] or lists  # else: a single list of another name
     if len(lists) != 1:
@@ -257,10 +419,22 @@ def _ply_mesh_elements(elements):
     return vert, face, lists[0]
 
 
+def _ply_vertex_columns(buf, fmt, elements, start, vert, cols) -> np.ndarray:
+    """The vertex properties ``cols`` as an ``(n, len(cols))`` float64 array (ASCII rounded to the declared type)."""
+    read = _ply_ascii_rows if fmt == "" else _ply_binary_rows
+    data = read(buf, start, elements, fmt, wanted={"vertex": tuple(cols)})
+    types = {p.name: p.type for p in vert.props}
+    if vert.count == 0:
+        return np.zeros((0, len(cols)))
+    return np.column_stack([np.asarray(data["vertex"][c], dtype=types[c]).astype(np.float64) for c in cols])
+
+
 def _read_ply(fh):
     buf = fh.read()
     fmt, elements, start = _ply_header(buf)
     vert, face, index = _ply_mesh_elements(elements)
+    if face is None:  # points only: load_mesh names load_point_cloud
+        return _ply_vertex_columns(buf, fmt, elements, start, vert, "xyz"), np.zeros((0, 3), dtype=np.int64)
     # binary: structured views (every file trimesh could read); ASCII triangles: trimesh
     out = (_ply_binary_triangles if fmt else _ply_trimesh)(buf, fmt, elements, start, vert, face, index)
     if out is None:  # polygons, or a layout neither reads: our reader (names the problem)
@@ -271,6 +445,17 @@ def _read_ply(fh):
                                     for c in "xyz"])
         out = vertices, _faces_array(data["face"][index])
     return out
+
+
+def _read_ply_points(fh):
+    """``(points (n, 3), normals (n, 3) or None)`` of a PLY file's vertex element (faces ignored)."""
+    buf = fh.read()
+    fmt, elements, start = _ply_header(buf)
+    vert = _ply_vertex_element(elements)
+    scalars = {p.name for p in vert.props if p.count is None}
+    cols = ("x", "y", "z") + (("nx", "ny", "nz") if {"nx", "ny", "nz"} <= scalars else ())
+    table = _ply_vertex_columns(buf, fmt, elements, start, vert, cols)
+    return table[:, :3], (table[:, 3:6] if len(cols) == 6 else None)
 
 
 def _ply_binary_triangles(buf, fmt, elements, start, vert, face, index):
@@ -457,6 +642,17 @@ _OFF_MAGIC = re.compile(r"(?:ST|C|N)*OFF")  # [ST][C][N]OFF in any order (MeshLa
 
 
 def _read_off(fh):
+    vertices, faces, _ = _off_parts(fh)
+    return vertices, faces
+
+
+def _read_off_points(fh):
+    vertices, _, normals = _off_parts(fh)
+    return vertices, normals
+
+
+def _off_parts(fh):
+    """``(vertices, faces, normals or None)`` of an OFF file; normals from the N prefix (``x y z nx ny nz ...``)."""
     text = fh.read().decode("utf-8-sig", errors="replace")  # names/comments may be latin-1
     lines = [ln for ln in (raw.partition("#")[0].strip() for raw in text.splitlines()) if ln]  # no comments, blanks
     head = lines[0].split() if lines else []
@@ -486,6 +682,12 @@ def _read_off(fh):
     if short:
         raise MeshError(f"malformed vertex line {vlines[short[0]]!r}: fewer than 3 coordinates")
     vertices = np.array(vtok, dtype=np.float64).reshape(nv, 3)
+    normals = None
+    if head[0] == "NOFF":  # the normal follows the position (with colours, writers disagree on the order: skipped)
+        ntok = [ln.split()[3:6] for ln in vlines]
+        if any(len(t) < 3 for t in ntok):
+            raise MeshError(f"{head[0]} file with vertex lines of fewer than 6 numbers (x y z nx ny nz)")
+        normals = np.array(ntok, dtype=np.float64).reshape(nv, 3)
     rows = []
     for ln in flines:
         tok = ln.split()
@@ -493,17 +695,28 @@ def _read_off(fh):
         if k < 0 or len(tok) < k + 1:
             raise MeshError(f"malformed face line {ln!r}")
         rows.append([int(t) for t in tok[1:k + 1]])  # colours may follow the indices
-    return vertices, _faces_array(rows)
+    return vertices, _faces_array(rows), normals
 
 
 # ------------------------------------------------------------------------------ OBJ
 def _read_obj(fh):
+    vertices, faces, _ = _obj_parts(fh)
+    return vertices, faces
+
+
+def _read_obj_points(fh):
+    vertices, _, normals = _obj_parts(fh)
+    return vertices, normals
+
+
+def _obj_parts(fh):
+    """``(vertices, faces, normals or None)`` of an OBJ file: normals when there are as many ``vn`` as ``v`` lines."""
     raw = fh.read()
     head = raw[:4096]
     if b"\x00" in head or (head and sum(c < 9 or 13 < c < 32 for c in head) > 0.05 * len(head)):
         raise MeshError("not a text OBJ file: its first bytes are binary (a different format, or a damaged file)")
     text = raw.decode("utf-8-sig", errors="replace")
-    verts, rows, pending = [], [], ""
+    verts, rows, vn, pending = [], [], [], ""
     for ln in text.splitlines():
         if ln.endswith("\\"):  # line continuation
             pending += ln[:-1] + " "
@@ -529,10 +742,13 @@ def _read_obj(fh):
                     raise MeshError(f"malformed face line {ln.strip()!r}: OBJ indices start at 1")
                 face.append(i - 1 if i > 0 else n + i)  # negative: relative to the latest vertex
             rows.append(face)
-        # vn, vt, vp, o, g, s, usemtl, mtllib, l, p, comments: nothing to do for positions
+        elif key == "vn" and len(tok) >= 4:
+            vn.append(tok[1:4])
+        # vt, vp, o, g, s, usemtl, mtllib, l, p, comments: nothing to do for positions
     if not verts:
         raise MeshError("OBJ file has no vertices")
-    return np.array(verts, dtype=np.float64), _faces_array(rows)
+    normals = np.array(vn, dtype=np.float64) if len(vn) == len(verts) else None
+    return np.array(verts, dtype=np.float64), _faces_array(rows), normals
 
 
 # ------------------------------------------------------------------------------ write

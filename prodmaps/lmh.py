@@ -168,7 +168,7 @@ def localized_harmonics(mesh: Mesh, region, k: int, *, k_global: int = 10,
     """
     from scipy.sparse.linalg import LinearOperator, splu
 
-    mesh = check_mesh(mesh)
+    mesh = check_mesh(mesh, "localized_harmonics")
     n = mesh.n_vertices
     if not isinstance(k, (int, np.integer)) or isinstance(k, bool) or not 1 <= k < n - 1:
         raise ValueError(f"k must be an integer in [1, {n - 2}], got {k!r}")

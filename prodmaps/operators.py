@@ -12,8 +12,14 @@ Conventions
 * Boundaries: natural (Neumann) boundary condition; a boundary edge has one cotangent term.
 * ``kind="robust"`` uses the intrinsic-Delaunay Laplacian of Sharp & Crane (2020) through
   the ``robust_laplacian`` package (optional dependency), which stays well behaved on
-  meshes with thin or obtuse triangles; its mass is the lumped (Voronoi-free barycentric)
-  mass of the intrinsic mesh. ``mass="full"`` is not available there.
+  meshes with thin or obtuse triangles, and is defined on meshes the cotangent Laplacian is
+  not (duplicate faces, non-manifold edges and vertices: build them with ``validate=False``);
+  its mass is the lumped (Voronoi-free barycentric) mass of the intrinsic mesh.
+  ``mass="full"`` is not available there.
+* A :class:`prodmaps.PointCloud` has one Laplacian, the point-cloud Laplacian of the same paper
+  (``robust_laplacian.point_cloud_laplacian``: the local Delaunay triangulation of each point's
+  ``CLOUD_NEIGHBORS`` nearest neighbours, intrinsically mollified), with its lumped mass;
+  ``kind=None`` or ``"robust"`` selects it, ``"cotan"`` raises :class:`prodmaps.NeedsFacesError`.
 * :func:`anisotropic_laplacian` is the FEM stiffness of ``-div(D ∇f)`` with a per-face
   conductivity aligned with the principal curvature directions [ACR14] (used by AWFT).
 
@@ -27,9 +33,26 @@ import numpy as np
 import scipy.sparse as sp
 
 from .curvature import face_frames, principal_curvatures
-from .mesh import Mesh, check_mesh, face_areas
+from .mesh import Mesh, check_mesh, face_areas, needs_faces
+from .pointcloud import PointCloud
 
-__all__ = ["laplacian", "cotan_weights", "lumped_mass", "fem_mass", "anisotropic_laplacian"]
+__all__ = ["laplacian", "cotan_weights", "lumped_mass", "fem_mass", "anisotropic_laplacian", "KINDS", "CLOUD_NEIGHBORS",
+           "MOLLIFY_FACTOR"]
+
+KINDS = ("cotan", "robust")
+CLOUD_NEIGHBORS = 30
+"""Neighbours of each point in the point-cloud Laplacian (robust-laplacian's default)."""
+MOLLIFY_FACTOR = 1e-5
+"""Intrinsic mollification of the robust Laplacians, relative to the mean edge length (robust-laplacian's default)."""
+
+
+def _robust_laplacian():
+    try:
+        import robust_laplacian
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise ImportError("kind='robust' and point clouds need the optional package robust-laplacian: "
+                          "pip install robust-laplacian (or the extra: pip install 'prodmaps[geometry]')") from exc
+    return robust_laplacian
 
 
 def cotan_weights(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
@@ -70,18 +93,22 @@ def fem_mass(vertices: np.ndarray, faces: np.ndarray) -> sp.csr_matrix:
     return sp.coo_matrix((w, (rows, cols)), shape=(n, n)).tocsr()
 
 
-def laplacian(mesh: Mesh, kind: str = "cotan", mass: str = "lumped"):
-    """Stiffness and mass of ``mesh``: returns ``(W, A)``.
+def laplacian(mesh, kind: str | None = None, mass: str = "lumped"):
+    """Stiffness and mass of a mesh or a point cloud: returns ``(W, A)``.
 
     The weak Laplace–Beltrami problem is ``W φ = λ A φ`` with ``W`` positive semi-definite
     (natural boundary condition on open meshes).
 
     Parameters
     ----------
-    mesh : Mesh
-        The surface.
-    kind : ``"cotan"`` (default) or ``"robust"`` (intrinsic Delaunay, needs ``robust_laplacian``).
-    mass : ``"lumped"`` (default, ``A`` is an ``(n,)`` vector) or ``"full"`` (sparse FEM mass).
+    mesh : Mesh or PointCloud
+        The surface (a mesh built with ``validate=False`` is accepted: ``kind="robust"`` is
+        defined on duplicate faces and non-manifold edges).
+    kind : ``None`` (default: ``"cotan"`` on a mesh, the point-cloud Laplacian on a cloud),
+        ``"cotan"`` or ``"robust"`` (intrinsic Delaunay on a mesh, the point-cloud Laplacian on a
+        cloud; needs ``robust_laplacian``). See the module doc.
+    mass : ``"lumped"`` (default, ``A`` is an ``(n,)`` vector) or ``"full"`` (sparse FEM mass,
+        ``kind="cotan"`` only).
 
     Returns
     -------
@@ -93,11 +120,13 @@ def laplacian(mesh: Mesh, kind: str = "cotan", mass: str = "lumped"):
     Raises
     ------
     TypeError
-        If ``mesh`` is not a :class:`prodmaps.Mesh`.
+        If ``mesh`` is neither a :class:`prodmaps.Mesh` nor a :class:`prodmaps.PointCloud`.
     ValueError
         For an unknown ``kind`` or ``mass``.
+    NeedsFacesError
+        For ``kind="cotan"`` on a point cloud.
     ImportError
-        For ``kind="robust"`` without the ``robust_laplacian`` package.
+        For ``kind="robust"`` or a point cloud without the ``robust_laplacian`` package.
 
     Examples
     --------
@@ -110,25 +139,33 @@ def laplacian(mesh: Mesh, kind: str = "cotan", mass: str = "lumped"):
     ((162, 162), (162,))
     >>> bool(np.allclose(W @ np.ones(162), 0)), bool(np.isclose(A.sum(), mesh.area))
     (True, True)
+    >>> Wc, Ac = pm.laplacian(pm.PointCloud(mesh.vertices))  # the point-cloud Laplacian
+    >>> Wc.shape, bool(np.allclose(Wc @ np.ones(162), 0)), bool(abs(Ac.sum() / mesh.area - 1) < 0.05)
+    ((162, 162), True, True)
     """
-    mesh = check_mesh(mesh)
     if mass not in ("lumped", "full"):
         raise ValueError(f"mass must be 'lumped' or 'full', got {mass!r}")
-    if kind == "cotan":
+    if kind is not None and kind not in KINDS:
+        raise ValueError(f"kind must be 'cotan' or 'robust' (or None), got {kind!r}")
+    if isinstance(mesh, PointCloud):
+        if kind == "cotan":
+            raise needs_faces("laplacian(kind='cotan')", mesh, "a point cloud has the point-cloud Laplacian, "
+                              "kind=None or kind='robust'")
+        if mass != "lumped":
+            raise ValueError("a point cloud's Laplacian provides only the lumped mass")
+        L, M = _robust_laplacian().point_cloud_laplacian(np.asarray(mesh.points), mollify_factor=MOLLIFY_FACTOR,
+                                                         n_neighbors=CLOUD_NEIGHBORS)
+        return sp.csr_matrix(L), np.asarray(M.diagonal(), dtype=np.float64)
+    mesh = check_mesh(mesh)
+    if kind in (None, "cotan"):
         W = cotan_weights(mesh.vertices, mesh.faces)
         A = lumped_mass(mesh.vertices, mesh.faces) if mass == "lumped" else fem_mass(mesh.vertices, mesh.faces)
         return W, A
-    if kind == "robust":
-        if mass != "lumped":
-            raise ValueError("kind='robust' provides only the lumped mass")
-        try:
-            import robust_laplacian
-        except ImportError as exc:  # pragma: no cover - depends on the environment
-            raise ImportError("kind='robust' needs the optional package robust-laplacian: "
-                              "pip install robust-laplacian") from exc
-        L, M = robust_laplacian.mesh_laplacian(np.asarray(mesh.vertices), np.asarray(mesh.faces))
-        return sp.csr_matrix(L), np.asarray(M.diagonal(), dtype=np.float64)
-    raise ValueError(f"kind must be 'cotan' or 'robust', got {kind!r}")
+    if mass != "lumped":
+        raise ValueError("kind='robust' provides only the lumped mass")
+    L, M = _robust_laplacian().mesh_laplacian(np.asarray(mesh.vertices), np.asarray(mesh.faces),
+                                              mollify_factor=MOLLIFY_FACTOR)
+    return sp.csr_matrix(L), np.asarray(M.diagonal(), dtype=np.float64)
 
 
 def anisotropic_laplacian(mesh: Mesh, angle: float, alpha: float,
@@ -141,7 +178,7 @@ def anisotropic_laplacian(mesh: Mesh, angle: float, alpha: float,
     constant anisotropy: diffusion slowed by ``1+α`` across ``w``). ``W_ij = Σ_f area_f ∇b_iᵀ D ∇b_j``
     (``b_i`` the hat functions); ``α = 0`` gives the cotangent Laplacian exactly. ``θ`` in radians.
     """
-    mesh = check_mesh(mesh)
+    mesh = check_mesh(mesh, "anisotropic_laplacian")
     if not np.isfinite(alpha) or alpha < 0:
         raise ValueError(f"alpha must be >= 0, got {alpha!r}")
     if not np.isfinite(angle):

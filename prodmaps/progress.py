@@ -36,13 +36,14 @@ class NullBar:
 class _Lines(NullBar):
     """Plain progress lines on ``stream`` (no tqdm)."""
 
-    def __init__(self, total: int, desc: str, unit: str, stream):
+    def __init__(self, total: int | None, desc: str, unit: str, stream):
         self.total, self.desc, self.unit, self.stream = total, desc, unit, stream
 
     def update(self, k: int = 1) -> None:
         """Advance by ``k`` and print a line."""
         self.n += k
-        print(f"{self.desc}: {self.unit} {self.n}/{self.total}", file=self.stream, flush=True)
+        of = "" if self.total is None else f"/{self.total}"
+        print(f"{self.desc}: {self.unit} {self.n}{of}", file=self.stream, flush=True)
 
 
 def wants_progress(progress: bool | None, work: float = 0.0, min_work: float = 0.0, stream=None) -> bool:
@@ -61,13 +62,13 @@ def wants_progress(progress: bool | None, work: float = 0.0, min_work: float = 0
     return work > min_work and bool(getattr(stream, "isatty", lambda: False)())
 
 
-def progress_bar(total: int, desc: str, *, progress: bool | None = None, work: float = 0.0, min_work: float = 0.0,
-                 unit: str = "step", stream=None):
+def progress_bar(total: int | None, desc: str, *, progress: bool | None = None, work: float = 0.0,
+                 min_work: float = 0.0, unit: str = "step", stream=None):
     """A progress bar of ``total`` steps on ``stream`` (stderr), or a :class:`NullBar` when silent.
 
     Parameters
     ----------
-    total : number of steps.
+    total : number of steps, or ``None`` when unknown (a counter without an end).
     desc : what is being done (the bar's label).
     progress : ``True`` always, ``False`` never, ``None`` (default) when ``work > min_work`` and
         ``stream`` is a terminal (:func:`wants_progress`).

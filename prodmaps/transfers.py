@@ -13,7 +13,7 @@ The registry (:data:`REGISTRY`, name -> :class:`TransferMethod`: operator class,
 their defaults, summary) is the one vocabulary of the package: the tables' columns, the studies
 and :mod:`prodmaps.fields` name their transfers by registry entry and parameters.
 
-========== ============================================================================================
+============ ==========================================================================================
 ``std``      the standard transfer ``Φ2 C_12 Φ1ᵀ A1 F`` (no parameters)
 ``default``  the library's default extended transfer (:class:`DefaultTransfer`; the rule and its
              measurements: ``docs/guide/default_transfer.md``); never changes what ``std`` carries
@@ -21,9 +21,9 @@ and :mod:`prodmaps.fields` name their transfers by registry entry and parameters
              with ``pairs="ordered"`` is the paper's exactly
 ``ridge``    the paper's Approach A, p = 2 (``penalty="norm"``: Equation 4 as printed)
 ``lasso``    the paper's Approach A, p = 1 (FISTA)
-``svd_gain`` Approach B with ``rtol`` chosen from the map by the gain rule (:func:`prodmaps.truncation.select_rtol`)
-``p2p``      the map converted to a point map (nearest neighbours, :func:`prodmaps.p2p.from_fmap`), ``F`` pulled back
-========== ============================================================================================
+``svd_gain`` Approach B with ``rtol`` from the map's transfer gains (:func:`prodmaps.truncation.select_rtol`)
+``p2p``      the map converted to a point map (:func:`prodmaps.p2p.from_fmap`), ``F`` pulled back
+============ ==========================================================================================
 
 A parameter a method does not take raises ``TypeError`` naming the methods it belongs to. Adding a
 method is one :class:`TransferOperator` subclass and one :func:`register` line (``docs/guide/developers.md``).

@@ -81,7 +81,7 @@ def shot(mesh: Mesh, radius: float | None = None, n_bins: int = 11, *, radius_fr
     Rows are ordered sector-major: column ``((a·n_elevation + e)·n_radial + r)·n_bins + b``.
     Invariant to rigid motions (up to round-off and to neighbours exactly at distance ``R``).
     """
-    mesh = check_mesh(mesh)
+    mesh = check_mesh(mesh, "shot")
     for name, val in (("n_bins", n_bins), ("n_azimuth", n_azimuth), ("n_elevation", n_elevation),
                       ("n_radial", n_radial)):
         if int(val) != val or val < 1:

@@ -103,7 +103,7 @@ def awft(mesh: Mesh, *, k: int = 100, angles_deg=(0.0, 45.0, 90.0, 135.0), alpha
     ``curvature_smooth``; descriptors with other windows or functions on the same mesh then reuse
     them (the same numbers: they are what would be computed again).
     """
-    mesh = check_mesh(mesh)
+    mesh = check_mesh(mesh, "awft")
     if int(k) != k or not 2 <= k < mesh.n_vertices:
         raise ValueError(f"k must be an integer in [2, {mesh.n_vertices}), got {k!r}")
     taus = as_1d_finite(taus, "taus", positive=True)

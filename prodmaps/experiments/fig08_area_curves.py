@@ -61,7 +61,8 @@ class AreaCurves:
 
     For every pair it stores, per criterion, stage (approximation on the source, transfer to the
     target), method and family, the area-fraction curve averaged over the family's functions;
-    :meth:`mean` averages over pairs and :meth:`auc` integrates over ``gamma`` (trapezoid).
+    :meth:`mean` averages over pairs and :meth:`auc` integrates over ``gamma`` (trapezoid);
+    :meth:`auc_per_pair` integrates each pair's curve.
     """
 
     def __init__(self, gamma, families, methods):
@@ -97,6 +98,15 @@ class AreaCurves:
     def mean(self) -> dict:
         """``{criterion: {stage: {method: {family: (n_gamma,) curve}}}}`` averaged over pairs."""
         return {c: {st: {m: {f: np.mean([d[f] for d in per_pair], axis=0) for f in self.families}
+                         for m, per_pair in by_m.items()} for st, by_m in by_st.items()}
+                for c, by_st in self._curves.items()}
+
+    def auc_per_pair(self) -> dict:
+        """Each pair's area under its curve, ``{criterion: {stage: {method: {family: [auc per pair]}}}}``.
+
+        Their mean is :meth:`auc` (the integral is linear); the claims ledger compares them pair by pair.
+        """
+        return {c: {st: {m: {f: [float(np.trapezoid(d[f], self.gamma)) for d in per_pair] for f in self.families}
                          for m, per_pair in by_m.items()} for st, by_m in by_st.items()}
                 for c, by_st in self._curves.items()}
 

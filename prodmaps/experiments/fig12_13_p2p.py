@@ -35,14 +35,21 @@ from .shared.maps import no17_demo_map
 from .shared.parallel import map_by_source
 from .shared.store import ShapeStore
 
-__all__ = ["subject_pairs", "point_map_recovery", "point_map_sweep", "evaluation_vertices", "CONVERSIONS"]
+__all__ = ["subject_pairs", "point_map_recovery", "point_map_sweep", "reading_summary", "evaluation_vertices",
+           "CONVERSIONS"]
 
 CONVERSIONS = ("std", "extended", "extended_closed_form")
 
 
-def subject_pairs(dataset: str, subject, n_pairs=None, seed: int = 0) -> list:
-    """All ordered pairs of poses of ``subject`` (or a seeded random subset of ``n_pairs``)."""
+def subject_pairs(dataset: str, subject, n_pairs=None, seed: int = 0, *, both_directions: bool = True) -> list:
+    """All pairs of poses of ``subject`` (or a seeded random subset of ``n_pairs``).
+
+    ``both_directions``: each pair of shapes in both orders (``(a, b)`` and ``(b, a)``, two maps),
+    else once (``a`` before ``b`` in the dataset's order: "all the possible pairs of shapes").
+    """
     all_pairs = [p for p in datasets.pairs(dataset, "intra") if datasets.shape_class(dataset, p[0]) == str(subject)]
+    if not both_directions:
+        all_pairs = [p for p in all_pairs if p[0] < p[1]]
     if not all_pairs:
         raise ValueError(f"no pairs for subject {subject!r} in {dataset!r}")
     if n_pairs is None:
@@ -214,3 +221,25 @@ def _sweep_pair(store: ShapeStore, ip: int, s1: str, item, sizes, settings) -> d
         E = geodesics.map_error(store.mesh(s1), P, gt[ev], rows=store.distance_rows(s1))  # (settings, n_eval)
         out[(target_dim, source_dim)] = {name: float(e.mean()) for (name, _, _), e in zip(settings, E)}
     return out
+
+
+def reading_summary(results: dict, frozen: str = "extended t x1") -> list[dict]:
+    """Section 4.4's heat time as frozen in the library (``t_scale = 1``), scored on this run's sweep.
+
+    One row (the fields of :func:`prodmaps.experiments.study_family_readings.reading_summary`): the
+    sweep's extended settings at the map size of Figures 12/13 (the first size swept), the frozen
+    one's mean geodesic error and the setting this data would choose (smallest mean error); no
+    published cells judge it (``cells_n`` 0).
+    """
+    rows = (results.get("sweep") or {}).get("rows", [])
+    if not rows:
+        return []
+    size = rows[0]["size"]
+    ext = {r["setting"]: r["mean_error"] for r in rows if r["size"] == size and r["setting"].startswith("extended t")}
+    if frozen not in ext:
+        return []
+    choice = min(ext, key=ext.get)
+    return [{"reading": "Section 4.4's heat time", "alternatives": len(ext),
+             "cells": f"mean geodesic error of the extended point map ({size[0]}x{size[1]})", "frozen": frozen,
+             "cells_n": 0, "within": None, "within_noise": None, "frozen_error": ext[frozen],
+             "choice_here": choice, "agrees": choice == frozen}]

@@ -34,7 +34,7 @@ from .shared.published import DRAW_Z, WITHIN, published_values, score_cells, wit
 from .shared.results import to_jsonable
 
 __all__ = ["GROUPS", "family_readings_study", "choose", "choose_all", "score_table", "draw_noise",
-           "summary_rows", "summary_text", "report_blocks", "figure"]
+           "reading_summary", "summary_rows", "summary_text", "report_blocks", "figure"]
 
 # the ground-truth tables, grouped by the basis size of the basis-dependent families (the largest
 # k_M of each table, as the tables compute them)
@@ -167,6 +167,44 @@ def draw_noise(results: dict) -> dict | None:
             "median_se": float(np.median([v for v, _ in ses])), "max_se": float(top[0]), "max_se_cell": top[1],
             "missed": missed, "within_noise": missed - len(beyond),
             "beyond": sorted(beyond, key=lambda c: -abs(c[1]))}
+
+
+def reading_summary(results: dict) -> list[dict]:
+    """Each family's reading as frozen in the library, scored on this run's data without choosing again.
+
+    One row per family: ``reading`` (what was chosen: the family's parameters), ``alternatives``
+    (readings scored), ``cells`` (the published ``std`` cells that judge it: the control),
+    ``frozen`` (:data:`~prodmaps.experiments.shared.families.PUBLISHED_READINGS`, chosen on
+    FAUST's eight registrations), its ``within`` / ``within_noise`` counts of those cells on this
+    data (±0.02; ``0.02 + 2·√2·SE``), ``choice_here`` (what this data would choose) and
+    ``agrees``. Run on a dataset the readings were not chosen on, this is their held-out check.
+    """
+    sems = results.get("standard_errors") or {}
+    sizes = [tuple(z) for v in results.get("groups", {}).values() for z in v]
+    pub = _published_cells(sizes)
+    rows = []
+    for fam, by_r in results.get("scores", {}).items():
+        frozen = results["published_readings"][fam]
+        if frozen not in by_r:
+            continue
+        label = pfam.PAPER_LABELS[fam]
+        within = noise = cells = 0
+        for key, by_stage in results["errors"][fam][frozen].items():
+            a, b = map(int, key[1:].split("_"))
+            for st, by_m in by_stage.items():
+                p = pub.get((a, b, st, "std", label))
+                if p is None or "std" not in by_m:
+                    continue
+                cells += 1
+                diff = by_m["std"] - p
+                se = sems.get(fam, {}).get(frozen, {}).get(key, {}).get(st, {}).get("std")
+                within += int(within_published(diff))
+                noise += int(within_published(diff) or (se is not None and within_draw_noise(diff, se)))
+        rows.append({"reading": f"{label} parameters", "alternatives": len(by_r),
+                     "cells": f"{cells} published std cells ({', '.join(sorted(set(_TABLE_OF[z] for z in sizes)))})",
+                     "frozen": frozen, "cells_n": cells, "within": within, "within_noise": noise,
+                     "choice_here": results["chosen"][fam], "agrees": bool(results["agrees"][fam])})
+    return rows
 
 
 def score_table(errors_by_size: dict, published: dict, label: str) -> dict:

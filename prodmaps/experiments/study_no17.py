@@ -30,10 +30,11 @@ from ..transfers import transfer_operator
 from .shared import families as pfam
 from .shared.maps import landmark_pairs, no17_fit, recipe
 from .shared.parallel import map_by_source
-from .shared.published import published_values
+from .shared.published import published_values, within_published
 from .shared.store import ShapeStore
 
-__all__ = ["FAMILIES", "score_recipes", "compare_published", "best_recipe", "format_table", "figure"]
+__all__ = ["FAMILIES", "score_recipes", "compare_published", "best_recipe", "reading_summary", "format_table",
+           "figure"]
 
 FAMILIES = ("hk_k", "XYZ", "WKS", "Random", "Indicator")  # the column's families, paper order of the issue
 
@@ -148,6 +149,25 @@ def best_recipe(comparison: dict) -> str:
     if not cands:
         raise ValueError("no computed recipe with published cells to compare")
     return min(cands, key=lambda t: t[0])[1]
+
+
+def reading_summary(results: dict) -> list[dict]:
+    """The NO17 recipe as frozen in the library, scored on this run's data without choosing again.
+
+    One row (the fields of :func:`prodmaps.experiments.study_family_readings.reading_summary`): the
+    paper profiles' recipe (:data:`~prodmaps.experiments.shared.maps.DEFAULT_RECIPE`, chosen on
+    FAUST's eight registrations by Table 2's standard column, a control), its cells within ±0.02
+    here, and the recipe this data would choose (:func:`best_recipe`).
+    """
+    comp, frozen = results.get("comparison"), results.get("default_recipe")
+    if not comp or frozen not in comp.get("summary", {}):
+        return []
+    diffs = [abs(r["diff"]) for r in comp["rows"] if r["recipe"] == frozen and r["diff"] is not None]
+    choice = best_recipe(comp)
+    return [{"reading": "NO17 recipe", "alternatives": sum(r != "gt" for r in comp["summary"]),
+             "cells": f"{len(diffs)} published std cells (T2)", "frozen": frozen, "cells_n": len(diffs),
+             "within": int(sum(map(within_published, diffs))), "within_noise": None, "choice_here": choice,
+             "agrees": choice == frozen}]
 
 
 def format_table(comparison: dict) -> str:

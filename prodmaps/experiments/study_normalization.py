@@ -35,12 +35,20 @@ import time
 
 import numpy as np
 
-from ..approx import PAPER_RTOL
-from .shared.protocol import PAPER_COLUMNS, ProtocolSettings, approach_a_label, family_means, run_protocol
+from ..approx import DEFAULT_NORMALIZATION, PAPER_RTOL
+from .shared.claims import verdicts_on_results
+from .shared.protocol import (
+    PAPER_COLUMNS,
+    ProtocolSettings,
+    approach_a_label,
+    family_means,
+    family_per_pair,
+    run_protocol,
+)
 from .shared.published import WITHIN, published_values, score_cells, within_published
 
-__all__ = ["READINGS", "GT_TABLES", "RIDGE_EPS", "NORM_EPS", "ofp_rtol", "run", "ridge_eps",
-           "best_reading", "explain_cell", "report_blocks"]
+__all__ = ["READINGS", "LIBRARY_READING", "GT_TABLES", "RIDGE_EPS", "NORM_EPS", "ofp_rtol", "run", "claim_verdicts",
+           "ridge_eps", "best_reading", "reading_summary", "explain_cell", "report_blocks"]
 
 READINGS = {
     "metres": {"normalization": "area", "rtol": PAPER_RTOL},
@@ -50,6 +58,8 @@ READINGS = {
     "unit product columns": {"normalization": "columns", "rtol": PAPER_RTOL},
     "OFP threshold, metres": {"normalization": "area", "rtol": "ofp"},
 }
+LIBRARY_READING = "unit Euclidean eigenvectors"
+"""The reading of :data:`READINGS` the library uses (:data:`prodmaps.approx.DEFAULT_NORMALIZATION`)."""
 GT_TABLES = {"T1": [(9, 9)], "T3": [(6, 7), (27, 35)], "T5": [(29, 29)], "T6": [(29, 39)]}
 RIDGE_EPS = (1e-6, 3e-6, 1e-5, 3e-5, 1e-4, 3e-4)  # Approach A's ε, relative to σ_max²; 1e-6 is the tables'
 NORM_EPS = (1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1)  # Equation 4 as printed (norms): ε relative to σ_max
@@ -83,14 +93,17 @@ def run(store, pairs, *, readings: dict | None = None, tables: dict | None = Non
     -------
     dict
         ``errors[reading][table][k_M_k_N][method][family]`` (transfer and approximation means over
-        pairs), ``scores[reading]`` (per method: published cells, within ±0.02, mean and largest
+        pairs), ``errors_per_pair[reading][table]`` (the same, each pair's value in pair order),
+        ``scores[reading]`` (per method: published cells, within ±0.02, mean and largest
         |diff|, over all tables), ``rtol[reading][k_M_k_N]``, ``ranks`` (Approach B's kept rank,
-        mean over pairs) and ``seconds``.
+        mean over pairs), ``claim_verdicts[reading][claim id]`` (the ledger's table claims judged
+        on these values: the verdicts under each reading; ``chosen_reading`` the library's),
+        and ``seconds``.
     """
     readings = dict(READINGS if readings is None else readings)
     tables = dict(GT_TABLES if tables is None else tables)
     t0 = time.perf_counter()
-    errors, scores, rtols, ranks = {}, {}, {}, {}
+    errors, per_pair, scores, rtols, ranks = {}, {}, {}, {}, {}
     for name, reading in readings.items():
         ours_all, pub_all = {}, {}
         for t, sizes in tables.items():
@@ -104,6 +117,9 @@ def run(store, pairs, *, readings: dict | None = None, tables: dict | None = Non
                                      k_M_family=max(a for a, _ in sizes))  # as the tables: the table's largest k_M
                 res = run_protocol(store, pairs, s, progress=False)
                 means = family_means(res)
+                cell_pp = per_pair.setdefault(name, {}).setdefault(t, {}).setdefault(f"k{kM}_{kN}", {})
+                for (_, _, st, lab, fam), v in family_per_pair(res).items():
+                    cell_pp.setdefault(st, {}).setdefault(lab, {})[fam] = v.tolist()
                 key = f"k{kM}_{kN}"
                 rtols.setdefault(name, {})[key] = rtol
                 ranks.setdefault(name, {})[f"{t}/{key}"] = float(np.mean(res.ranks[(kM, kN)]["our_B"]))
@@ -120,14 +136,28 @@ def run(store, pairs, *, readings: dict | None = None, tables: dict | None = Non
         scores[name] = score_cells(ours_all, pub_all, methods=("std", approach_a_label("T1"),
                                                                approach_a_label("T5"), "our_B"))
     out = {"readings": readings, "tables": {t: [list(z) for z in v] for t, v in tables.items()},
-           "pairs": [list(p) for p in pairs], "families": list(families), "errors": errors, "scores": scores,
-           "rtol": rtols, "ranks": ranks, "best": best_reading(scores)}
+           "pairs": [list(p) for p in pairs], "families": list(families), "errors": errors,
+           "errors_per_pair": per_pair, "scores": scores, "rtol": rtols, "ranks": ranks, "best": best_reading(scores),
+           "claim_verdicts": {name: claim_verdicts(errors[name], per_pair[name]) for name in readings},
+           "chosen_reading": next((n for n, r in readings.items() if r["normalization"] == DEFAULT_NORMALIZATION
+                                   and r["rtol"] == PAPER_RTOL), None)}
     if norm_eps_values and ridge_eps_values is None:
         raise ValueError("norm_eps_values are scored beside the squared ridge: give ridge_eps_values too")
     if ridge_eps_values is not None:
         out["ridge_eps"] = ridge_eps(store, pairs, eps_values=ridge_eps_values, tables=tables, families=families,
                                      norm_eps_values=norm_eps_values or (), progress=progress)
     return out | {"seconds": time.perf_counter() - t0}
+
+
+def claim_verdicts(errors: dict, errors_per_pair: dict) -> dict:
+    """``{claim id: verdict}``: the ledger's table claims judged on one reading's values.
+
+    ``errors[table]`` and ``errors_per_pair[table]`` as :func:`run` stores them per reading; each
+    table stands for its run (``"T1"`` for ``tab01``). Claims that read what the study does not
+    compute (other columns, timings) are "not measured here".
+    """
+    docs = {f"tab{int(t[1:]):02d}": {"errors": errors[t], "errors_per_pair": errors_per_pair[t]} for t in errors}
+    return verdicts_on_results(docs)
 
 
 def ridge_eps(store, pairs, *, eps_values=RIDGE_EPS, tables: dict | None = None,
@@ -241,6 +271,26 @@ def best_reading(scores: dict, method: str = "our_B") -> str | None:
     """The reading with the most reproduced ``method`` cells (ties: the smaller mean |diff|)."""
     cand = [(*_fit(v[method]), name) for name, v in scores.items() if method in v]
     return max(cand)[2] if cand else None
+
+
+def reading_summary(results: dict) -> list[dict]:
+    """Approach B's normalisation as frozen in the library, scored on this run's data without choosing again.
+
+    One row (the fields of :func:`prodmaps.experiments.study_family_readings.reading_summary`):
+    the library's reading (:data:`LIBRARY_READING`, chosen on FAUST's eight registrations by the
+    published Approach B cells, which no control column judges), its cells within ±0.02 here, and
+    the reading this data would choose (:func:`best_reading`). No standard errors are kept, so
+    ``within_noise`` is None.
+    """
+    scores = results.get("scores", {})
+    frozen = scores.get(LIBRARY_READING, {}).get("our_B")
+    if frozen is None:
+        return []
+    tables = ", ".join(results.get("tables", {}))
+    return [{"reading": "Approach B's normalisation", "alternatives": len(scores),
+             "cells": f"{frozen['cells']} published Approach B cells ({tables})", "frozen": LIBRARY_READING,
+             "cells_n": frozen["cells"], "within": frozen["within"], "within_noise": None,
+             "choice_here": best_reading(scores), "agrees": best_reading(scores) == LIBRARY_READING}]
 
 
 def _best_eps(r: dict) -> str | None:

@@ -18,14 +18,24 @@ from pathlib import Path
 import numpy as np
 
 from .. import datasets
+from ..approx import DEFAULT_NORMALIZATION
 from ..files import atomic_path
 from .shared import families as pfam
 from .shared.compare import count_outcomes, outcome
-from .shared.protocol import ProtocolSettings, approach_a_label, family_means, run_protocol, with_parameters
-from .shared.published import published_values
+from .shared.maps import DEFAULT_RECIPE
+from .shared.protocol import (
+    ProtocolSettings,
+    approach_a_label,
+    family_means,
+    family_per_pair,
+    run_protocol,
+    with_parameters,
+)
+from .shared.published import published_values, within_draw_noise, within_published
 from .shared.results import to_jsonable
 
-__all__ = ["TABLES", "FMAP_NAMES", "resolve_table", "table_columns", "run_table", "write_table_files", "table_figure"]
+__all__ = ["TABLES", "FMAP_NAMES", "resolve_table", "table_columns", "run_table", "held_out_rows", "write_table_files",
+           "table_figure"]
 
 TABLES = {
     "T1": {"map_kind": "gt", "k_M": [9], "k_N": [9], "columns": ["std", "our_l1", "our_l2", "our_B"]},
@@ -91,7 +101,10 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
 
     ``results`` is the notebook's results document (errors per size/stage/method/family, the
     entries matched to the published table, per-pair map deviations, Approach B ranks, gain-rule
-    thresholds, timings).
+    thresholds, timings). ``errors_per_pair[size][stage][column][family]`` (and
+    ``errors_per_pair_intra`` / ``_inter``) lists each pair's mean over the family's functions, in
+    the order of ``pairs`` (restricted to the kind), for the ledger's paired comparisons;
+    ``seconds["per_column"][size][column]`` each pair's wall time of every column.
     """
     t_start = time.perf_counter()
     columns = table_columns(P, table)
@@ -118,11 +131,12 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
 
     kinds = np.array([datasets.shape_class(store.dataset, a) == datasets.shape_class(store.dataset, b)
                       for a, b in res.pairs])  # True: intra-subject pair
-    by_kind, n_kind = {}, {}
+    by_kind, n_kind, per_pair = {}, {}, {"": nested(family_per_pair(res))}
     for kind, mask in (("intra", kinds), ("inter", ~kinds)):
         n_kind[kind] = int(mask.sum())
         if mask.any():
             by_kind[kind] = nested({k: v[0] for k, v in family_means(res, pairs_mask=mask).items()})
+            per_pair[f"_{kind}"] = nested(family_per_pair(res, pairs_mask=mask))
     all_cols, pub_cols = _col_order(k[:4] for k in ours), _col_order(k[:4] for k in pub)
     shown = [c for c in pub_cols if c in all_cols] if pub_cols else all_cols  # the published table's, if any
     n_pairs = len(res.pairs)  # the mean's standard error from the population std (family_means)
@@ -144,6 +158,7 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
         "errors": nested(ours),
         "errors_std_over_pairs": nested(spread),
         **{f"errors_{kind}": e for kind, e in by_kind.items()},
+        **{f"errors_per_pair{sub}": e for sub, e in per_pair.items()},  # the pairs' family means, pair order
         "n_pairs_by_kind": n_kind,
         "table": entries,
         "products_better_than_std": better,
@@ -152,10 +167,63 @@ def run_table(store, pairs, table: str | None, P: dict, *, seed: int = 0, progre
                                             "per_pair": res.map_deviation[s]} for s in sizes},
         "approach_B_rank_kept": {skey(s): res.ranks[s].get("our_B", []) for s in sizes},
         "gain_rule_rtol": {skey(s): res.gain_rtol[s].get("our_B_gainrule", []) for s in sizes},
-        "seconds": {"total": time.perf_counter() - t_start, "per_pair": res.seconds},
+        "seconds": {"total": time.perf_counter() - t_start, "per_pair": res.seconds,
+                    "per_column": {skey(s): res.column_seconds[s] for s in sizes}},  # {size: {label: per pair}}
     }
     return {"results": results, "ours": ours, "spread": spread, "published": pub, "rows": rows,
             "shown_columns": shown, "all_columns": all_cols, "protocol": res}
+
+
+GT_TABLES = ("T1", "T3", "T5", "T6")  # the ground-truth tables, whose std cells judge the function families
+READING_CELLS = {"normalisation": ("our_B", GT_TABLES), "NO17 recipe": ("std", ("T2",))}
+
+
+def held_out_rows(table_results: dict) -> list[dict]:
+    """Every frozen reading scored by the tables of one dataset, as the library runs them (no choice made).
+
+    ``table_results`` maps ``"T1"`` .. ``"T6"`` to the ``results`` of :func:`run_table` on one
+    dataset (any subset). One row per reading, with the published cells that judge it: each
+    function family's parameters (:data:`~prodmaps.experiments.shared.families.PUBLISHED_READINGS`)
+    by its ``std`` cells of the ground-truth tables (the control no product method touches),
+    Approach B's normalisation by the ``our_B`` cells of those tables, the NO17 recipe by Table
+    2's ``std`` cells. Fields: ``reading``, ``frozen``, ``alternatives`` (readings the library
+    scored; None for the normalisation and the recipe, whose studies list them), ``cells_n``,
+    ``within`` (±0.02, as printed) and ``within_noise`` (within the draw noise of two independent
+    draws, :func:`~prodmaps.experiments.shared.published.within_draw_noise`).
+    Run on the data a reading was chosen on and on held-out data, the rows compare the two.
+    """
+    def score(method, tables, label=None):
+        n = w = wn = 0
+        for t in tables:
+            res = table_results.get(t)
+            if not res:
+                continue
+            pub = published_values(t, res["fmap"])
+            for e in res["table"]:
+                if e["method"] != method or (label is not None and e["function"] != label):
+                    continue
+                p = pub.get((e["k_M"], e["k_N"], e["stage"], e["method"], e["function"]))
+                if p is None:
+                    continue
+                diff = e["value"] - p
+                n += 1
+                w += int(within_published(diff))
+                wn += int(within_published(diff) or (e.get("se") is not None and within_draw_noise(diff, e["se"])))
+        return n, w, wn
+
+    rows = []
+    for fam, reading in pfam.PUBLISHED_READINGS.items():
+        n, w, wn = score("std", GT_TABLES, pfam.PAPER_LABELS[fam])
+        if n:
+            rows.append({"reading": f"{pfam.PAPER_LABELS[fam]} parameters", "frozen": reading,
+                         "alternatives": len(pfam.READINGS[fam]), "cells_n": n, "within": w, "within_noise": wn})
+    for name, (method, tables) in READING_CELLS.items():
+        n, w, wn = score(method, tables)
+        if n:  # the alternatives of these two are the studies' (their reading_summary)
+            frozen = DEFAULT_NORMALIZATION if name == "normalisation" else DEFAULT_RECIPE
+            rows.append({"reading": "Approach B's normalisation" if name == "normalisation" else name,
+                         "frozen": frozen, "alternatives": None, "cells_n": n, "within": w, "within_noise": wn})
+    return rows
 
 
 def _col_order(keys) -> list:

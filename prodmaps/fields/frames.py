@@ -34,6 +34,7 @@ import scipy.sparse as sp
 
 from ..curvature import face_frames
 from ..mesh import Mesh, check_mesh
+from ..pointcloud import PointCloud
 
 __all__ = [
     "Frames", "tangent_frames", "mesh_frames", "as_frames", "to_complex", "to_vectors", "halfedges", "dual_edges",
@@ -84,7 +85,7 @@ def tangent_frames(V: np.ndarray, F: np.ndarray) -> Frames:
 
 def mesh_frames(mesh: Mesh) -> Frames:
     """:func:`tangent_frames` of a :class:`prodmaps.Mesh`."""
-    mesh = check_mesh(mesh)
+    mesh = check_mesh(mesh, "mesh_frames (tangent fields)")
     return tangent_frames(mesh.vertices, mesh.faces)
 
 
@@ -95,8 +96,8 @@ def as_frames(x) -> Frames:
     """
     if isinstance(x, Frames):
         return x
-    if isinstance(x, Mesh):
-        return mesh_frames(x)
+    if isinstance(x, (Mesh, PointCloud)):
+        return mesh_frames(x)  # a point cloud: NeedsFacesError
     raise TypeError(f"expected prodmaps.fields.Frames or a prodmaps.Mesh, got {type(x).__name__}")
 
 

@@ -50,7 +50,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
-from ..mesh import Mesh, graph_components
+from ..mesh import Mesh, check_mesh, graph_components
 from .crossfield import field_vectors
 from .frames import mesh_frames
 
@@ -291,7 +291,7 @@ def comb_and_cut(mesh: Mesh, z: np.ndarray) -> dict:
     """
     import igl
 
-    fr = mesh_frames(mesh)  # (checks the mesh)
+    fr = mesh_frames(check_mesh(mesh, "comb_and_cut"))
     V, F = mesh.vertices, mesh.faces  # contiguous float64 and int64 (Mesh)
     d = field_vectors(z, fr, 4)
     P1, P2 = igl.comb_cross_field(V, F, np.ascontiguousarray(d[:, 0]), np.ascontiguousarray(d[:, 1]))
@@ -431,7 +431,7 @@ def seamless_parametrization(mesh: Mesh, z: np.ndarray, h: float, *, integer: bo
     The steps: :func:`comb_and_cut`, :func:`continuous_system` and its solve, :func:`integer_solve`
     (rounding and the hard-constrained solve); :func:`extract_quads` is the last.
     """
-    F = np.asarray(mesh.faces)
+    F = check_mesh(mesh, "seamless_parametrization").faces
     if not (np.isfinite(h) and h > 0):
         raise ValueError(f"h (quad size) must be > 0, got {h!r}")
     z = np.asarray(z)

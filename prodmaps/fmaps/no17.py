@@ -69,9 +69,15 @@ import numpy as np
 
 from ..basis import Basis
 from ..checks import check_basis
+from ..progress import progress_bar
 
 __all__ = ["first_column", "laplacian_mask", "multiplication_operators", "NO17Terms", "no17_terms",
-           "energy_and_gradient", "quadratic_form", "fit_no17"]
+           "energy_and_gradient", "quadratic_form", "fit_no17", "PROGRESS_MIN_WORK", "TYPICAL_ITERATIONS"]
+
+PROGRESS_MIN_WORK = 1e10
+"""``progress=None``: a bar when the estimated multiply-adds of a fit exceed this (several seconds)."""
+TYPICAL_ITERATIONS = 200
+"""L-BFGS iterations assumed by the work estimate behind ``progress=None`` (fits take tens to hundreds)."""
 
 LAP_FORMS = ("resolvent", "eigdiff")
 NORMALIZATIONS = ("expected", "sum", "frobenius", None)
@@ -300,7 +306,7 @@ def fit_no17(basis_1: Basis, basis_2: Basis, descr_1: np.ndarray, descr_2: np.nd
              w_lap: float = 1e-2, w_dcomm: float = 1e-1, w_orient: float = 0.0, lap: str = "resolvent",
              resolvent_gamma: float = 0.5, normalize: str | None = "expected", normalize_descr: bool | str = True,
              init: str = "zeros", factr: float = 1e7, pgtol: float = 1e-5, maxiter: int = 15000, solver: str = "lbfgs",
-             return_info: bool = False):
+             return_info: bool = False, progress: bool | None = None):
     """Functional map ``C_12`` ``(basis_2.k, basis_1.k)`` minimising the NO17 energy.
 
     Parameters
@@ -321,21 +327,62 @@ def fit_no17(basis_1: Basis, basis_2: Basis, descr_1: np.ndarray, descr_2: np.nd
         system (Cholesky; least squares if singular). Same energy, no iteration tolerance,
         typically tens of times faster.
     return_info : also return a dict (energy, iterations, time, taus, message).
+    progress : a progress bar on stderr, one step per L-BFGS iteration (``True``), none
+        (``False``), or when the fit is long (estimated multiply-adds above ``PROGRESS_MIN_WORK``)
+        and stderr is a terminal (``None``, default).
 
     Returns
     -------
     C_12 : ``(k2, k1)``, first column fixed to :func:`first_column`.
 
+    Raises
+    ------
+    TypeError
+        If a basis is not a :class:`prodmaps.Basis`.
+    ValueError
+        For descriptors of the wrong shape or not finite, zero descriptor columns, weights that
+        are negative or sum to zero, and unknown ``lap``, ``normalize``, ``init`` or ``solver``.
+
+    Notes
+    -----
     Units: the energy is built and minimised on both shapes scaled to unit area
     (:meth:`prodmaps.Basis.scaled`), and the map of the given bases is returned
     (``sqrt(area_2/area_1)`` times the unit-area map), so scaling either mesh changes nothing but
     that factor. ``info["energy"]`` and ``info["taus"]`` are those of the unit-area problem.
+    Everything works on bases of point clouds as on bases of meshes.
+
+    Examples
+    --------
+    Two ellipsoids with the same triangulation (so the true map is the identity), WKS and
+    wave-kernel maps at five landmark pairs (:func:`prodmaps.fmaps.no17_demo_descriptors`):
+
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.fmaps import fit_no17, no17_demo_descriptors
+    >>> m1, m2 = pm.mesh.ellipsoid(2), pm.mesh.ellipsoid(2, axes=(1.1, 0.6, 0.35))
+    >>> B1, B2 = pm.eigenbasis(m1, 30), pm.eigenbasis(m2, 30)  # descriptors from 30 eigenpairs
+    >>> d1, d2 = no17_demo_descriptors(B1, B2, [[i, i] for i in (0, 20, 40, 60, 80)])
+    >>> b1, b2 = B1.truncate(8), B2.truncate(8)  # ... and a map of 8 columns
+    >>> C_12 = fit_no17(b1, b2, d1, d2)
+    >>> C_12.shape
+    (8, 8)
+    >>> truth = pm.fmap_from_p2p(np.arange(m2.n_vertices), b1, b2)  # (k2, k1)
+    >>> bool(np.linalg.norm(C_12 - truth) < 0.2 * np.linalg.norm(truth))
+    True
+    >>> p2p_21 = pm.p2p.from_fmap(C_12, b1, b2)  # the point map it gives: every vertex right
+    >>> float(np.mean(p2p_21 == np.arange(m2.n_vertices)))
+    1.0
     """
     from scipy.optimize import minimize
 
     t0 = time.perf_counter()
     check_basis(basis_1, "basis_1")
     check_basis(basis_2, "basis_2")
+    p = 1 if np.ndim(descr_1) == 1 else np.shape(descr_1)[1]
+    k1, k2 = basis_1.k, basis_2.k
+    work = (basis_1.n * k1 * k1 + basis_2.n * k2 * k2) * p / 2 + TYPICAL_ITERATIONS * 4.0 * p * k1 * k2 * (k1 + k2)
+    bar = progress_bar(None if solver == "lbfgs" else 1, "NO17", progress=progress, work=work,
+                       min_work=PROGRESS_MIN_WORK, unit="iteration")
     # Fit on both shapes scaled to unit area, so that the map does not depend on the meshes' units
     # nor on their area ratio (eigenvalues, descriptor norms and the fixed first column all change
     # with it); the map of the given bases is sqrt(area_2 / area_1) times the unit-area map.
@@ -349,6 +396,7 @@ def fit_no17(basis_1: Basis, basis_2: Basis, descr_1: np.ndarray, descr_2: np.nd
         raise ValueError(f"solver must be 'lbfgs' or 'direct', got {solver!r}")
     if solver == "direct":
         C = _solve_direct(terms)
+        bar.update(1)
         info = {"energy": energy_and_gradient(C, terms)[0], "nit": 0, "message": "direct solve", "success": True}
     elif init not in ("zeros", "identity"):
         raise ValueError(f"init must be 'zeros' or 'identity', got {init!r}")
@@ -363,7 +411,7 @@ def fit_no17(basis_1: Basis, basis_2: Basis, descr_1: np.ndarray, descr_2: np.nd
 
         if k1 > 1:
             free0 = np.zeros((k2, k1 - 1)) if init == "zeros" else np.eye(k2, k1)[:, 1:]
-            res = minimize(fun, free0.ravel(), jac=True, method="L-BFGS-B",
+            res = minimize(fun, free0.ravel(), jac=True, method="L-BFGS-B", callback=lambda *_: bar.update(1),
                            options={"ftol": factr * np.finfo(float).eps, "gtol": pgtol, "maxiter": maxiter,
                                     "maxfun": 10 * maxiter})
             C[:, 1:] = res.x.reshape(k2, k1 - 1)
@@ -371,6 +419,7 @@ def fit_no17(basis_1: Basis, basis_2: Basis, descr_1: np.ndarray, descr_2: np.nd
                     "success": bool(res.success)}
         else:
             info = {"energy": energy_and_gradient(C, terms)[0], "nit": 0, "message": "nothing to fit", "success": True}
+    bar.close()
     info.update(time=time.perf_counter() - t0, taus=terms.taus)
     C = area_ratio * C
     return (C, info) if return_info else C

@@ -39,7 +39,35 @@ def zoomout(C_12, basis_1: Basis, basis_2: Basis, k_final, step: int = 1, return
         nearest-neighbour search) and when stderr is a terminal.
 
     Each step's point map is the exact nearest-neighbour answer of
-    :func:`prodmaps.p2p.nearest_neighbors` (ties to the smallest source index).
+    :func:`prodmaps.p2p.nearest_neighbors` (ties to the smallest source index). Everything works
+    on bases of point clouds as on bases of meshes.
+
+    Returns
+    -------
+    C_12 : ``(k2_final, k1_final)``, and the last ``p2p_21`` ``(n2,)`` with ``return_p2p``.
+
+    Raises
+    ------
+    TypeError
+        If a basis is not a :class:`prodmaps.Basis`.
+    ValueError
+        If ``C_12`` does not fit the bases, ``k_final`` is out of range or ``step < 1``.
+
+    Examples
+    --------
+    A small map (``k = 4``) between two ellipsoids of the same triangulation, corrupted by noise,
+    refined to 20 columns: the point map it ends with is the true one (the identity).
+
+    >>> import numpy as np
+    >>> import prodmaps as pm
+    >>> from prodmaps.fmaps import zoomout
+    >>> m1, m2 = pm.mesh.ellipsoid(2), pm.mesh.ellipsoid(2, axes=(1.1, 0.6, 0.35))
+    >>> b1, b2 = pm.eigenbasis(m1, 20), pm.eigenbasis(m2, 20)
+    >>> truth = pm.fmap_from_p2p(np.arange(m2.n_vertices), b1, b2)  # (20, 20)
+    >>> C_small = truth[:4, :4] + 0.1 * np.random.default_rng(0).normal(size=(4, 4))
+    >>> C_12, p2p_21 = zoomout(C_small, b1, b2, 20, return_p2p=True)
+    >>> C_12.shape, float(np.mean(p2p_21 == np.arange(m2.n_vertices)))
+    ((20, 20), 1.0)
     """
     C = check_fmap(C_12, basis_1, basis_2, allow_truncation=True)  # (checks the bases too)
     k2, k1 = C.shape

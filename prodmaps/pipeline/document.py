@@ -37,6 +37,7 @@ KINDS = {"h": 2, "p": 1, "table": 2, "img": 2, "code": 1, "ul": 1, "counts": 2, 
 _BADGES = (("holds with the threshold rule within rounding", "v-rule"), ("holds with the threshold rule", "v-rule"),
            ("holds within rounding", "v-round"), ("does not hold", "v-not"), ("inconclusive", "v-round"),
            ("not measured here", "v-none"), ("not demonstrable in this setting", "v-none"), ("not empirical", "v-none"),
+           ("not reproducible", "v-none"),
            ("holds", "v-holds"))
 _NUMBER = re.compile(r"[-+−]?(\d[\d,]*\.?\d*(e[-+]?\d+)?|\.\d+)\s*(%|x|s)?", re.I)
 _STYLE = (

@@ -4,9 +4,10 @@ A *reading* is one way of computing what the paper leaves open: a function famil
 the heat-kernel time, AWFT's parameters, Approach B's normalisation, NO17's recipe, Section 4.4's
 heat time. The library froze each reading where it was chosen, on FAUST's eight registrations
 (:data:`CHOSEN_ON`), by published cells the product methods do not touch. Each dataset's report
-data carries what its studies scored (:attr:`.report_data.DatasetReport.readings`, built by
-:func:`.report_data.reading_scores`): per reading, a row ``{"label", "alternatives", "cells",
-"frozen", "choice", "n", "within", "in_noise"}``.
+data carries what its runs scored (:attr:`.report_data.DatasetReport.readings`, built by
+:func:`.report_data.reading_scores` from the tables' ``held_out_rows`` and the studies'
+``reading_summary``): per reading, ``{"label", "alternatives", "cells", "frozen", "choice", "n",
+"within", "in_noise"}`` (and ``frozen_error`` where no published cell judges the reading).
 
 :func:`forking_paths` gathers the datasets' rows into one structure, plain data a test can write::
 
@@ -14,9 +15,9 @@ data carries what its studies scored (:attr:`.report_data.DatasetReport.readings
              "frozen": "t=5e-4",
              "chosen_on": {dataset: score}, "held_out": {dataset: score, ...}}}
 
-with ``score = {"n", "within", "in_noise", "choice"}``: the frozen reading's cells on that
-dataset (compared, within ±0.02, within draw noise or None without standard errors) and the
-reading that dataset's own scores would choose. :func:`forking_blocks` renders it as one table
+with ``score = {"n", "within", "in_noise", "choice"}`` (and ``frozen_error``): the frozen
+reading's cells on that dataset (compared, within ±0.02, within draw noise or None without
+standard errors) and the reading that dataset's own scores would choose. :func:`forking_blocks` renders it as one table
 row per reading; readings of :data:`EXPECTED` that no dataset scored are named below the table.
 :func:`reading_verdict_blocks` shows each table claim's verdict under the other readings the
 ledger judged (``ClaimResult.readings``: the textbook families, a rejected normalisation, ...).
@@ -27,18 +28,9 @@ from __future__ import annotations
 __all__ = ["CHOSEN_ON", "EXPECTED", "forking_paths", "forking_blocks", "reading_verdict_blocks"]
 
 CHOSEN_ON = "faust"  # where the library's readings were chosen (FAUST's eight registrations)
-EXPECTED = {  # row id -> label: the readings the report expects scores for, in the report's order
-    "families:hk_k+hk_K": "hk k and hk K: heat time and random point",
-    "families:HKS": "HKS: definition",
-    "families:WKS": "WKS: energy grid",
-    "families:Random": "Random: coefficient law, pairs, scaling",
-    "families:Indicator": "Indicator: region size",
-    "families:SHOT": "SHOT: support radius",
-    "families:AWFT": "AWFT: parameters",
-    "normalization": "Approach B: normalisation of the basis",
-    "no17": "NO17: the computed maps' recipe",
-    "section44_heat_time": "Section 4.4: heat time of the points",
-}
+EXPECTED = (  # the readings the report expects scores for, in the report's order (the experiments' row names)
+    "hk k parameters", "hk K parameters", "HKS parameters", "Random parameters", "Indicator parameters",
+    "SHOT parameters", "AWFT parameters", "Approach B's normalisation", "NO17 recipe", "Section 4.4's heat time")
 
 
 def forking_paths(reports, chosen_on: str = CHOSEN_ON) -> dict:
@@ -60,7 +52,7 @@ def forking_paths(reports, chosen_on: str = CHOSEN_ON) -> dict:
     >>> fp["NO17: recipe"]["held_out"]["faust_r"]["choice"]
     'b'
     """
-    ids = list(EXPECTED) + [k for r in reports for k in r.readings if k not in EXPECTED]
+    ids = [*EXPECTED, *(k for r in reports for k in r.readings if k not in EXPECTED)]
     out = {}
     for rid in dict.fromkeys(ids):
         rows = [(r.dataset, r.readings[rid]) for r in reports if rid in r.readings]
@@ -70,15 +62,19 @@ def forking_paths(reports, chosen_on: str = CHOSEN_ON) -> dict:
         entry = {"alternatives": first.get("alternatives"), "cells": first.get("cells", ""),
                  "frozen": first.get("frozen", ""), "chosen_on": {}, "held_out": {}}
         for ds, x in rows:
-            score = {k: x.get(k) for k in ("n", "within", "in_noise", "choice")}
+            score = {k: x.get(k) for k in ("n", "within", "in_noise", "choice", "frozen_error")
+                     if k != "frozen_error" or x.get(k) is not None}
             entry["chosen_on" if ds == chosen_on else "held_out"][ds] = score
-        out[first.get("label") or EXPECTED.get(rid, rid)] = entry
+        out[first.get("label") or rid] = entry
     return out
 
 
 def _score_cell(score: dict, frozen: str, chosen_here: bool) -> str:
     n, noise, within, choice = score.get("n"), score.get("in_noise"), score.get("within"), score.get("choice")
-    text = (f"{noise} of {n}" if noise is not None else f"{within} of {n} within ±0.02 (no SE)") if n else "not scored"
+    if n:
+        text = f"{noise} of {n}" if noise is not None else f"{within} of {n} within ±0.02 (no SE)"
+    else:  # no published cell judges it (Section 4.4's heat time): the frozen reading's own error
+        text = f"error {score['frozen_error']:.4g}" if score.get("frozen_error") is not None else "not scored"
     if choice and choice != frozen:
         text += f"; would choose {choice}"
     elif choice and not chosen_here:
@@ -100,12 +96,12 @@ def forking_blocks(paths: dict, names: dict, datasets: list, chosen_on: str = CH
     ...       "held_out": {"faust_r": {"n": 5, "within": 1, "in_noise": 3, "choice": "b"}}}}
     >>> blocks = forking_blocks(fp, {"faust": "FAUST", "faust_r": "FAUST_r"}, ["faust", "faust_r"])
     >>> blocks[0][1]
-    ['reading', 'alternatives scored', 'cells scored', 'frozen reading', 'FAUST (chosen here)', 'FAUST_r']
+    ['reading', 'readings scored', 'cells that judge it', 'frozen reading', 'FAUST (chosen here)', 'FAUST_r']
     >>> blocks[0][2][0][4:]
     ['4 of 5', '3 of 5; would choose b']
     """
     cols = [ds for ds in datasets if any(ds in e["chosen_on"] or ds in e["held_out"] for e in paths.values())]
-    header = ["reading", "alternatives scored", "cells scored", "frozen reading"] + [
+    header = ["reading", "readings scored", "cells that judge it", "frozen reading"] + [
         names.get(ds, ds) + (" (chosen here)" if ds == chosen_on else "") for ds in cols]
     rows = []
     for label, e in paths.items():
@@ -113,7 +109,7 @@ def forking_blocks(paths: dict, names: dict, datasets: list, chosen_on: str = CH
         rows.append([label, "—" if e["alternatives"] is None else str(e["alternatives"]), e["cells"], e["frozen"]]
                     + [_score_cell(scores[ds], e["frozen"], ds == chosen_on) if ds in scores else "—" for ds in cols])
     out = [("table", header, rows)] if rows else []
-    missing = [lab for rid, lab in EXPECTED.items() if lab not in paths]
+    missing = [lab for lab in EXPECTED if lab not in paths]
     if missing:
         out.append(("p", "Not scored by the studies in these results: " + "; ".join(missing) + "."))
     other = {label: sorted({s["choice"] for s in e["held_out"].values() if s.get("choice")} - {e["frozen"]})

@@ -260,7 +260,7 @@ def read_inputs(results_dir, settings: ReportSettings, base) -> ReportInputs:
                             commit=commit) for ds, f in folders.items()]
     kept = [k for k in settings.kept if k.dataset not in folders]
     for ds in [*fresh, *kept]:  # readings scored by a main study run computed on a prepared dataset are that dataset's
-        own = reading_scores([i for i in infos if i.doc and run_dataset(i) == ds.dataset], rows or None)
+        own = reading_scores([i for i in infos if i.doc and run_dataset(i) == ds.dataset])
         ds.readings = {**own, **ds.readings}
     return ReportInputs(results_dir, main.folder, commit, infos, main, fresh, kept, rows, matches, unmatched)
 
@@ -307,21 +307,30 @@ def _other_readings(c) -> str:
     return "; ".join(f"{'textbook families' if r == 'textbook' else r}: {x}" for r, x in c.readings.items())
 
 
-def _paired_text(c) -> str:
-    """The paired comparison of a claim as one text (``—`` where the ledger records none)."""
-    p = dict(c.paired)
-    if not p:
-        return "—"
-    mean = next((p.pop(k) for k in ("mean_diff", "mean", "mean_paired_difference") if k in p), None)
-    se, n = p.pop("se", None), p.pop("n", None)
+APPENDIX_CLAIMS = ["claim", "verdict", "rule", "default", "intra / inter", "other readings", "paired comparison",
+                   "margin", "left out", "evidence"]  # a dataset appendix's claims table
+
+
+def _comparisons_text(c, most: int = 4) -> str:
+    """A claim's paired comparisons: per comparison its mean improvement ± SE, n, relative size, outcome."""
     parts = []
-    if mean is not None:
-        parts.append(f"{mean:+.4g}" + (f" ± {se:.2g} (SE)" if isinstance(se, (int, float)) else "")
-                     if isinstance(mean, (int, float)) else str(mean))
-    if n is not None:
-        parts.append(f"n = {n}")
-    parts += [f"{k} {v:g}" if isinstance(v, float) else f"{k}: {v}" for k, v in p.items() if v not in (None, "")]
-    return "; ".join(parts)
+    for x in c.comparisons[:most]:
+        se = x.get("se")
+        parts.append(f"{x.get('label', '')}: {x['mean_diff']:+.3g}" + (f" ± {se:.2g}" if se is not None else "")
+                     + f", n = {x.get('n')}" + (f", {x['rel']:+.0%}" if x.get("rel") is not None else "")
+                     + (f" ({x['outcome']})" if x.get("outcome") else ""))
+    if len(c.comparisons) > most:
+        parts.append(f"… {len(c.comparisons) - most} more")
+    return "; ".join(p.lstrip(": ") for p in parts) or "—"
+
+
+def _margin_text(c) -> str:
+    """A claim's practical margin, why, and the verdicts at the other margins tried."""
+    if c.margin is None:
+        return "—"
+    text = f"{c.margin:g}" + (f" ({c.why})" if c.why else "")
+    others = "; ".join(f"at {m}: {v}" for m, v in c.sensitivity.items())
+    return text + (f"; {others}" if others else "")
 
 
 def _datasets(inputs: ReportInputs) -> list:
@@ -382,12 +391,13 @@ def _summary(d: Document, inputs: ReportInputs, text, all_ds: list) -> None:
     """
     main, claims = inputs.main, load_claims()
     head = Document(text("summary.md"))
-    counts = {ds.dataset: ds.counts("paper") for ds in all_ds}
-    shown = [v for v in VERDICTS if any(c.get(v) for c in counts.values())]
+    counts = {ds.dataset: ds.counts_by_source()["paper"] for ds in all_ds}
+    found = dict.fromkeys([*VERDICTS, *(v for c in counts.values() for v in c)])  # a stored file's older verdicts
+    shown = [v for v in found if any(c.get(v) for c in counts.values())]
     n_paper = sum(1 for c in main.verdicts.values() if c.source == "paper")
     head.table([f"verdict (of the paper's {n_paper} claims)"] + [ds.name for ds in all_ds],
                [[v] + [str(counts[ds.dataset].get(v, 0)) for ds in all_ds] for v in shown])
-    package = {ds.dataset: ds.counts("package") for ds in all_ds}
+    package = {ds.dataset: ds.counts_by_source()["package"] for ds in all_ds}
     if any(sum(c.values()) for c in package.values()):
         head.p("This package's own claims, counted apart (see *Beyond the paper*): " + "; ".join(
             f"{ds.name}: " + ", ".join(f"{n} {v}" for v, n in package[ds.dataset].items() if n) for ds in all_ds
@@ -590,11 +600,11 @@ def _dataset_appendix(d: Document, ds, label: str, inputs: ReportInputs, base: P
     for cid, c in ds.verdicts.items():
         if cid not in claims:
             continue
-        rows.append([f"`{cid}`", _verdict_text(c), c.paper, c.rule, c.default,
+        rows.append([f"`{cid}`", _verdict_text(c) + (" (single case)" if c.single_case else ""), c.rule, c.default,
                      "; ".join(f"{k}: {v}" for k, v in c.subsets.items()) or "—", _other_readings(c) or "—",
-                     _paired_text(c), c.excluded or "—", c.evidence or ""])
-    d.table(["claim", "verdict", "paper", "rule", "default", "intra / inter", "other readings", "paired comparison",
-             "left out", "evidence"], rows)
+                     _comparisons_text(c), _margin_text(c),
+                     "; ".join(f"{k}: {r}" for k, r in c.excluded.items()) or "—", c.evidence or ""])
+    d.table(APPENDIX_CLAIMS, rows)
     if ds.tables:
         d.h(3, f"Tables on {ds.name}")
 

@@ -27,27 +27,23 @@ from __future__ import annotations
 
 import importlib
 import json
-from dataclasses import asdict, dataclass, field, is_dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from .. import datasets
-from ..approx import DEFAULT_NORMALIZATION, PAPER_RTOL
 from ..experiments.shared import claims as ledger  # the one import block of the experiments layer (see the module doc)
 from ..experiments.shared import compare
-from ..experiments.shared import families as pfam
 from ..experiments.shared import published as pub
-from ..experiments.shared.protocol import standard_error
 from ..files import atomic_path, read_json
 from .execute import DEFAULT_DATASET
-from .forking import EXPECTED as READING_ROWS
 from .registry import load_registry
 
-__all__ = ["DATASET_NAMES", "DATA_FOLDER", "VERDICTS", "TABLE_KEYS", "CRITERIA", "LEDGER_FILE", "BEAT_METHODS",
-           "RunInfo", "collect_runs", "table_entries", "run_dataset", "overridden_parameters", "other_datasets",
-           "ClaimResult", "claim_results", "verdict_counts", "TableSummary", "table_summaries", "table_cells",
-           "reading_scores",
-           "Figure", "Study", "DatasetReport", "dataset_report", "migrate", "load_claims", "load_published_rows",
-           "match_published", "within_published", "within_draw_noise"]
+__all__ = ["DATASET_NAMES", "DATA_FOLDER", "VERDICTS", "SOURCES", "TABLE_KEYS", "CRITERIA", "LEDGER_FILE",
+           "BEAT_METHODS", "RunInfo", "collect_runs", "table_entries", "run_dataset", "overridden_parameters",
+           "other_datasets", "ClaimResult", "claim_results", "verdict_counts", "TableSummary", "table_summaries",
+           "table_cells", "reading_scores", "REJECTED_NORMALIZATION", "Figure", "Study", "DatasetReport",
+           "dataset_report", "migrate",
+           "load_claims", "load_published_rows", "match_published", "within_published", "within_draw_noise"]
 
 DATASET_NAMES = {"anny_humans": "embedded humans", "faust": "FAUST", "tosca": "TOSCA", "faust_r": "FAUST_r",
                  "tosca_r": "TOSCA_r", "tosca_r_noniso": "TOSCA_r non-isometric"}  # as the report names them
@@ -55,10 +51,12 @@ DATA_FOLDER = "report_data"  # beside the committed report: report_data/<dataset
 _FORMAT = 2  # of the stored JSON (1: before the table cells, run times and reading scores were stored)
 
 VERDICTS = ledger.VERDICTS
+SOURCES = ledger.SOURCES  # "paper" (the totals) and "package" ("Beyond the paper")
 TABLE_KEYS = pub.TABLE_KEYS
 BEAT_METHODS = ("our_B", "our_B_gainrule", "our_default")  # the paper's B, the gain rule, the default
+# the numbers the report's text states (placeholders of paper/report_text)
 CRITERIA = {"within": pub.WITHIN, "draw_z": pub.DRAW_Z, "rounding_rel": compare.ROUNDING_REL,
-            "tie_rel": compare.TIE_REL}  # the numbers the report's text states (placeholders of paper/report_text)
+            "tie_rel": compare.TIE_REL, "printed_decimals": pub.PRINTED_DECIMALS, "span_tol": ledger.SPAN_TOL}
 LEDGER_FILE = Path(ledger.LEDGER).resolve().relative_to(Path(__file__).resolve().parents[2]).as_posix()  # as shown
 load_claims = ledger.load_ledger
 match_published = pub.match_entries
@@ -157,13 +155,17 @@ def other_datasets(results_dir) -> dict:
 class ClaimResult:
     """One claim judged on one dataset: its verdict and what the report shows beside it.
 
-    ``paper``, ``rule``, ``default``: whether the rule holds at the paper's settings, with the
-    threshold rule and with the default transfer (``"yes"``, ``"no"``, ``"—"`` not measured; None:
-    not recorded). ``readings``: the verdict under each other reading (``{"textbook": ...}``);
-    ``subsets``: per pair kind (``{"intra": ..., "inter": ...}``). ``source``: ``"paper"`` (a claim
-    of the paper) or ``"package"`` (this package's own); ``paired``: the paired comparison that
-    decides it (mean paired difference, its standard error, n, the margin and why), when the ledger
-    records one; ``excluded``: what the claim leaves out and why (ties by construction).
+    ``verdict``: the paper's setting's (one of :data:`VERDICTS`). ``paper``, ``rule``, ``default``:
+    the outcome at the paper's settings, with the threshold rule and with the default transfer
+    (``"yes"``, ``"no"``, ``"inconclusive"``, ``"—"`` not measured; None: not recorded); the last
+    two are the package's, never part of the verdict. ``readings``: the verdict under each other
+    family reading (``{"textbook": ...}``); ``subsets``: per pair kind (``{"intra": ..., "inter": ...}``).
+    ``source``: ``"paper"`` or ``"package"``; ``kind``: ``"measured"``, ``"not empirical"`` or
+    ``"not reproducible"``; ``margin`` and ``why``: the claim's practical margin and its reason;
+    ``single_case``: the verdict rests on one pair or function; ``excluded``: ``{unit: reason}``
+    of the ties by construction left out; ``sensitivity``: ``{margin: verdict}``; ``comparisons``:
+    the paired comparisons (``label``, ``n``, ``ours``, ``ref``, ``mean_diff``, ``se``, ``rel``,
+    ``outcome``).
     """
 
     verdict: str
@@ -174,40 +176,13 @@ class ClaimResult:
     subsets: dict = field(default_factory=dict)
     evidence: str | None = ""
     source: str = "paper"
-    paired: dict = field(default_factory=dict)
-    excluded: str = ""
-
-
-def _plain(x) -> dict:
-    """A record of the ledger (a dict, a dataclass or an object with attributes) as a JSON-ready dict."""
-    if x is None:
-        return {}
-    if is_dataclass(x):
-        x = asdict(x)
-    elif not isinstance(x, dict):
-        x = {k: v for k, v in vars(x).items() if not k.startswith("_")}
-    return {str(k): (v if isinstance(v, (str, int, float, bool, type(None))) else str(v)) for k, v in x.items()}
-
-
-def _source(v) -> str:
-    """Whether a verdict's claim is the paper's or the package's (``"paper"`` until the ledger says)."""
-    return getattr(v, "source", None) or getattr(v.claim, "source", None) or "paper"
-
-
-def _paired(v) -> dict:
-    """The paired statistics the ledger records for a verdict (``{}`` where it records none)."""
-    return _plain(getattr(v, "paired", None) or getattr(v, "stats", None)
-                  or v.settings.get("paper", {}).get("paired"))
-
-
-def _excluded(v) -> str:
-    """What a claim leaves out and why (ties by construction), as one text."""
-    x = getattr(v, "excluded", None) or getattr(v.claim, "excluded", None)
-    if not x:
-        return ""
-    if isinstance(x, dict):
-        return "; ".join(f"{k}: {r}" for k, r in x.items())
-    return x if isinstance(x, str) else "; ".join(map(str, x))
+    kind: str = "measured"
+    margin: float | None = None
+    why: str = ""
+    single_case: bool = False
+    excluded: dict = field(default_factory=dict)
+    sensitivity: dict = field(default_factory=dict)
+    comparisons: list = field(default_factory=list)
 
 
 def claim_results(verdicts) -> dict[str, ClaimResult]:
@@ -221,19 +196,20 @@ def claim_results(verdicts) -> dict[str, ClaimResult]:
         out[cid] = ClaimResult(v.verdict, ledger.reading_verdicts(v), *(ledger.setting_mark(v, s) for s in
                                                                         ("paper", "rule", "default")),
                                {k: subs[k].verdict for k in ("intra", "inter") if k in subs}, v.evidence,
-                               _source(v), _paired(v), _excluded(v))
+                               v.claim.source, v.claim.kind, v.claim.practical_margin, v.claim.why, v.single_case,
+                               v.excluded, dict(v.paper.get("sensitivity", {})), v.comparisons)
     return out
 
 
-def verdict_counts(results: dict, source: str | None = "paper") -> dict:
-    """``{verdict: number of claims}`` over :data:`VERDICTS` of ``{claim: ClaimResult}``, of ``source`` (None: all).
+def verdict_counts(verdicts: dict) -> dict:
+    """``{source: {verdict: n}}`` of ``{claim id: ClaimResult}`` (the ledger's :func:`verdict_counts`).
 
-    Examples
-    --------
-    >>> verdict_counts({"a": ClaimResult("holds"), "b": ClaimResult("holds", source="package")})["holds"]
-    1
+    Claims the ledger no longer has (a stored report's) count under their recorded source.
     """
-    return {k: sum(1 for c in results.values() if c.verdict == k and source in (None, c.source)) for k in VERDICTS}
+    out = {s: dict.fromkeys(VERDICTS, 0) for s in ledger.SOURCES}
+    for c in verdicts.values():
+        out[c.source][c.verdict] = out[c.source].get(c.verdict, 0) + 1
+    return out
 
 
 # ------------------------------------------------------------------------------ tables
@@ -244,7 +220,9 @@ class TableSummary:
     ``within``: cells within ±``CRITERIA["within"]`` of the published value; ``missed``: the others;
     ``in_noise``: of those, the ones within draw noise (None when a value has no standard error);
     ``beats``: per method of :data:`BEAT_METHODS`, ``[wins, families]`` of the product transfer
-    against ``std`` over all, intra- and inter-subject pairs (None where not measured).
+    against ``std`` over all, intra- and inter-subject pairs (None where not measured), the ties by
+    construction left out of both (``ties``: ``"<size> <family>"`` of the families in the span of the
+    source basis, where every extended transfer equals the standard one up to its truncation).
     """
 
     table: str
@@ -256,13 +234,23 @@ class TableSummary:
     mean_diff: float | None = None
     largest_diff: float | None = None
     beats: dict = field(default_factory=dict)
+    ties: list = field(default_factory=list)
+
+
+def _span_ties(errors: dict) -> list:
+    """``"<size> <family>"`` of the families in the span of the source basis (ties by construction)."""
+    return [f"{z} {f}" for z, size in errors.items() for f in ledger.span_ties(size.get("approx", {}).get("std", {}))]
 
 
 def _beats(errors: dict, method: str) -> list | None:
-    """``[wins, families]``: where ``method`` transfers better than ``std``, over the sizes of ``errors``."""
-    trs = [tr for tr in (size.get("transfer", {}) for size in errors.values()) if method in tr and "std" in tr]
-    n_f = sum(len(tr["std"]) for tr in trs)
-    return [sum(compare.lower(tr[method][f], tr["std"][f]) for tr in trs for f in tr["std"]), n_f] if n_f else None
+    """``[wins, families]``: where ``method`` transfers better than ``std``, over the sizes of ``errors``.
+
+    Families in the span of the source basis (:func:`_span_ties`) count neither way.
+    """
+    ties = set(_span_ties(errors))
+    cells = [(tr[method][f], tr["std"][f]) for z, size in errors.items() for tr in [size.get("transfer", {})]
+             if method in tr and "std" in tr for f in tr["std"] if f"{z} {f}" not in ties]
+    return [sum(compare.lower(o, s) for o, s in cells), len(cells)] if cells else None
 
 
 def table_summaries(infos, published_rows, matches, *, only_run: bool = False) -> list[TableSummary]:
@@ -279,7 +267,7 @@ def table_summaries(infos, published_rows, matches, *, only_run: bool = False) -
         res = info.doc.get("results", {}) if info else {}
         s = TableSummary(t, len(got), sum(1 for r in published_rows if r["table"] == t),
                          beats={m: [_beats(res.get(f"errors{sub}", {}), m) for sub in ("", "_intra", "_inter")]
-                                for m in BEAT_METHODS})
+                                for m in BEAT_METHODS}, ties=_span_ties(res.get("errors", {})))
         if diffs:
             s.within, s.missed = sum(map(pub.within_published, diffs)), len(missed)
             s.mean_diff, s.largest_diff = sum(diffs) / len(diffs), max(diffs)
@@ -307,127 +295,73 @@ def table_cells(published_rows, matches, tables=None) -> list[dict]:
 
 
 # ------------------------------------------------------------------------------ readings (forking paths)
-def _tables_text(sizes, fmap: str = "ground_truth", published_rows=None) -> str:
-    """``"Tables 1, 3, 5 and 6"``: the published tables of ``fmap`` holding cells at ``sizes`` ``[(k_M, k_N)]``."""
-    rows = load_published_rows() if published_rows is None else published_rows
-    sizes = {(int(a), int(b)) for a, b in sizes}
-    ts = sorted({r["table"] for r in rows if r["fmap"] == fmap and (int(r["k_M"]), int(r["k_N"])) in sizes}, key=int)
-    return ("Table " + ts[0]) if len(ts) == 1 else "Tables " + ", ".join(ts[:-1]) + " and " + ts[-1] if ts else "—"
+# the runs whose module has reading_summary(results): the frozen reading scored on the run's data
+_READING_RUNS = {"study_family_readings": "prodmaps.experiments.study_family_readings",
+                 "study_normalization": "prodmaps.experiments.study_normalization",
+                 "study_no17": "prodmaps.experiments.study_no17", "fig12_13": "prodmaps.experiments.fig12_13_p2p"}
+_TABLES_MODULE = "prodmaps.experiments.tables_transfer"  # held_out_rows({"T1": results, ...})
+REJECTED_NORMALIZATION = "metres"  # the normalisation the library used before (a table claim's verdict under it)
 
 
-def _noise_count(cells) -> tuple[int, int, int | None]:
-    """``(n, within ±WITHIN, within draw noise or None)`` of ``[(ours − published, se or None)]``."""
-    cells = list(cells)
-    noise = None if any(se is None for _, se in cells) else sum(pub.within_draw_noise(d, se) for d, se in cells)
-    return len(cells), sum(pub.within_published(d) for d, _ in cells), noise
+def _row(r: dict) -> dict:
+    """A reading row of the experiments (``reading_summary``, ``held_out_rows``) in the report's fields."""
+    out = {"label": r["reading"], "alternatives": r.get("alternatives"), "cells": r.get("cells") or "",
+           "frozen": r.get("frozen") or "", "choice": r.get("choice_here") or "", "n": r.get("cells_n"),
+           "within": r.get("within"), "in_noise": r.get("within_noise")}
+    return out | ({"frozen_error": r["frozen_error"]} if r.get("frozen_error") is not None else {})
 
 
-def _family_scores(res: dict, published_rows) -> dict:
-    """Rows of ``study_family_readings``: per family (tied families together), its frozen reading's ``std`` cells."""
-    gt = {(int(r["k_M"]), int(r["k_N"]), r["stage"], r["method"], r["function"]): r["value"]
-          for r in published_rows if r["fmap"] == "ground_truth"}
-    sizes = [tuple(z) for v in res.get("groups", {}).values() for z in v]
-    out: dict = {}
-    for fam, by_r in res.get("scores", {}).items():
-        names = list(res.get("readings", {}).get(fam, by_r))
-        if len(names) < 2 or fam not in pfam.PAPER_LABELS:
-            continue
-        group = next((g for g in pfam.TIED_READINGS if fam in g), (fam,))
-        key = "+".join(f for f in group if f in res["scores"])
-        frozen = res.get("published_readings", {}).get(fam) or pfam.PUBLISHED_READINGS.get(fam, "textbook")
-        label = pfam.PAPER_LABELS[fam]
-        errs = res.get("errors", {}).get(fam, {}).get(frozen, {})
-        ses = res.get("standard_errors", {}).get(fam, {}).get(frozen, {})
-        cells = []
-        for size, by_stage in errs.items():
-            a, b = map(int, size[1:].split("_"))
-            for st, by_m in by_stage.items():
-                p = gt.get((a, b, st, "std", label))
-                if p is not None and "std" in by_m:
-                    cells.append((by_m["std"] - p, ses.get(size, {}).get(st, {}).get("std")))
-        n, within, noise = _noise_count(cells)
-        row = out.setdefault(f"families:{key}", {
-            "label": READING_ROWS.get(f"families:{key}", f"{label}: parameters"), "alternatives": len(names) - 1,
-            "cells": f"published std cells of {_tables_text(sizes, published_rows=published_rows)}",
-            "frozen": frozen, "choice": res.get("chosen", {}).get(fam, ""), "n": 0, "within": 0, "in_noise": 0})
-        row["n"] += n
-        row["within"] += within
-        row["in_noise"] = None if noise is None or row["in_noise"] is None else row["in_noise"] + noise
-    return out
+def reading_scores(infos) -> dict:
+    """What the runs of ``infos`` scored for each open reading: this dataset's forking-path rows.
 
-
-def _normalization_scores(res: dict, published_rows) -> dict:
-    """The row of ``study_normalization``: the library's normalisation, its Approach B cells."""
-    readings = res.get("readings", {})
-    frozen = next((n for n, r in readings.items() if r.get("normalization") == DEFAULT_NORMALIZATION
-                   and r.get("rtol") == PAPER_RTOL), None)
-    if frozen is None or frozen not in res.get("errors", {}):
-        return {}
-    sems = res.get("standard_errors", {}).get(frozen)
-    cells, sizes = [], []
-    for t, by_size in res["errors"][frozen].items():
-        pubt = {(int(r["k_M"]), int(r["k_N"]), r["stage"], r["method"], r["function"]): r["value"]
-                for r in published_rows if r["fmap"] == "ground_truth" and r["table"] == t.lstrip("T")}
-        for size, by_stage in by_size.items():
-            a, b = map(int, size[1:].split("_"))
-            sizes.append((a, b))
-            for st, by_m in by_stage.items():
-                for fam, v in by_m.get("our_B", {}).items():
-                    p = pubt.get((a, b, st, "our_B", fam))
-                    if p is not None:
-                        se = (sems or {}).get(t, {}).get(size, {}).get(st, {}).get("our_B", {}).get(fam)
-                        cells.append((v - p, se))
-    n, within, noise = _noise_count(cells)
-    return {"normalization": {"label": READING_ROWS["normalization"], "alternatives": len(readings) - 1,
-                              "cells": "published Approach B cells of "
-                                       + _tables_text(sizes, published_rows=published_rows),
-                              "frozen": frozen, "choice": res.get("best") or "", "n": n, "within": within,
-                              "in_noise": noise}}
-
-
-def _no17_scores(res: dict, published_rows) -> dict:
-    """The row of ``study_no17``: the default recipe, its standard-transfer cells of Table 2."""
-    comp, frozen = res.get("comparison", {}), res.get("default_recipe")
-    per_pair = res.get("scores", {}).get("transfer", {}).get(frozen, {})
-    if not comp.get("rows"):
-        return {}
-    rows = [r for r in comp["rows"] if r.get("recipe") == frozen and r.get("published") is not None]  # [] unscored
-    cells = [(r["diff"], standard_error(per_pair[r["family"]]) if r["family"] in per_pair else None) for r in rows]
-    n, within, noise = _noise_count(cells)
-    sizes = [tuple(res.get("scores", {}).get("sizes", (29, 39)))]
-    recipes = [r for r in comp.get("summary", {}) if r != "gt"]
-    return {"no17": {"label": READING_ROWS["no17"], "alternatives": len(recipes) - 1,
-                     "cells": "published std transfer cells of "
-                              + _tables_text(sizes, "computed_NO17", published_rows=published_rows),
-                     "frozen": frozen, "choice": res.get("best") or "", "n": n, "within": within, "in_noise": noise}}
-
-
-_READING_RUNS = {"study_family_readings": _family_scores, "study_normalization": _normalization_scores,
-                 "study_no17": _no17_scores}
-
-
-def reading_scores(infos, published_rows=None) -> dict:
-    """What the studies of ``infos`` scored for each open reading, as this dataset's forking-path rows.
-
-    ``{row id: {"label", "alternatives", "cells", "frozen", "choice", "n", "within", "in_noise"}}``:
-    the reading the library uses (``frozen``, chosen on FAUST's eight registrations), how many
-    alternatives were scored (``alternatives``) on which published cells (``cells``), the reading
-    these results would choose (``choice``), and the frozen reading's cells here: ``n`` compared,
-    ``within`` ±0.02, ``in_noise`` within draw noise (None without standard errors). Read from the
-    runs ``study_family_readings`` (a row per family), ``study_normalization`` and ``study_no17``;
-    a run's ``results["forking_paths"]`` (the same rows) is taken as it is, over those.
+    ``{reading: {"label", "alternatives", "cells", "frozen", "choice", "n", "within", "in_noise"}}``
+    (and ``frozen_error`` for a reading no published cell judges): the reading the library uses
+    (``frozen``, chosen on FAUST's eight registrations), how many readings were scored on which
+    published cells, the reading these results would choose (``choice``), and the frozen
+    reading's cells here: ``n``, within ±0.02, within draw noise (None without standard errors).
+    The counts come from the tables' runs (``tables_transfer.held_out_rows``: the tables' own
+    pairs, with standard errors), else from the studies; the studies (``reading_summary`` of
+    ``study_family_readings``, ``study_normalization``, ``study_no17``, ``fig12_13``) add what
+    was scored and the choice. A run's ``results["forking_paths"]`` (rows of these fields, keyed
+    by reading) is taken as it is, over both.
     """
-    rows = load_published_rows() if published_rows is None else published_rows
+    docs = {i.name: i.doc.get("results") for i in infos if i.doc and isinstance(i.doc.get("results"), dict)}
+    tables = {r["table_name"]: r for r in docs.values()
+              if isinstance(r.get("table_name"), str) and isinstance(r.get("table"), list) and "fmap" in r}
     out: dict = {}
-    for i in infos:
-        res = i.doc.get("results", {}) if i.doc else {}
-        if isinstance(res, dict) and i.name in _READING_RUNS:
-            out.update(_READING_RUNS[i.name](res, rows))
-    for i in infos:
-        res = i.doc.get("results", {}) if i.doc else {}
-        if isinstance(res, dict) and isinstance(res.get("forking_paths"), dict):
+    if tables:
+        out = {r["reading"]: _row(r) for r in importlib.import_module(_TABLES_MODULE).held_out_rows(tables)}
+    for run, module in _READING_RUNS.items():
+        if run not in docs:
+            continue
+        for r in importlib.import_module(module).reading_summary(docs[run]):
+            row = _row(r)
+            if r["reading"] in out:  # the tables' counts (with SE) stay; the study says what was scored and chosen
+                row = out[r["reading"]] | {k: row[k] for k in ("alternatives", "cells", "frozen", "choice")} | {
+                    k: v for k, v in row.items() if k == "frozen_error"}
+            out[r["reading"]] = row
+    for res in docs.values():
+        if isinstance(res.get("forking_paths"), dict):
             out.update({k: dict(v) for k, v in res["forking_paths"].items()})
     return out
+
+
+def _normalization_readings(infos, verdicts: dict) -> None:
+    """Add each table claim's verdict under :data:`REJECTED_NORMALIZATION` to ``verdicts[claim].readings``.
+
+    From ``study_normalization``'s ``claim_verdicts`` (the ledger's table claims judged on the
+    study's values under each reading); the study's own verdict under the chosen reading is added
+    too where it differs from the claim's (the study's pairs are not the tables').
+    """
+    res = next((i.doc.get("results") for i in infos if i.name == "study_normalization" and i.doc), None)
+    by_reading = (res or {}).get("claim_verdicts") or {}
+    chosen = (res or {}).get("chosen_reading")
+    for cid, v in by_reading.get(REJECTED_NORMALIZATION, {}).items():
+        if cid in verdicts and v != "not measured here":
+            verdicts[cid].readings[f"{REJECTED_NORMALIZATION} normalisation"] = v
+            mine = by_reading.get(chosen, {}).get(cid)
+            if mine not in (None, "not measured here", verdicts[cid].verdict):
+                verdicts[cid].readings["the normalisation study, as chosen"] = mine
 
 
 # ------------------------------------------------------------------------------ one dataset
@@ -473,9 +407,13 @@ class DatasetReport:
         """The dataset as the report names it (``FAUST``, ``embedded humans``)."""
         return DATASET_NAMES.get(self.dataset, self.dataset)
 
-    def counts(self, source: str | None = "paper") -> dict:
-        """``{verdict: number of claims}`` of ``source`` (``"paper"``, ``"package"``; None: all)."""
-        return verdict_counts(self.verdicts, source)
+    def counts(self) -> dict:
+        """``{verdict: number of claims}`` over :data:`VERDICTS`, the paper's and the package's together."""
+        return {k: sum(1 for c in self.verdicts.values() if c.verdict == k) for k in VERDICTS}
+
+    def counts_by_source(self) -> dict:
+        """``{"paper": {verdict: n}, "package": {verdict: n}}``: the report's totals (:func:`verdict_counts`)."""
+        return verdict_counts(self.verdicts)
 
     def images(self) -> list:
         """Every image the dataset's section shows."""
@@ -592,8 +530,8 @@ def dataset_report(folder, dataset: str = DEFAULT_DATASET, *, main: bool = False
     figures = [Figure(i.name, i.reproduces, list(i.figures)) for i in present if i.figures
                and i.name not in in_studies and (main or i.dataset_figures or dataset in i.datasets)]
     own = [i for i in present if not main or run_dataset(i) == dataset]  # a main study run on FAUST is FAUST's
+    verdicts = claim_results(ledger.evaluate_folder(folder))
+    _normalization_readings(own, verdicts)
     return DatasetReport(dataset, shown if shown is not None else str(folder), commit, [i.name for i in present],
-                         sorted(shapes), pairs, claim_results(ledger.evaluate_folder(folder)), tables, figures,
-                         studies, cells,
-                         {i.name: [i.status, i.seconds] for i in infos if i.doc or i.manifest},
-                         reading_scores(own, published_rows or None))
+                         sorted(shapes), pairs, verdicts, tables, figures, studies, cells,
+                         {i.name: [i.status, i.seconds] for i in infos if i.doc or i.manifest}, reading_scores(own))

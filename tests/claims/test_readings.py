@@ -7,11 +7,18 @@ from prodmaps.experiments.shared import claims
 CLAIM = claims.load_ledger()["tab01.products_improve_transfer"]
 
 
+def _pairs(x):  # two pairs, 1 % apart: a small standard error
+    return [x, 1.01 * x]
+
+
 def _doc(hks_ours, hks_textbook_ours):
     std = {"hk k": 0.05, "HKS": 0.55, "HKS (textbook)": 0.01, "XYZ": 0.29}
     ours = {"hk k": 0.05, "HKS": hks_ours, "HKS (textbook)": hks_textbook_ours, "XYZ": 0.2}
-    errors = {"k9_9": {"transfer": {"std": std, **{m: dict(ours) for m in ("our_B", "our_B_gainrule", "our_default")}}}}
-    return {"tab01": {"results": {"errors": errors}}}
+    per_pair = {"k9_9": {"transfer": {"std": {f: _pairs(x) for f, x in std.items()},
+                                      **{m: {f: _pairs(x) for f, x in ours.items()}
+                                         for m in ("our_B", "our_B_gainrule", "our_default")}}}}
+    span = {"k9_9": {"approx": {"std": {"hk k": 0.0, "HKS": 0.5, "HKS (textbook)": 0.01, "XYZ": 0.29}}}}
+    return {"tab01": {"results": {"errors": span, "errors_per_pair": per_pair}}}
 
 
 def test_textbook_rows_are_judged_apart():
@@ -25,7 +32,8 @@ def test_textbook_rows_are_judged_apart():
 
 def test_runs_without_readings_have_no_reading_verdicts():
     doc = _doc(0.15, 0.02)
-    for by in doc["tab01"]["results"]["errors"]["k9_9"]["transfer"].values():
+    for by in doc["tab01"]["results"]["errors_per_pair"]["k9_9"]["transfer"].values():
         by.pop("HKS (textbook)")
+    doc["tab01"]["results"]["errors"]["k9_9"]["approx"]["std"].pop("HKS (textbook)")
     (v,) = [x for x in claims.evaluate(CLAIM, doc) if x.subset == "all"]
     assert v.verdict == "holds" and claims.reading_verdicts(v) == {}

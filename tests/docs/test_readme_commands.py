@@ -111,12 +111,15 @@ STAND_INS = {
     "python: b1 = pm.basis.from_arrays(mesh1.eigenvectors[:, :k1], mesh1.eigenvalues[:k1], mesh1.vertex_areas)":
         "python_pyfm",
     'python: mesh = pm.load_mesh("scan.ply")': "python_scan",
+    'python: cloud = pm.load_point_cloud("scan.xyz")': "python_cloud",
+    'python: camel = pm.load_mesh("camel-gallop-01.off", validate=False)': "python_camel",
     "git clone https://github.com/llorz/SGA18_orientation_BCICP_dataset": "sga18_clone",
     "python -m prodmaps.prepare faust_r --archive SGA18_orientation_BCICP_dataset": "prepare_sga18",
     "python -m prodmaps.prepare tosca_r --archive SGA18_orientation_BCICP_dataset": "prepare_sga18",
     "python -m prodmaps.prepare tosca_r_noniso --archive SGA18_orientation_BCICP_dataset": "prepare_sga18",
     'python: p2p_21 = pm.datasets.ground_truth_between(("faust", "tr_reg_000"), ("faust_r", "tr_reg_000"))':
         "python_cross",
+    "python: class DampedTransfer(TransferOperator):": "python_new_method",
 }
 
 
@@ -425,9 +428,67 @@ def stand_in_python_scan(r: Reader, text: str):
     import prodmaps as pm
 
     shutil.copy(pm.datasets.dataset_dir("anny_humans") / "shapes" / "anny_000.ply", r.tmp / "scan.ply")
+    human = pm.datasets.load_shape("anny_humans", "anny_000")
+    np.savetxt(r.tmp / "scan.xyz", human.vertices[::2])  # a cloud: every other vertex
     ns: dict = {}
     _exec(text, ns, r.tmp)
-    assert ns["mesh"].n_vertices == pm.datasets.load_shape("anny_humans", "anny_000").n_vertices
+    assert ns["mesh"].n_vertices == human.n_vertices
+    assert ns["cloud"].n_points == (human.n_vertices + 1) // 2 and ns["cloud"].normals is None
+
+
+def stand_in_python_cloud(r: Reader, text: str):
+    """The guide's point-cloud block on an ellipsoid and the cloud of every other vertex (truth: 2 i)."""
+    import prodmaps as pm
+
+    mesh = pm.mesh.ellipsoid(3)
+    np.savetxt(r.tmp / "scan.xyz", mesh.vertices[::2])
+    B1 = pm.eigenbasis(mesh, 30)
+    B2 = pm.eigenbasis(pm.PointCloud(mesh.vertices[::2]), 30)
+    lm = [[2 * i, i] for i in (0, 50, 100, 150, 200)]
+    d_mesh, d_cloud = pm.fmaps.no17_demo_descriptors(B1, B2, lm)
+    ns = dict(mesh=mesh, d_mesh=d_mesh, d_cloud=d_cloud, f=mesh.vertices)
+    _exec("import prodmaps as pm\n" + text, ns, r.tmp)
+    assert ns["C_12"].shape == (10, 10) and ns["g"].shape == (321, 3)
+    assert np.mean(ns["p2p_21"] == 2 * np.arange(321)) > 0.8  # the point map finds the sampled vertices ...
+    dist = np.linalg.norm(mesh.vertices[ns["p2p_21"]] - mesh.vertices[::2], axis=1)
+    assert dist.mean() < 0.02  # ... or one of their neighbours (the ellipsoid is 2 long)
+
+
+def stand_in_python_camel(r: Reader, text: str):
+    """The guide's camel block on a stand-in with pyFM's camel's defects: a duplicated face, a non-manifold edge."""
+    import prodmaps as pm
+
+    e = pm.mesh.ellipsoid(2)
+    a, b, _ = e.faces[10]
+    V = np.vstack([e.vertices, 0.525 * (e.vertices[a] + e.vertices[b])])
+    F = np.vstack([e.faces, e.faces[5][::-1], [[a, b, e.n_vertices]]])
+    pm.save_mesh(r.tmp / "camel-gallop-01.off", V, F)
+    with pytest.raises(pm.MeshError, match="kind='robust'"):
+        pm.io.load_mesh_repaired(r.tmp / "camel-gallop-01.off", verbose=False)
+    ns: dict = {}
+    _exec("import prodmaps as pm\n" + text, ns, r.tmp)
+    assert ns["basis"].kind == "robust" and ns["basis"].vecs.shape == (163, 50)
+
+
+def stand_in_python_new_method(r: Reader, text: str):
+    """The developer guide's worked example registers a method that every transfer then offers."""
+    import prodmaps as pm
+    from prodmaps.transfers import REGISTRY
+
+    ns: dict = {}
+    try:
+        _exec(text, ns, r.tmp)
+        assert REGISTRY["damped"].parameters == {"damping": 1e-3}
+        mesh = pm.mesh.ellipsoid(2)
+        b = pm.eigenbasis(mesh, 6)
+        C = pm.fmap_from_p2p(np.arange(b.n), b, b)
+        f = mesh.vertices[:, 0] * mesh.vertices[:, 1]
+        g = pm.transfer(f, C, b, b, "damped", damping=1e-2)
+        np.testing.assert_array_equal(g, pm.transfer(f, C, b, b, "ridge", eps=1e-4))  # eps = damping²
+        with pytest.raises(TypeError, match="takes no parameter 'rtol'"):
+            pm.transfer(f, C, b, b, "damped", rtol=1e-3)
+    finally:
+        REGISTRY.pop("damped", None)
 
 
 @pytest.mark.parametrize("where, kind, text", documented(), ids=[f"{w}" for w, _, _ in documented()])

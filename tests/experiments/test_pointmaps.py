@@ -33,3 +33,14 @@ def test_pairs_of_one_source_share_their_geodesic_rows(tmp_path):
     again = point_map_recovery(ShapeStore(DS, 20, cache_folder=tmp_path / "cache"), pairs[::-1], target_dim=12,
                                source_dim=10, maps=("gt",), n_eval=80, seed=2, verbose=False, workers=1)["results"]
     assert {r["pair"]: r for r in again["per_pair"]} == {r["pair"]: r for r in res["per_pair"]}
+
+
+def test_subject_pairs_in_both_directions_or_once():
+    from prodmaps.experiments.fig12_13_p2p import subject_pairs
+
+    both = subject_pairs("anny_humans", "0")
+    once = subject_pairs("anny_humans", "0", both_directions=False)
+    assert len(both) == 10 * 9 and len(once) == 45  # 10 poses: 90 ordered pairs, 45 pairs of shapes
+    assert set(once) | {(b, a) for a, b in once} == set(both) and all(a < b for a, b in once)
+    assert subject_pairs("anny_humans", "0", 5, seed=1, both_directions=False) == \
+        subject_pairs("anny_humans", "0", 5, seed=1, both_directions=False)

@@ -56,8 +56,24 @@ def test_polygon_files_reach_validation(name):
     v, f = read_mesh_arrays(VARIANTS / name)
     assert f.shape[1] == 4  # kept as polygons (padded), not triangulated behind our back
     with pytest.raises(pm.MeshError, match="non-triangular faces.*triangulate the mesh first") as info:
-        pm.load_mesh(VARIANTS / name)
+        pm.load_mesh(VARIANTS / name, triangulate=False)
     assert str(info.value).startswith(str(VARIANTS / name))
+    assert "triangulate_polygons" in str(info.value)  # the message names the helper
+
+
+@pytest.mark.parametrize("name", POLYGONS)
+def test_polygon_files_are_triangulated_on_load_with_a_warning(name):
+    v, f = read_mesh_arrays(VARIANTS / name)
+    n_corners = 4 - (f[:, 3] == f[:, 2])  # padded triangles repeat their last index
+    with pytest.warns(pm.MeshWarning, match=r"(\d+) polygon faces .* triangulated into (\d+) triangles") as rec:
+        m = pm.load_mesh(VARIANTS / name)
+    n_quads = int(np.sum(n_corners == 4))
+    assert m.n_faces == f.shape[0] + n_quads  # every quad becomes two triangles
+    msg = str(rec[0].message)
+    assert msg.startswith(str(VARIANTS / name)) and f"{n_quads} polygon faces" in msg
+    assert f"into {2 * n_quads} triangles" in msg and "triangulate=False" in msg
+    np.testing.assert_array_equal(m.vertices, v)  # vertices untouched, in file order
+    assert m.is_closed  # a closed surface: the fans close it as the polygons did
 
 
 def _write(tmp_path, name, text, mode="w"):
@@ -95,7 +111,7 @@ def test_broken_corpus_messages_start_with_the_path():
             pm.load_mesh(p)
             continue
         with pytest.raises(pm.MeshError) as info:
-            pm.load_mesh(p)
+            pm.load_mesh(p, triangulate=False)
         assert str(info.value).startswith(f"{p}: "), str(info.value)
 
 
@@ -124,7 +140,10 @@ def _tetra_ply_bytes(head=PLY_HEAD):
          b"property float z\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n0 zero 0\n",
          "malformed PLY data"),
         ("points.ply", b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
-         b"property float z\nend_header\n0 0 0\n", "no vertex or no face element"),
+         b"property float z\nend_header\n0 0 0\n", r"no faces: .*a point cloud; load it with pm\.load_point_cloud"),
+        ("strips.ply", b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+         b"property float z\nelement tristrips 0\nproperty list int int vertex_indices\nend_header\n0 0 0\n",
+         "triangle strips are not supported"),
         ("scalarlist.ply", b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
          b"property float z\nelement face 1\nproperty int vertex_indices\nend_header\n0 0 0\n0\n",
          "no 'vertex_indices' list property"),
@@ -181,7 +200,11 @@ def test_mixed_polygons_in_every_format(tmp_path):
         np.testing.assert_array_equal(f[0], [0, 3, 2, 1])
         np.testing.assert_array_equal(f[1], [0, 1, 4, 4])  # triangles padded with their last index
         with pytest.raises(pm.MeshError, match="non-triangular faces"):
-            pm.load_mesh(p)
+            pm.load_mesh(p, triangulate=False)
+        with pytest.warns(pm.MeshWarning, match="1 polygon faces .* into 2 triangles .* 6 triangles in all"):
+            m = pm.load_mesh(p)
+        np.testing.assert_array_equal(m.faces[:2], [[0, 3, 2], [0, 2, 1]])  # the quad's fan, in place
+        assert m.n_faces == 6 and m.is_closed
 
 
 @pytest.mark.parametrize("suffix", [".ply", ".off"])

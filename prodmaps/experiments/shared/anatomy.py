@@ -3,7 +3,7 @@
 Anchors are found from coordinates in the **body frame**: ``x`` the body's left, ``y`` its back
 (it faces ``-y``), ``z`` up, the origin on the body's mid-plane. The embedded humans and TOSCA's
 animals are stored in that frame; a dataset in another frame names the rotation from its
-coordinates to the body frame (:data:`FRAMES`, e.g. FAUST: up ``+y``, facing ``-z``), and its
+coordinates to the body frame (:data:`FRAMES`, e.g. FAUST: up ``+y``, facing ``+z``), and its
 coordinates are then taken from the centre of their bounding box (FAUST_r sits in a unit box).
 Rotations keep distances, so geodesic distances do not depend on the frame; only which vertex is
 "left" or "up" does. Lengths are in the mesh's units times ``length_scale`` (the human function was written
@@ -16,12 +16,12 @@ import numpy as np
 
 from ...geodesics import distances
 
-__all__ = ["FRAMES", "HUMAN_AREA", "body_frame", "body_coordinates", "length_scale", "human_composite",
-           "quadruped_composite", "composite_function", "COMPOSITES"]
+__all__ = ["FRAMES", "HUMAN_AREA", "body_frame", "body_coordinates", "body_transform", "length_scale",
+           "human_composite", "quadruped_composite", "composite_function", "COMPOSITES"]
 
 FRAMES = {
     "body": ((1, 0, 0), (0, 1, 0), (0, 0, 1)),  # the embedded humans, TOSCA's animals
-    "faust": ((-1, 0, 0), (0, 0, 1), (0, 1, 0)),  # FAUST and FAUST_r: up +y, facing -z, the body's left -x
+    "faust": ((1, 0, 0), (0, 0, -1), (0, 1, 0)),  # FAUST and FAUST_r: up +y, facing +z, the body's left +x
 }
 """Rotations (rows: the body frame's x, y, z in the dataset's coordinates) by dataset frame name."""
 HUMAN_AREA = 1.7226
@@ -54,6 +54,24 @@ def body_coordinates(vertices, frame=None) -> np.ndarray:
     if np.array_equal(R, np.eye(3)):
         return V
     return (V - 0.5 * (V.min(axis=0) + V.max(axis=0))) @ R.T
+
+
+def body_transform(reference, frame=None):
+    """The map ``V -> V`` in the body frame with ``reference``'s centre: one transform for every panel of a figure.
+
+    ``reference`` ``(n, 3)``: the vertices whose bounding box gives the centre (in another frame
+    than the body frame); the body frame's map returns its argument unchanged.
+
+    >>> to_body = body_transform(np.array([[0.0, 0.0, 0.0], [2.0, 4.0, 6.0]]), "faust")
+    >>> to_body(np.array([[1.0, 2.0, 3.0]])).tolist()  # the centre goes to the origin
+    [[0.0, 0.0, 0.0]]
+    """
+    R = body_frame(frame)
+    if np.array_equal(R, np.eye(3)):
+        return lambda V: V
+    ref = np.asarray(reference, dtype=np.float64)
+    c = 0.5 * (ref.min(axis=0) + ref.max(axis=0))
+    return lambda V: (np.asarray(V, dtype=np.float64) - c) @ R.T
 
 
 def length_scale(mesh, scale="metres") -> float:

@@ -9,10 +9,10 @@ Two numbers are compared by their **relative** difference ``d = (a - b) / max(|a
 ``TIE_REL = 1e-5`` is ten times the largest drift of a smoke-profile value between OpenBLAS
 kernels (``docs/benchmarks.md``), far below what the paper's two-decimal tables resolve.
 
-:data:`ROUNDING_REL` is the wider band the claims ledger uses to say that a verdict is decided by
-a margin so thin that rounding could flip it (``"holds within rounding"``, see
-:mod:`prodmaps.experiments.shared.claims`): comparisons whose relative difference lies between
-``TIE_REL`` and ``ROUNDING_REL`` are taken both ways and the verdict says so if it depends on them.
+:data:`ROUNDING_REL` is the wider band within which the claims ledger's plain comparisons
+(``lower`` / ``not_higher`` of :mod:`prodmaps.experiments.shared.claims`) are *inconclusive*: a
+relative difference between ``TIE_REL`` and ``ROUNDING_REL`` is one rounding could flip, so it is
+taken both ways and a verdict that depends on it is "inconclusive".
 ``ROUNDING_REL = 1e-3`` covers the widest drift between one and two BLAS threads (``docs/benchmarks.md``).
 
 Counts of comparisons (``n_products_better`` in the tables, wins over pairs in the point-map

@@ -23,14 +23,15 @@ from ... import datasets
 from ...approx import PAPER_RTOL
 from ...mapping import fmap_from_p2p
 from ...metrics import relative_error
+from ...products import product_basis
 from ...transfers import REGISTRY, transfer_operator
 from . import families as pfam
 from .maps import no17_demo_map
 from .parallel import map_by_source
 from .store import ShapeStore
 
-__all__ = ["ProtocolSettings", "ProtocolResult", "run_protocol", "family_means", "standard_error", "perturbed_map",
-           "check_columns", "with_parameters", "approach_a_label", "PAPER_COLUMNS", "STAGES"]
+__all__ = ["ProtocolSettings", "ProtocolResult", "run_protocol", "family_means", "family_per_pair", "standard_error",
+           "perturbed_map", "check_columns", "with_parameters", "approach_a_label", "PAPER_COLUMNS", "STAGES"]
 
 STAGES = ("approx", "transfer")
 PAPER_COLUMNS = {
@@ -131,7 +132,9 @@ class ProtocolResult:
     ``errors[(k_M, k_N)][stage][label]`` is a list (one entry per pair) of ``(m,)`` arrays of
     per-column relative errors; ``cols[family]`` the column slice of each family;
     ``ranks[(k_M, k_N)][label]`` the kept rank of every Approach B column and
-    ``gain_rtol[(k_M, k_N)][label]`` the threshold of every gain-rule column, one entry per pair.
+    ``gain_rtol[(k_M, k_N)][label]`` the threshold of every gain-rule column, one entry per pair;
+    ``column_seconds[(k_M, k_N)][label]`` the wall time of every column (building its operator,
+    approximating and transferring the pair's functions), one entry per pair.
     """
 
     settings: ProtocolSettings
@@ -142,6 +145,7 @@ class ProtocolResult:
     ranks: dict
     gain_rtol: dict
     seconds: list
+    column_seconds: dict = field(default_factory=dict)
 
 
 def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collect=None,
@@ -165,7 +169,7 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
     pairs = [tuple(p) for p in pairs]
     errors = {z: {st: {lab: [] for lab in s.columns} for st in STAGES} for z in s.sizes}
     map_dev = {z: [] for z in s.sizes}
-    ranks, gain_rtol = ({z: {} for z in s.sizes} for _ in range(2))
+    ranks, gain_rtol, col_seconds = ({z: {} for z in s.sizes} for _ in range(3))
     cols, seconds = None, []
     split = _measures(collect)
     workers = 1 if collect is not None and not split else workers
@@ -175,7 +179,7 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
             if split:
                 collect.add(ip, z, by.pop("collected"))
             map_dev[z].append(by["map_dev"])
-            for key, acc in (("ranks", ranks), ("gain_rtol", gain_rtol)):
+            for key, acc in (("ranks", ranks), ("gain_rtol", gain_rtol), ("column_seconds", col_seconds)):
                 for lab, v in by[key].items():
                     acc[z].setdefault(lab, []).append(v)
             for st in STAGES:
@@ -187,7 +191,7 @@ def run_protocol(store: ShapeStore, pairs, settings: ProtocolSettings, *, collec
             print(f"pair {ip + 1:2d}/{len(pairs)} {sid1} -> {sid2}: {seconds[-1]:5.1f} s"
                   + "".join(f"  [{kM}/{kN}] map dev {map_dev[(kM, kN)][-1]:.3f}" for kM, kN in s.sizes),
                   flush=True)
-    return ProtocolResult(s, pairs, errors, cols, map_dev, ranks, gain_rtol, seconds)
+    return ProtocolResult(s, pairs, errors, cols, map_dev, ranks, gain_rtol, seconds, col_seconds)
 
 
 def _measures(collect) -> bool:
@@ -199,7 +203,7 @@ def _protocol_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, s: Protocol
     """One pair at every size: ``{"cols", "seconds", "sizes": {(k_M, k_N): {...}}}``.
 
     Each size holds ``"errors"`` (``errors[stage][label]`` the ``(m,)`` per-column errors),
-    ``"map_dev"``, ``"ranks"`` and ``"gain_rtol"`` (by column label).
+    ``"map_dev"``, ``"ranks"``, ``"gain_rtol"`` and ``"column_seconds"`` (by column label).
     """
     t0 = time.perf_counter()
     gt = datasets.ground_truth(store.dataset, sid1, sid2)  # (n2,) target vertex -> source vertex
@@ -207,7 +211,7 @@ def _protocol_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, s: Protocol
                                           reading_set=s.family_reading)
     sizes = {}
     for (kM, kN) in s.sizes:
-        rec = {"errors": {st: {} for st in STAGES}, "ranks": {}, "gain_rtol": {}}
+        rec = {"errors": {st: {} for st in STAGES}, "ranks": {}, "gain_rtol": {}, "column_seconds": {}}
         b1, b2 = store.basis(sid1, kM + 1), store.basis(sid2, kN + 1)
         C_gt = fmap_from_p2p(gt, b1, b2)  # (kN+1, kM+1)
         if s.map_kind == "gt":
@@ -218,9 +222,12 @@ def _protocol_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, s: Protocol
             C = no17_demo_map(store, sid1, sid2, gt, kM + 1, kN + 1, k_descr=s.no17_k_descr)
         rec["map_dev"] = float(np.linalg.norm(C - C_gt) / np.linalg.norm(C_gt))
         outputs = {}
+        _warm_extended_basis(b1, s.columns)  # shared by the extended columns: not in any column's time
         for lab, (method, params) in s.columns.items():
+            t_col = time.perf_counter()
             op = transfer_operator(C, b1, b2, method, **params)
             outputs[lab] = (op.approximate(F), op(F))  # (n1, m), (n2, m)
+            rec["column_seconds"][lab] = time.perf_counter() - t_col
             if method in ("svd", "svd_gain"):
                 rec["ranks"][lab] = op.rank
             if method == "svd_gain":
@@ -236,6 +243,17 @@ def _protocol_pair(store: ShapeStore, ip: int, sid1: str, sid2: str, s: Protocol
     return {"cols": cols, "seconds": time.perf_counter() - t0, "sizes": sizes}
 
 
+_EXTENDED = ("lasso", "ridge", "svd", "svd_gain")  # registry methods fitting in the source's extended basis
+
+
+def _warm_extended_basis(b1, columns: dict) -> None:
+    """Build the Gram matrix of the source's extended basis that every extended column shares (cached on it)."""
+    for order, pairs in sorted({(p.get("order", REGISTRY[m].parameters["order"]),
+                                 p.get("pairs", REGISTRY[m].parameters["pairs"]))
+                                for m, p in columns.values() if m in _EXTENDED}):
+        product_basis(b1, order, pairs).solver_gram()
+
+
 def perturbed_map(C_gt: np.ndarray, noise: float, seed) -> np.ndarray:
     """``C_gt`` plus seeded Gaussian noise of relative Frobenius norm ``noise`` on the free columns.
 
@@ -247,12 +265,11 @@ def perturbed_map(C_gt: np.ndarray, noise: float, seed) -> np.ndarray:
     return C_gt + noise * np.linalg.norm(C_gt) / np.linalg.norm(E) * E
 
 
-def family_means(result: ProtocolResult, pairs_mask=None) -> dict:
-    """``{(k_M, k_N, stage, column label, paper family label): (mean over pairs, std over pairs)}``.
+def family_per_pair(result: ProtocolResult, pairs_mask=None) -> dict:
+    """``{(k_M, k_N, stage, column label, paper family label): (pairs,) array}``: each pair's mean over the family.
 
-    The std is the population one (``ddof=0``); over ``n`` pairs the mean's :func:`standard_error`
-    is ``std / sqrt(n - 1)``. Each pair contributes the mean over the family's columns;
-    ``pairs_mask`` (boolean, one entry per pair) restricts the average to some pairs (e.g. the intra-subject ones).
+    The values :func:`family_means` averages; a paired comparison of two columns over pairs
+    (the claims ledger's criterion) takes them pair by pair. ``pairs_mask`` as in :func:`family_means`.
     """
     out = {}
     for z, by_stage in result.errors.items():
@@ -262,10 +279,19 @@ def family_means(result: ProtocolResult, pairs_mask=None) -> dict:
                 if pairs_mask is not None:
                     E = E[np.asarray(pairs_mask, dtype=bool)]
                 for fam in result.settings.families:
-                    per = E[:, result.cols[fam]].mean(axis=1)  # (pairs,)
                     label = pfam.entry_label(fam, result.settings.family_reading)
-                    out[(z[0], z[1], st, lab, label)] = (float(per.mean()), float(per.std()))
+                    out[(z[0], z[1], st, lab, label)] = E[:, result.cols[fam]].mean(axis=1)  # (pairs,)
     return out
+
+
+def family_means(result: ProtocolResult, pairs_mask=None) -> dict:
+    """``{(k_M, k_N, stage, column label, paper family label): (mean over pairs, std over pairs)}``.
+
+    The std is the population one (``ddof=0``); over ``n`` pairs the mean's :func:`standard_error`
+    is ``std / sqrt(n - 1)``. Each pair contributes the mean over the family's columns;
+    ``pairs_mask`` (boolean, one entry per pair) restricts the average to some pairs (e.g. the intra-subject ones).
+    """
+    return {key: (float(per.mean()), float(per.std())) for key, per in family_per_pair(result, pairs_mask).items()}
 
 
 def standard_error(values) -> float | None:

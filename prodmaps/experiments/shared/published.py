@@ -26,11 +26,15 @@ stage, method and whichever of fmap, k_M, k_N are present). Entries matching no 
 several, are listed in the report as unmatched. The difference is ``ours - published``;
 the paper prints two decimals, so ``|difference| <= 0.005`` is "as published".
 
+One rule for every count: the report prints values, differences and SEs with
+:data:`PRINTED_DECIMALS` (3) decimals (:func:`printed`), and the printed difference decides
+(``±0.020`` is within ±0.02, ``−0.021`` is not), so recounting the printed table gives the count.
+
 An entry may also give ``se``, the standard error of our value over its pairs (a mean over
 drawn pairs and functions). Comparisons with the paper (one home for the report and the studies):
 
-* :func:`within_published`: ``|ours − published| <= WITHIN`` (0.02): the cell is reproduced;
-* :func:`within_draw_noise`: ``|ours − published| <= WITHIN + DRAW_Z·√2·se``: the difference is
+* :func:`within_published`: ``|ours − published| <= WITHIN`` (0.02), printed: the cell is reproduced;
+* :func:`within_draw_noise`: ``|ours − published| <= WITHIN + DRAW_Z·√2·se``, printed: the difference is
   within what two independent draws of as many pairs explain at about 95 % (``DRAW_Z = 2``),
   taking the paper's mean to be as noisy as ours (its pairs and functions are unknown). A miss
   beyond it is a difference of data or definition, not of the draw.
@@ -45,24 +49,44 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["PUBLISHED_CSV", "TABLE_KEYS", "WITHIN", "DRAW_Z", "load_published", "normalize_entry", "match_entries",
-           "published_values", "within_published", "within_draw_noise", "score_cells"]
+__all__ = ["PUBLISHED_CSV", "TABLE_KEYS", "WITHIN", "DRAW_Z", "PRINTED_DECIMALS", "printed", "load_published",
+           "normalize_entry", "match_entries", "published_values", "within_published", "within_draw_noise",
+           "score_cells"]
 
 PUBLISHED_CSV = Path(str(importlib.resources.files("prodmaps.experiments.shared") / "published_tables.csv"))
 TABLE_KEYS = ("table", "fmap", "k_M", "k_N", "function", "stage", "method")
 _OPTIONAL = ("fmap", "k_M", "k_N")
 WITHIN = 0.02  # the paper prints two decimals
 DRAW_Z = 2.0  # standard errors of the band of within_draw_noise (about 95 %)
-_ROUND = 1e-12  # a difference of exactly 0.02 counts as within, whatever the float rounding
+PRINTED_DECIMALS = 3  # the report prints ours, the difference and the SE with three decimals
+_ROUND = 1e-12  # a printed difference of exactly 0.020 counts as within, whatever the float rounding
+
+
+def printed(value: float, signed: bool = False) -> str:
+    """``value`` as the report prints it: :data:`PRINTED_DECIMALS` decimals (``signed``: with its sign).
+
+    >>> printed(0.14296), printed(-0.02004, signed=True), printed(0.0, signed=True)
+    ('0.143', '-0.020', '+0.000')
+    """
+    return f"{float(value):+.{PRINTED_DECIMALS}f}" if signed else f"{float(value):.{PRINTED_DECIMALS}f}"
 
 
 def within_published(diff: float) -> bool:
-    """Whether a difference ``ours − published`` reproduces the printed cell (``|diff| <= WITHIN``)."""
-    return abs(float(diff)) <= WITHIN + _ROUND
+    """Whether ``ours − published`` reproduces the printed cell: ``|diff| <= WITHIN`` for ``diff`` as printed.
+
+    The difference is rounded as :func:`printed` shows it, so the count and the printed table agree
+    at the boundary.
+
+    >>> within_published(-0.02004), within_published(0.0204), within_published(-0.0206)
+    (True, True, False)
+    """
+    return abs(float(printed(diff, signed=True))) <= WITHIN + _ROUND
 
 
 def within_draw_noise(diff: float, se: float) -> bool:
-    """Whether ``|ours − published| <= WITHIN + DRAW_Z·√2·se`` (module doc); ``se >= 0`` is our value's standard error.
+    """Whether ``|ours − published| <= WITHIN + DRAW_Z·√2·se`` (module doc), both as printed; ``se >= 0``.
+
+    ``se`` is our value's standard error.
 
     >>> within_draw_noise(0.04, 0.01), within_draw_noise(0.05, 0.01)
     (True, False)
@@ -70,7 +94,8 @@ def within_draw_noise(diff: float, se: float) -> bool:
     se = float(se)
     if not se >= 0:
         raise ValueError(f"se must be a standard error >= 0, got {se!r}")
-    return abs(float(diff)) <= WITHIN + DRAW_Z * 2 ** 0.5 * se + _ROUND
+    band = WITHIN + DRAW_Z * 2 ** 0.5 * float(printed(se))
+    return abs(float(printed(diff, signed=True))) <= band + _ROUND
 
 
 def load_published(path=None) -> list[dict]:
@@ -147,7 +172,7 @@ def score_cells(ours: dict, published: dict, methods=("std", "our_A", "our_l2", 
     """``{method: {"cells", "within", "mean_abs", "max_abs"}}`` over the published cells we measured.
 
     ``ours`` and ``published`` are keyed ``(k_M, k_N, stage, method, function)``; a cell counts as
-    reproduced when ``|ours - published| <= 0.02``.
+    reproduced when :func:`within_published` (``|ours - published| <= 0.02`` as printed).
     """
     out = {}
     for m in methods:

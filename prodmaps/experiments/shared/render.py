@@ -1,9 +1,10 @@
-"""Off-screen, repeatable renders of meshes coloured by a function (pyvista/VTK).
+"""The notebooks' figures: renders of meshes with named views, figure grids, shared colour maps.
 
-Repeatability rules: anti-aliasing off (``multi_samples = 0``, no FXAA/SSAA), fixed window
-size, fixed camera derived only from the geometry you pass, fixed colour limits ``clim``,
-flat background, no lighting randomness. The default camera looks at the body from the
-front (the embedded humans are z-up and face -y).
+Drawing goes through the library's renderer, :func:`prodmaps.plotting.render` (anti-aliasing
+off, fixed window size, camera and colour limits, flat background, no lighting randomness);
+what is here is the notebooks' convention on top of it: named views of z-up humans facing -y
+(:data:`VIEWS`), cameras framing given bounds so that the panels of a figure share one scale,
+colour limits always passed (``clim``), the figure grid and the paper's colour maps.
 
 pyvista is imported inside the functions. A missing GL backend makes VTK crash instead of
 raising, so call :func:`probe_rendering` (it tries in a subprocess) before rendering in tests.
@@ -14,11 +15,9 @@ executed notebooks before falling back to EGL; a ``VTK_DEFAULT_OPENGL_WINDOW`` y
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-
 import numpy as np
+
+from ...plotting import Camera, headless_gl, probe_rendering, render
 
 __all__ = ["probe_rendering", "render_mesh", "render_grid", "VIEWS", "error_colormap", "function_colormap",
            "camera_bounds", "rendering_available", "headless_gl"]
@@ -30,46 +29,6 @@ VIEWS = {
     "side": ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
     "top": ((0.0, 0.0, 1.0), (0.0, 1.0, 0.0)),
 }
-
-def headless_gl() -> None:
-    """Without an X display, make VTK open its EGL render window first (no X warning).
-
-    Sets ``VTK_DEFAULT_OPENGL_WINDOW=vtkEGLRenderWindow`` in this process when ``DISPLAY`` is
-    empty and the variable is not already set; VTK still falls back to its other windows.
-    """
-    if not os.environ.get("DISPLAY"):
-        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-
-
-_PROBE = """from prodmaps.experiments.shared.render import headless_gl
-headless_gl()
-import pyvista as pv
-pv.OFF_SCREEN = True
-p = pv.Plotter(off_screen=True, window_size=(32, 32))
-p.add_mesh(pv.Sphere())
-img = p.screenshot(return_img=True)
-assert img.shape[:2] == (32, 32)
-"""
-
-
-def probe_rendering(timeout: float = 120.0) -> tuple[bool, str]:
-    """Try an off-screen render in a subprocess; returns ``(ok, reason)``."""
-    try:
-        r = subprocess.run([sys.executable, "-c", _PROBE], capture_output=True, text=True, timeout=timeout)
-    except subprocess.TimeoutExpired:
-        return False, "off-screen rendering probe timed out"
-    if r.returncode != 0:
-        tail = (r.stderr or "").strip().splitlines()[-1:] or [f"exit code {r.returncode}"]
-        return False, f"off-screen rendering unavailable: {tail[0]}"
-    return True, "ok"
-
-
-def _pv_mesh(vertices, faces):
-    import pyvista as pv
-
-    f = np.asarray(faces, dtype=np.int64)
-    cells = np.hstack([np.full((f.shape[0], 1), f.shape[1]), f]).ravel()
-    return pv.PolyData(np.asarray(vertices, dtype=np.float64), cells)
 
 
 def render_mesh(vertices, faces, scalars=None, *, clim=None, cmap="viridis", view="front",
@@ -88,38 +47,16 @@ def render_mesh(vertices, faces, scalars=None, *, clim=None, cmap="viridis", vie
     """
     if scalars is not None and clim is None:
         raise ValueError("pass clim with scalars: panels of one figure must share colour limits")
-    headless_gl()
-    import pyvista as pv
-
-    pv.OFF_SCREEN = True
-    pv.global_theme.multi_samples = 0
-    pv.global_theme.smooth_shading = False
-    mesh = _pv_mesh(vertices, faces)
-    p = pv.Plotter(off_screen=True, window_size=tuple(window_size), lighting="light_kit")
-    p.set_background("white")
-    if scalars is not None:
-        mesh.point_data["f"] = np.asarray(scalars, dtype=np.float64)
-        p.add_mesh(mesh, scalars="f", clim=clim, cmap=cmap, show_scalar_bar=False,
-                   interpolate_before_map=True, smooth_shading=False)
-    else:
-        p.add_mesh(mesh, color=color, smooth_shading=False)
-    if region is not None:
-        sub = mesh.extract_points(np.flatnonzero(np.asarray(region)), adjacent_cells=False)
-        if sub.n_points:
-            p.add_mesh(sub, color=region_color, smooth_shading=False)
-    b = np.asarray(camera_bounds if camera_bounds is not None else mesh.bounds, dtype=float)
+    direction, up = VIEWS[view]
+    v = np.asarray(vertices, dtype=np.float64)
+    b = np.asarray(camera_bounds if camera_bounds is not None else np.ravel(np.column_stack([v.min(0), v.max(0)])),
+                   dtype=float)
     center = 0.5 * (b[0::2] + b[1::2])
     radius = 0.5 * np.linalg.norm(b[1::2] - b[0::2])
-    direction, up = VIEWS[view]
     dist = 2.9 * radius / zoom
-    p.camera.position = tuple(center + dist * np.asarray(direction))
-    p.camera.focal_point = tuple(center)
-    p.camera.up = up
-    p.camera.view_angle = 30.0
-    p.camera.clipping_range = (0.01 * dist, 10 * dist)
-    img = p.screenshot(return_img=True)
-    p.close()
-    return np.asarray(img)[..., :3].copy()
+    camera = Camera(center + dist * np.asarray(direction), center, up, 30.0, (0.01 * dist, 10 * dist))
+    return render(v, faces, scalars, camera=camera, clim=clim, cmap=cmap, window_size=window_size, color=color,
+                  region=region, region_color=region_color)
 
 
 def render_grid(panels, *, ncols=None, titles=None, captions=None, suptitle=None,
