@@ -62,6 +62,7 @@ from .report_data import (
     match_published,
     other_datasets,
     overridden_parameters,
+    printed,
     reading_scores,
     run_dataset,
     table_entries,
@@ -571,6 +572,7 @@ def _studies_appendix(d: Document, inputs: ReportInputs, all_ds, captions: dict,
 
 
 def _cell_rows(cells, multi: bool) -> list:
+    """Every published cell with ours: value, SE, difference as printed, and what they count as."""
     rows = []
     for c in cells:
         v, se, p = c["value"], c["se"], c["published"]
@@ -579,7 +581,7 @@ def _cell_rows(cells, multi: bool) -> list:
         else:
             diff = v - p
             noise = "—" if se is None else ("yes" if within_draw_noise(diff, se) else "no")
-            ours = [f"{v:.3f}", "—" if se is None else f"{se:.3f}", f"{diff:+.3f}",
+            ours = [printed(v), "—" if se is None else printed(se), printed(diff, signed=True),
                     "yes" if within_published(diff) else "no", noise]
         rows.append(([c["k_M"], c["k_N"]] if multi else []) + [c["function"], c["stage"], c["method"], f"{p:.2f}"]
                     + ours + [c["run"] or ""])

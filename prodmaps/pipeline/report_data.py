@@ -43,7 +43,8 @@ __all__ = ["DATASET_NAMES", "DATA_FOLDER", "VERDICTS", "SOURCES", "TABLE_KEYS", 
            "other_datasets", "ClaimResult", "claim_results", "verdict_counts", "TableSummary", "table_summaries",
            "table_cells", "reading_scores", "REJECTED_NORMALIZATION", "Figure", "Study", "DatasetReport",
            "dataset_report", "migrate",
-           "load_claims", "load_published_rows", "match_published", "within_published", "within_draw_noise"]
+           "load_claims", "load_published_rows", "match_published", "within_published", "within_draw_noise",
+           "printed"]
 
 DATASET_NAMES = {"anny_humans": "embedded humans", "faust": "FAUST", "tosca": "TOSCA", "faust_r": "FAUST_r",
                  "tosca_r": "TOSCA_r", "tosca_r_noniso": "TOSCA_r non-isometric"}  # as the report names them
@@ -62,6 +63,7 @@ load_claims = ledger.load_ledger
 match_published = pub.match_entries
 within_published = pub.within_published
 within_draw_noise = pub.within_draw_noise
+printed = pub.printed  # a number as the report prints it (the printed difference decides within ±0.02)
 
 
 def load_published_rows(path=None) -> list[dict]:
