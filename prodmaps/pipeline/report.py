@@ -312,17 +312,26 @@ APPENDIX_CLAIMS = ["claim", "verdict", "rule", "default", "intra / inter", "othe
                    "margin", "left out", "evidence"]  # a dataset appendix's claims table
 
 
+def _comparison_text(x: dict) -> str:
+    """One paired comparison: its mean improvement (or mean) ± SE, n, relative size, bound or test, outcome."""
+    value = x.get("mean_diff", x.get("mean"))
+    num = lambda v, signed=False: f"{v:+.3g}" if signed else f"{v:.3g}"  # noqa: E731
+    parts = [] if value is None else [num(value, "mean_diff" in x) + (
+        f" ± {x['se']:.2g}" if isinstance(x.get("se"), (int, float)) else "")]
+    parts += [f"n = {x['n']}"] if x.get("n") is not None else []
+    parts += [f"{x['rel']:+.0%}"] if isinstance(x.get("rel"), (int, float)) else []
+    parts += [f"bound {x['bound']:g}"] if isinstance(x.get("bound"), (int, float)) else []
+    parts += [str(x["test"])] if x.get("test") else []
+    text = ", ".join(parts) + (f" ({x['outcome']})" if x.get("outcome") else "")
+    return f"{x['label']}: {text}" if x.get("label") else text
+
+
 def _comparisons_text(c, most: int = 4) -> str:
-    """A claim's paired comparisons: per comparison its mean improvement ± SE, n, relative size, outcome."""
-    parts = []
-    for x in c.comparisons[:most]:
-        se = x.get("se")
-        parts.append(f"{x.get('label', '')}: {x['mean_diff']:+.3g}" + (f" ± {se:.2g}" if se is not None else "")
-                     + f", n = {x.get('n')}" + (f", {x['rel']:+.0%}" if x.get("rel") is not None else "")
-                     + (f" ({x['outcome']})" if x.get("outcome") else ""))
+    """A claim's paired comparisons (the first ``most``; how many more)."""
+    parts = [_comparison_text(x) for x in c.comparisons[:most] if isinstance(x, dict)]
     if len(c.comparisons) > most:
         parts.append(f"… {len(c.comparisons) - most} more")
-    return "; ".join(p.lstrip(": ") for p in parts) or "—"
+    return "; ".join(parts) or "—"
 
 
 def _margin_text(c) -> str:
@@ -362,15 +371,16 @@ def _weak_claims(main, claims, all_ds) -> list:
 
 
 def _weak_blocks(weak, detail: int) -> list:
-    """The summary's list of the claims that do not hold or are inconclusive.
+    """The summary's list of the claims that do not hold or are inconclusive, those that do not hold first.
 
-    ``detail`` 2: per claim, its datasets and the first one's evidence; 1: without the evidence; 0:
-    the claims' ids per verdict.
+    ``detail`` 3: per claim, its datasets and the first one's evidence; 2: the evidence only for the
+    claims that do not hold; 1: no evidence; 0: the claims' ids per verdict.
     """
     if not weak:
         return []
+    weak = sorted(weak, key=lambda w: "does not hold" not in w[2])
     lead = ("p", "**Does not hold, or inconclusive**, on at least one dataset" + (
-        ", with the evidence on the first (each dataset's appendix gives all of it):" if detail == 2 else
+        ", with the evidence on the first (each dataset's appendix gives all of it):" if detail >= 2 else
         " (each dataset's appendix gives the evidence):"))
     if detail == 0:
         verdicts = list(dict.fromkeys(v for _, _, by in weak for v in by))
@@ -379,7 +389,7 @@ def _weak_blocks(weak, detail: int) -> list:
     for cid, where, by in weak:
         item = f"`{cid}` ({where}): " + "; ".join(f"{v} on {', '.join(x.name for x in sets)}" for v, sets in by.items())
         first = next(iter(by.values()))[0]
-        if detail == 2 and first.verdicts[cid].evidence:
+        if first.verdicts[cid].evidence and (detail == 3 or (detail == 2 and "does not hold" in by)):
             item += f". {first.name}: {_short(first.verdicts[cid].evidence)}"
         items.append(item)
     return [lead, ("ul", items)]
@@ -410,7 +420,7 @@ def _summary(d: Document, inputs: ReportInputs, text, all_ds: list) -> None:
         tail.p("Not measured on any dataset of this report: " + ", ".join(unmeasured) + ".")
     tail.extend(text("rerun.md"))
     weak = _weak_claims(main, claims, all_ds)
-    for detail in (2, 1, 0):  # the most detailed list of what does not hold that keeps the summary on one page
+    for detail in (3, 2, 1, 0):  # the most detailed list of what does not hold that keeps the summary on one page
         middle = _weak_blocks(weak, detail)
         if words(Document([*head.blocks, *middle, *tail.blocks]).markdown()) <= SUMMARY_WORDS:
             break

@@ -402,7 +402,7 @@ class DatasetReport:
     studies: list = field(default_factory=list)  # [Study]
     cells: list | None = None  # table_cells of its tables (None: not stored, a format-1 file)
     run_times: dict = field(default_factory=dict)  # {run: [status, seconds or None]}
-    readings: dict = field(default_factory=dict)  # reading_scores: {row id: {...}}
+    readings: dict = field(default_factory=dict)  # reading_scores: {reading: {...}}
 
     @property
     def name(self) -> str:

@@ -1186,7 +1186,9 @@ def _full_report_data(folder: Path) -> list:
                                      False, {"hk k": "in the span of the source basis"} if "tab" in cid else {},
                                      {"0.1": "inconclusive"},
                                      [{"label": "HKS", "n": 20, "ours": 0.2, "ref": 0.25, "mean_diff": 0.05,
-                                       "se": 0.004, "rel": 0.2, "outcome": "holds"}])
+                                       "se": 0.004, "rel": 0.2, "outcome": "holds"},
+                                      {"label": "mean |std - ours|", "n": 20, "mean": 0.143, "se": 0.01,
+                                       "bound": 0.15, "outcome": "inconclusive"}])
                     for i, (cid, c) in enumerate(ledger.items())}
         entries = [{**{k: r[k] for k in ("table", "fmap", "k_M", "k_N", "function", "stage", "method")},
                     "value": r["value"] + deltas[(i + n) % len(deltas)], "se": 0.01, "run": f"tab0{r['table']}"}
@@ -1236,6 +1238,36 @@ def full(tmp_path_factory):
     md, html = folder / "REPORT.md", folder / "REPORT.html"
     write_document(doc, md, html)
     return {"doc": doc, "text": md.read_text(encoding="utf-8"), "md": md, "html": html, "data": [main, *others]}
+
+
+@pytest.fixture(scope="module")
+def baselines_report(tmp_path_factory):
+    """The report of the committed smoke baselines: every registered run's real results, published settings."""
+    folder = tmp_path_factory.mktemp("baselines")
+    md, html = build_report(PAPER / "baselines" / "smoke", folder / "REPORT.md",
+                            ReportSettings(registry=PAPER / "runs.toml", strict_captions=True))
+    return {"md": md, "html": html, "text": md.read_text(encoding="utf-8")}
+
+
+def test_the_report_of_the_real_smoke_results(baselines_report):
+    """Every registered run's results as committed (the smoke baselines): the report's rules on real data."""
+    text = baselines_report["text"]
+    assert words(_section(text, "Summary")) <= 600 and words(_main_text(text)) <= 4000
+    paragraphs = _paragraphs(text)
+    assert not {p for p in paragraphs if paragraphs.count(p) > 1}
+    verdicts = evaluate_folder(PAPER / "baselines" / "smoke")
+    assert {k: v for k, v in _ledger_counts(verdicts).items() if v} == _summary_counts(text)["embedded humans"]
+    gallery = _section(text, "Appendix A: figure gallery")
+    heads = re.findall(r"^### .*\(`(\w+)`\)$", gallery, flags=re.M)
+    runs = load_registry(PAPER / "runs.toml")
+    assert set(heads) == {r for r, x in runs.items() if not x.report}  # every figure run, captioned (strict)
+    assert "Caption missing" not in text
+    sec = _section(text, "Forking paths: readings chosen on one dataset, checked on the others")
+    rows = {r[0]: r for r in _tables(sec)[0][1:]}
+    assert {"hk k parameters", "Approach B's normalisation", "NO17 recipe", "Section 4.4's heat time"} <= set(rows)
+    defined = _glossary_terms(text)
+    rest = re.sub(r"!\[[^\]]*\]\([^)]*\)", "", text.replace(_section(text, "Glossary"), ""))
+    assert {term for term, pattern in JARGON.items() if re.search(pattern, rest)} <= defined
 
 
 def _main_text(text: str) -> str:
@@ -1350,7 +1382,8 @@ def test_each_dataset_has_an_appendix_of_every_cell(full):
         claims = _appendix_claims(text, ds.name)
         assert list(claims) == list(load_ledger())
         c = claims["tab01.products_improve_transfer"]
-        assert c["paired comparison"] == "HKS: +0.05 ± 0.004, n = 20, +20% (holds)"
+        assert c["paired comparison"] == ("HKS: +0.05 ± 0.004, n = 20, +20% (holds); "
+                                          "mean |std - ours|: 0.143 ± 0.01, n = 20, bound 0.15 (inconclusive)")
         assert c["margin"] == "0.05 ('significant improvement': 5 % of std's error); at 0.1: inconclusive"
         assert c["left out"] == "hk k: in the span of the source basis"
         # the boundary: the printed difference decides (0.0204 prints +0.020: within; 0.0206 prints +0.021: not)
@@ -1526,8 +1559,10 @@ def _assert_renders(page: Path, tmp: Path) -> int:
 
 @pytest.mark.skipif(_CHROMIUM is None, reason="Chromium is not installed: apt-get install chromium "
                                               "(.ci/run installs it where apt is available)")
-def test_the_html_report_renders_in_chromium_with_every_figure_and_link(full, project, tmp_path):
+def test_the_html_report_renders_in_chromium_with_every_figure_and_link(full, project, baselines_report, tmp_path):
     assert _assert_renders(full["html"], tmp_path / "full") == len(re.findall(r"!\[", full["text"]))
+    assert _assert_renders(baselines_report["html"], tmp_path / "baselines") == len(
+        re.findall(r"!\[", baselines_report["text"]))
     assert _assert_renders(project["html"], tmp_path / "project") == 3
     assert _assert_renders(PAPER / "REPORT.html", tmp_path / "committed") > 20  # the committed report
     # a broken figure is caught
