@@ -64,6 +64,8 @@ def forking_paths(reports, chosen_on: str = CHOSEN_ON) -> dict:
         for ds, x in rows:
             score = {k: x.get(k) for k in ("n", "within", "in_noise", "choice", "frozen_error")
                      if k != "frozen_error" or x.get(k) is not None}
+            if x.get("frozen") and x.get("frozen") != entry["frozen"]:
+                score["frozen"] = x["frozen"]  # the frozen reading as this dataset's run names it
             entry["chosen_on" if ds == chosen_on else "held_out"][ds] = score
         out[first.get("label") or rid] = entry
     return out
@@ -71,6 +73,7 @@ def forking_paths(reports, chosen_on: str = CHOSEN_ON) -> dict:
 
 def _score_cell(score: dict, frozen: str, chosen_here: bool) -> str:
     n, noise, within, choice = score.get("n"), score.get("in_noise"), score.get("within"), score.get("choice")
+    frozen = score.get("frozen", frozen)
     if n:
         text = f"{noise} of {n}" if noise is not None else f"{within} of {n} within ±0.02 (no SE)"
     else:  # no published cell judges it (Section 4.4's heat time): the frozen reading's own error
@@ -112,7 +115,8 @@ def forking_blocks(paths: dict, names: dict, datasets: list, chosen_on: str = CH
     missing = [lab for lab in EXPECTED if lab not in paths]
     if missing:
         out.append(("p", "Not scored by the studies in these results: " + "; ".join(missing) + "."))
-    other = {label: sorted({s["choice"] for s in e["held_out"].values() if s.get("choice")} - {e["frozen"]})
+    other = {label: sorted({s["choice"] for s in e["held_out"].values()
+                            if s.get("choice") and s["choice"] != s.get("frozen", e["frozen"])})
              for label, e in paths.items()}
     other = {k: v for k, v in other.items() if v}
     if other:

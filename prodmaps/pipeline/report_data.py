@@ -313,6 +313,21 @@ def _row(r: dict) -> dict:
     return out | ({"frozen_error": r["frozen_error"]} if r.get("frozen_error") is not None else {})
 
 
+def _tables_row(r: dict, tables_module) -> dict:
+    """A row of ``held_out_rows``: the published cells that judge it named, the normalisation by its study's name."""
+    row = _row(r)
+    cells = dict(tables_module.READING_CELLS, **{"Approach B's normalisation": tables_module.READING_CELLS.get(
+        "normalisation", ("our_B", ()))})
+    method, tables = ("std", tables_module.GT_TABLES) if row["label"].endswith(" parameters") else cells.get(
+        row["label"], (None, ()))
+    if method:
+        row["cells"] = f"published {'Approach B' if method == 'our_B' else method} cells ({', '.join(tables)})"
+    if row["label"] == "Approach B's normalisation":
+        row["frozen"] = getattr(importlib.import_module(_READING_RUNS["study_normalization"]), "LIBRARY_READING",
+                                row["frozen"])
+    return row
+
+
 def reading_scores(infos) -> dict:
     """What the runs of ``infos`` scored for each open reading: this dataset's forking-path rows.
 
@@ -332,14 +347,15 @@ def reading_scores(infos) -> dict:
               if isinstance(r.get("table_name"), str) and isinstance(r.get("table"), list) and "fmap" in r}
     out: dict = {}
     if tables:
-        out = {r["reading"]: _row(r) for r in importlib.import_module(_TABLES_MODULE).held_out_rows(tables)}
+        module = importlib.import_module(_TABLES_MODULE)
+        out = {r["reading"]: _tables_row(r, module) for r in module.held_out_rows(tables)}
     for run, module in _READING_RUNS.items():
         if run not in docs:
             continue
         for r in importlib.import_module(module).reading_summary(docs[run]):
             row = _row(r)
-            if r["reading"] in out:  # the tables' counts (with SE) stay; the study says what was scored and chosen
-                row = out[r["reading"]] | {k: row[k] for k in ("alternatives", "cells", "frozen", "choice")} | {
+            if r["reading"] in out:  # the tables' cells and counts (with SE) stay; the study: what it scored, chose
+                row = out[r["reading"]] | {k: row[k] for k in ("alternatives", "frozen", "choice")} | {
                     k: v for k, v in row.items() if k == "frozen_error"}
             out[r["reading"]] = row
     for res in docs.values():

@@ -1464,11 +1464,13 @@ def test_reading_scores_from_the_runs_results():
     assert list(got) == ["Random parameters", "Approach B's normalisation", "NO17 recipe", "Section 4.4's heat time"]
     # the tables' counts (their pairs, with SE): +0.03 beyond 0.02 + 2·√2·0.001, 0.0 within; the study's choice
     assert got["Random parameters"] == {"label": "Random parameters", "alternatives": 2,
-                                        "cells": "2 published std cells (T1)", "frozen": "uniform, ordered, unit_area",
-                                        "choice": "textbook", "n": 2, "within": 1, "in_noise": 1}
-    assert got["Approach B's normalisation"] | {"cells": ""} == {
-        "label": "Approach B's normalisation", "alternatives": 2, "cells": "", "frozen": "unit Euclidean eigenvectors",
-        "choice": "unit Euclidean eigenvectors", "n": 4, "within": 3, "in_noise": None}
+                                        "cells": "published std cells (T1, T3, T5, T6)",
+                                        "frozen": "uniform, ordered, unit_area", "choice": "textbook", "n": 2,
+                                        "within": 1, "in_noise": 1}
+    assert got["Approach B's normalisation"] == {  # the study's alone: the tables hold no Approach B cell here
+        "label": "Approach B's normalisation", "alternatives": 2, "cells": "4 published Approach B cells (T1)",
+        "frozen": "unit Euclidean eigenvectors", "choice": "unit Euclidean eigenvectors", "n": 4, "within": 3,
+        "in_noise": None}
     assert (got["NO17 recipe"]["frozen"], got["NO17 recipe"]["choice"], got["NO17 recipe"]["n"],
             got["NO17 recipe"]["within"]) == ("authors_200", "authors_200", 2, 2)
     heat = got["Section 4.4's heat time"]
@@ -1571,3 +1573,19 @@ def test_the_html_report_renders_in_chromium_with_every_figure_and_link(full, pr
                                                                        'src="report_figures/faust/nothing/'))
     with pytest.raises(AssertionError):
         _assert_renders(broken, tmp_path / "broken")
+
+
+def test_a_held_out_choice_is_compared_with_that_datasets_name_of_the_frozen_reading():
+    from types import SimpleNamespace as R
+
+    from prodmaps.pipeline.forking import forking_blocks, forking_paths
+
+    row = {"label": "NO17 recipe", "alternatives": 3, "cells": "T2 std", "n": 5, "within": 2, "in_noise": 4}
+    reports = [R(dataset="faust", readings={"NO17 recipe": {**row, "frozen": "authors_200", "choice": "authors_200"}}),
+               R(dataset="faust_r", readings={"NO17 recipe": {**row, "frozen": "a200", "choice": "a200"}}),
+               R(dataset="tosca_r", readings={"NO17 recipe": {**row, "frozen": "a200", "choice": "pyfm"}})]
+    paths = forking_paths(reports)
+    (table, note) = forking_blocks(paths, {}, ["faust", "faust_r", "tosca_r"])[:2]
+    assert table[2][0][4:] == ["4 of 5", "4 of 5; same choice", "4 of 5; would choose pyfm"]
+    assert note[1].startswith("Not scored by the studies in these results: hk k parameters;")
+    assert "Readings another dataset would choose: NO17 recipe: pyfm." in forking_blocks(paths, {}, ["faust"])[2][1]
