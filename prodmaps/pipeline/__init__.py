@@ -15,6 +15,7 @@ do enter the hashes.
 :mod:`.diffing`     numbers with per-key tolerances, images by pixel RMS
 :mod:`.report_data` the report's data: one :class:`~.report_data.DatasetReport` per dataset (results or JSON)
 :mod:`.report`      the report's document from that data and ``paper/report_text/``; ``build_report``
+:mod:`.forking`     the report's forking paths: each open reading, chosen on FAUST, checked on the others
 :mod:`.document`    the document model, rendered to Markdown and HTML
 :mod:`.publishing`  a complete paper run into the committed ``paper/REPORT.md`` / ``.html``
 :mod:`.gallery`     the documentation site's gallery and report page

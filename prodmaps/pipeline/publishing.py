@@ -2,7 +2,8 @@
 
 :func:`publish` builds the report (:mod:`.report`) of a results folder with the settings of a
 committed report: the figures it shows copied into ``paper/report_figures/`` (stale ones
-removed), links to the committed notebooks instead of executed ones, no path of this machine.
+removed), links to the committed notebooks instead of executed ones, no path of this machine, and
+a caption for every figure (``paper/report_text/captions.toml``; a run without one is refused).
 It refuses (:class:`PublishError`) a results folder that is not a complete, failure-free run of
 the paper profile at the registry's parameters (:func:`partial_problems`), unless
 ``allow_partial``: the report then says under its title what is partial.
@@ -11,9 +12,9 @@ Other datasets. A prepared dataset's runs beside the results (``<results>-<datas
 ``results/paper-faust``) are reported from their folder, and their report data is stored beside
 the committed report as ``paper/report_data/<dataset>.json``
 (:meth:`.report_data.DatasetReport.save`, figures under ``report_figures/<dataset>/``). A dataset
-stored there but not rerun this time keeps its verdict column and section from that JSON, with a
-note naming the commit of the publication it came from; its figures stay. Nothing is read back
-from the committed Markdown.
+stored there but not rerun this time keeps its verdict column, its appendix and its gallery panels
+from that JSON (an older format is migrated on load), with a note naming the commit of the
+publication it came from; its figures stay. Nothing is read back from the committed Markdown.
 """
 
 from __future__ import annotations
@@ -86,11 +87,12 @@ def publish(results_dir=None, dest=None, *, registry=None, allow_partial: bool =
     kept = stored_datasets(folder, exclude=fresh)
     notes = ["**Partial publication:** " + "; ".join(problems) + "."] if problems else []
     notes += [f"{k.name} was not rerun for this report (no `{results_dir.name}-{k.dataset}` folder): its "
-              f"verdict column and sections are kept from the report published at commit `{k.commit}`."
+              f"verdict column, appendix and figures are kept from the report published at commit `{k.commit}`."
               for k in kept]
     settings = ReportSettings(registry=registry, published=published, kept=tuple(kept), notes=tuple(notes),
                               notebooks={n: r.notebook for n, r in load_registry(registry).items()},
-                              generated_by="prodmaps publish", machine_paths=False, copy_figures=True)
+                              generated_by="prodmaps publish", machine_paths=False, copy_figures=True,
+                              strict_captions=True)
     md, html_path = dest.resolve(), dest.resolve().with_suffix(".html")
     inputs = read_inputs(results_dir, settings, folder)
     keep = set(copy_figures(inputs, folder))

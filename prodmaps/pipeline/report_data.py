@@ -11,9 +11,11 @@ studies (:class:`Study`, blocks of :mod:`.document`). It is either
   (:meth:`DatasetReport.load`: ``paper/report_data/<dataset>.json``), for a dataset that was not
   rerun; :meth:`DatasetReport.save` writes it, image paths relative to the report's folder.
 
-Each dataset contributes a verdict column and a section of the report the same way, whichever
-of the two it came from. :func:`collect_runs` reads the run folders themselves (status, time,
-figures), which the main results' Runs and Figures sections show.
+Each dataset contributes a verdict column, an appendix of every table cell (:func:`table_cells`)
+and its panels of the figure gallery the same way, whichever of the two it came from; a stored
+file of an older format is migrated on load. :func:`collect_runs` reads the run folders
+themselves (status, time, figures). :func:`reading_scores` reads what the studies scored for each
+reading the paper leaves open (the report's forking paths, :mod:`.forking`).
 
 The experiments modules the report needs (the claims ledger, the comparison rules, the published
 tables) are imported here, in one block, and nowhere else in the report's modules: the names the
@@ -39,12 +41,15 @@ from .registry import load_registry
 __all__ = ["DATASET_NAMES", "DATA_FOLDER", "VERDICTS", "SOURCES", "TABLE_KEYS", "CRITERIA", "LEDGER_FILE",
            "BEAT_METHODS", "RunInfo", "collect_runs", "table_entries", "run_dataset", "overridden_parameters",
            "other_datasets", "ClaimResult", "claim_results", "verdict_counts", "TableSummary", "table_summaries",
-           "Figure", "Study", "DatasetReport", "dataset_report", "load_claims", "load_published_rows",
-           "match_published"]
+           "table_cells", "reading_scores", "REJECTED_NORMALIZATION", "Figure", "Study", "DatasetReport",
+           "dataset_report", "migrate",
+           "load_claims", "load_published_rows", "match_published", "within_published", "within_draw_noise",
+           "printed"]
 
-DATASET_NAMES = {"anny_humans": "embedded humans", "faust": "FAUST", "tosca": "TOSCA"}  # as the report names them
+DATASET_NAMES = {"anny_humans": "embedded humans", "faust": "FAUST", "tosca": "TOSCA", "faust_r": "FAUST_r",
+                 "tosca_r": "TOSCA_r", "tosca_r_noniso": "TOSCA_r non-isometric"}  # as the report names them
 DATA_FOLDER = "report_data"  # beside the committed report: report_data/<dataset>.json
-_FORMAT = 1  # of the stored JSON
+_FORMAT = 2  # of the stored JSON (1: before the table cells, run times and reading scores were stored)
 
 VERDICTS = ledger.VERDICTS
 SOURCES = ledger.SOURCES  # "paper" (the totals) and "package" ("Beyond the paper")
@@ -56,6 +61,9 @@ CRITERIA = {"within": pub.WITHIN, "draw_z": pub.DRAW_Z, "rounding_rel": compare.
 LEDGER_FILE = Path(ledger.LEDGER).resolve().relative_to(Path(__file__).resolve().parents[2]).as_posix()  # as shown
 load_claims = ledger.load_ledger
 match_published = pub.match_entries
+within_published = pub.within_published
+within_draw_noise = pub.within_draw_noise
+printed = pub.printed  # a number as the report prints it (the printed difference decides within ±0.02)
 
 
 def load_published_rows(path=None) -> list[dict]:
@@ -80,6 +88,7 @@ class RunInfo:
     figures: list = field(default_factory=list)
     report: str = ""  # the module owning the run's report section (registry key `report`)
     dataset_figures: bool = False  # its figures in every dataset's section (registry key `dataset_figures`)
+    datasets: tuple = ()  # the datasets with values of their own in the registry (`[runs.<run>.datasets.<dataset>]`)
 
 
 def collect_runs(results_dir, registry=None) -> list[RunInfo]:
@@ -101,6 +110,7 @@ def collect_runs(results_dir, registry=None) -> list[RunInfo]:
         if n in runs:
             info.reproduces, info.title = runs[n].reproduces, runs[n].title
             info.report, info.dataset_figures = runs[n].report, runs[n].dataset_figures
+            info.datasets = tuple(runs[n].datasets)
         info.doc = read_json(folder / "results.json", {})
         info.manifest = read_json(folder / "manifest.json", {})
         if info.manifest:
@@ -269,6 +279,109 @@ def table_summaries(infos, published_rows, matches, *, only_run: bool = False) -
     return out
 
 
+def table_cells(published_rows, matches, tables=None) -> list[dict]:
+    """Every published cell beside ours, in the CSV's order (``tables``: only these tables, e.g. ``{"1", "3"}``).
+
+    Each cell is ``{table, fmap, k_M, k_N, function, stage, method, published, value, se, run}``:
+    ``value`` (ours), ``se`` (its standard error) and ``run`` are None / ``""`` where we have no value.
+    """
+    by_key = {tuple(r[k] for k in TABLE_KEYS): e for r, e in matches}
+    out = []
+    for r in published_rows:
+        if tables is not None and r["table"] not in tables:
+            continue
+        e = by_key.get(tuple(r[k] for k in TABLE_KEYS)) or {}
+        out.append({**{k: r[k] for k in TABLE_KEYS}, "published": r["value"], "value": e.get("value"),
+                    "se": e.get("se"), "run": e.get("run", "")})
+    return out
+
+
+# ------------------------------------------------------------------------------ readings (forking paths)
+# the runs whose module has reading_summary(results): the frozen reading scored on the run's data
+_READING_RUNS = {"study_family_readings": "prodmaps.experiments.study_family_readings",
+                 "study_normalization": "prodmaps.experiments.study_normalization",
+                 "study_no17": "prodmaps.experiments.study_no17", "fig12_13": "prodmaps.experiments.fig12_13_p2p"}
+_TABLES_MODULE = "prodmaps.experiments.tables_transfer"  # held_out_rows({"T1": results, ...})
+REJECTED_NORMALIZATION = "metres"  # the normalisation the library used before (a table claim's verdict under it)
+
+
+def _row(r: dict) -> dict:
+    """A reading row of the experiments (``reading_summary``, ``held_out_rows``) in the report's fields."""
+    out = {"label": r["reading"], "alternatives": r.get("alternatives"), "cells": r.get("cells") or "",
+           "frozen": r.get("frozen") or "", "choice": r.get("choice_here") or "", "n": r.get("cells_n"),
+           "within": r.get("within"), "in_noise": r.get("within_noise")}
+    return out | ({"frozen_error": r["frozen_error"]} if r.get("frozen_error") is not None else {})
+
+
+def _tables_row(r: dict, tables_module) -> dict:
+    """A row of ``held_out_rows``: the published cells that judge it named, the normalisation by its study's name."""
+    row = _row(r)
+    cells = dict(tables_module.READING_CELLS, **{"Approach B's normalisation": tables_module.READING_CELLS.get(
+        "normalisation", ("our_B", ()))})
+    method, tables = ("std", tables_module.GT_TABLES) if row["label"].endswith(" parameters") else cells.get(
+        row["label"], (None, ()))
+    if method:
+        row["cells"] = f"published {'Approach B' if method == 'our_B' else method} cells ({', '.join(tables)})"
+    if row["label"] == "Approach B's normalisation":
+        row["frozen"] = getattr(importlib.import_module(_READING_RUNS["study_normalization"]), "LIBRARY_READING",
+                                row["frozen"])
+    return row
+
+
+def reading_scores(infos) -> dict:
+    """What the runs of ``infos`` scored for each open reading: this dataset's forking-path rows.
+
+    ``{reading: {"label", "alternatives", "cells", "frozen", "choice", "n", "within", "in_noise"}}``
+    (and ``frozen_error`` for a reading no published cell judges): the reading the library uses
+    (``frozen``, chosen on FAUST's eight registrations), how many readings were scored on which
+    published cells, the reading these results would choose (``choice``), and the frozen
+    reading's cells here: ``n``, within ±0.02, within draw noise (None without standard errors).
+    The counts come from the tables' runs (``tables_transfer.held_out_rows``: the tables' own
+    pairs, with standard errors), else from the studies; the studies (``reading_summary`` of
+    ``study_family_readings``, ``study_normalization``, ``study_no17``, ``fig12_13``) add what
+    was scored and the choice. A run's ``results["forking_paths"]`` (rows of these fields, keyed
+    by reading) is taken as it is, over both.
+    """
+    docs = {i.name: i.doc.get("results") for i in infos if i.doc and isinstance(i.doc.get("results"), dict)}
+    tables = {r["table_name"]: r for r in docs.values()
+              if isinstance(r.get("table_name"), str) and isinstance(r.get("table"), list) and "fmap" in r}
+    out: dict = {}
+    if tables:
+        module = importlib.import_module(_TABLES_MODULE)
+        out = {r["reading"]: _tables_row(r, module) for r in module.held_out_rows(tables)}
+    for run, module in _READING_RUNS.items():
+        if run not in docs:
+            continue
+        for r in importlib.import_module(module).reading_summary(docs[run]):
+            row = _row(r)
+            if r["reading"] in out:  # the tables' cells and counts (with SE) stay; the study: what it scored, chose
+                row = out[r["reading"]] | {k: row[k] for k in ("alternatives", "frozen", "choice")} | {
+                    k: v for k, v in row.items() if k == "frozen_error"}
+            out[r["reading"]] = row
+    for res in docs.values():
+        if isinstance(res.get("forking_paths"), dict):
+            out.update({k: dict(v) for k, v in res["forking_paths"].items()})
+    return out
+
+
+def _normalization_readings(infos, verdicts: dict) -> None:
+    """Add each table claim's verdict under :data:`REJECTED_NORMALIZATION` to ``verdicts[claim].readings``.
+
+    From ``study_normalization``'s ``claim_verdicts`` (the ledger's table claims judged on the
+    study's values under each reading); the study's own verdict under the chosen reading is added
+    too where it differs from the claim's (the study's pairs are not the tables').
+    """
+    res = next((i.doc.get("results") for i in infos if i.name == "study_normalization" and i.doc), None)
+    by_reading = (res or {}).get("claim_verdicts") or {}
+    chosen = (res or {}).get("chosen_reading")
+    for cid, v in by_reading.get(REJECTED_NORMALIZATION, {}).items():
+        if cid in verdicts and v != "not measured here":
+            verdicts[cid].readings[f"{REJECTED_NORMALIZATION} normalisation"] = v
+            mine = by_reading.get(chosen, {}).get(cid)
+            if mine not in (None, "not measured here", verdicts[cid].verdict):
+                verdicts[cid].readings["the normalisation study, as chosen"] = mine
+
+
 # ------------------------------------------------------------------------------ one dataset
 @dataclass
 class Figure:
@@ -303,6 +416,9 @@ class DatasetReport:
     tables: list = field(default_factory=list)  # [TableSummary]
     figures: list = field(default_factory=list)  # [Figure]
     studies: list = field(default_factory=list)  # [Study]
+    cells: list | None = None  # table_cells of its tables (None: not stored, a format-1 file)
+    run_times: dict = field(default_factory=dict)  # {run: [status, seconds or None]}
+    readings: dict = field(default_factory=dict)  # reading_scores: {reading: {...}}
 
     @property
     def name(self) -> str:
@@ -353,15 +469,38 @@ class DatasetReport:
         if not path.is_file():
             return None
         doc = json.loads(path.read_text(encoding="utf-8"))
-        if not isinstance(doc, dict) or doc.get("format") != _FORMAT or doc.get("dataset") != dataset:
+        if not isinstance(doc, dict) or doc.get("dataset") != dataset or doc.get("format") not in (1, _FORMAT):
             raise ValueError(f"{path}: not the report data of {dataset!r} (format {_FORMAT}); delete it and "
                              f"publish a run of {dataset} (prodmaps reproduce --dataset {dataset}, make publish)")
+        doc = migrate(doc)
         return cls(doc["dataset"], doc["folder"], doc["commit"], doc["runs"], doc["shapes"], doc["pairs"],
                    {c: ClaimResult(**v) for c, v in doc["verdicts"].items()},
                    [TableSummary(**t) for t in doc["tables"]],
                    [Figure(f["run"], f["reproduces"], [folder / p for p in f["images"]]) for f in doc["figures"]],
                    [Study(s["run"], s["dataset"], [tuple(b) for b in s["blocks"]], [folder / p for p in s["images"]])
-                    for s in doc["studies"]])
+                    for s in doc["studies"]], doc["cells"], doc["run_times"], doc["readings"])
+
+
+def migrate(doc: dict) -> dict:
+    """A stored report data document brought to the current format (a copy; the current format as it is).
+
+    Format 1 (before the table cells, the run times and the reading scores were stored) gains
+    ``cells = None`` (the report says they were not stored), ``run_times = {}`` and ``readings = {}``;
+    its verdicts gain the defaults of the fields added since (``source = "paper"``, no paired
+    statistics, nothing excluded).
+
+    Examples
+    --------
+    >>> migrate({"format": 1, "dataset": "faust", "verdicts": {}})["format"]
+    2
+    """
+    fmt = doc.get("format")
+    if fmt == _FORMAT:
+        return doc
+    if fmt != 1:
+        raise ValueError(f"report data of format {fmt!r}: this version reads formats 1 and {_FORMAT}")
+    return {**doc, "format": _FORMAT, "cells": None, "run_times": {}, "readings": {},
+            "verdicts": {c: {**v, "source": v.get("source", "paper")} for c, v in doc.get("verdicts", {}).items()}}
 
 
 def _studies(infos, *, dataset: str | None = None) -> list[Study]:
@@ -382,10 +521,11 @@ def dataset_report(folder, dataset: str = DEFAULT_DATASET, *, main: bool = False
                    published_rows=(), infos=None, shown: str | None = None, commit: str = "unknown") -> DatasetReport:
     """One dataset's report data, built from its results folder (``OUT/<profile>[-<dataset>]``).
 
-    ``main``: the report's own results (every run's table values, studies under their own heading),
-    else a prepared dataset's section (the runs with results, their figures with ``dataset_figures``).
-    ``infos``: the folder's :func:`collect_runs`, if already read; ``shown``: how the report names
-    the folder; ``commit``: the code's commit.
+    ``main``: the report's own results (every run's table values and figures, studies computed on
+    another dataset shown as that dataset's), else a prepared dataset's (the runs with results; the
+    figures of the runs with ``dataset_figures`` or values of their own for this dataset in the
+    registry). ``infos``: the folder's :func:`collect_runs`, if already read; ``shown``: how the
+    report names the folder; ``commit``: the code's commit.
     """
     folder = Path(folder)
     infos = collect_runs(folder, registry) if infos is None else infos
@@ -399,10 +539,17 @@ def dataset_report(folder, dataset: str = DEFAULT_DATASET, *, main: bool = False
                 shapes.update(p)
     used = infos if main else present
     entries = [e for i in used for e in table_entries(i)]
-    tables = (table_summaries(used, published_rows, match_published(entries, published_rows)[0], only_run=not main)
+    matches = match_published(entries, published_rows)[0] if published_rows else []
+    tables = (table_summaries(used, published_rows, matches, only_run=not main)
               if published_rows and (main or entries) else [])
-    figures = [] if main else [Figure(i.name, i.reproduces, list(i.figures)) for i in present
-                               if i.dataset_figures and i.figures]
+    cells = table_cells(published_rows, matches, {t.table for t in tables}) if tables else []
+    studies = _studies(infos) if main else _studies(present, dataset=dataset)
+    in_studies = {s.run for s in studies}  # a study's figures are shown with its section
+    figures = [Figure(i.name, i.reproduces, list(i.figures)) for i in present if i.figures
+               and i.name not in in_studies and (main or i.dataset_figures or dataset in i.datasets)]
+    own = [i for i in present if not main or run_dataset(i) == dataset]  # a main study run on FAUST is FAUST's
+    verdicts = claim_results(ledger.evaluate_folder(folder))
+    _normalization_readings(own, verdicts)
     return DatasetReport(dataset, shown if shown is not None else str(folder), commit, [i.name for i in present],
-                         sorted(shapes), pairs, claim_results(ledger.evaluate_folder(folder)), tables, figures,
-                         _studies(infos) if main else _studies(present, dataset=dataset))
+                         sorted(shapes), pairs, verdicts, tables, figures, studies, cells,
+                         {i.name: [i.status, i.seconds] for i in infos if i.doc or i.manifest}, reading_scores(own))
