@@ -55,9 +55,9 @@ from .io import load_mesh
 from .mesh import Mesh, check_mesh, check_vertex_indices
 
 __all__ = ["DatasetNotPreparedError", "data_root", "dataset_dir", "names", "shape_ids", "variants", "base_shape",
-           "shape_class", "correspondence_group", "ground_truth_kind", "sample_vertices", "load_shape", "pairs",
-           "ground_truth", "ground_truth_between", "sample_assignment", "p2p_from_samples", "verify_checksums",
-           "clear_cache"]
+           "shape_class", "correspondence_group", "ground_truth_kind", "coordinate_frame", "sample_vertices",
+           "load_shape", "pairs", "ground_truth", "ground_truth_between", "sample_assignment", "p2p_from_samples",
+           "verify_checksums", "clear_cache"]
 
 
 class DatasetNotPreparedError(FileNotFoundError):
@@ -72,6 +72,7 @@ class _Spec:
     class_rule: str  # "div10" (subject = last 3 digits // 10) or "prefix" (class = id without trailing digits)
     shared_triangulation: bool  # without a manifest: the whole family in one triangulation (True) or one per class
     ground_truth: str = "identity"  # "identity": a correspondence group is one triangulation; "samples": sample files
+    frame: str = ""  # empty: the shapes keep their source's coordinates; else how they were moved (XYZ values differ)
 
 
 _SGA18 = ("Clone https://github.com/llorz/SGA18_orientation_BCICP_dataset (or download its zip; the maps/*.zip "
@@ -99,7 +100,8 @@ _REGISTRY = {s.name: s for s in (
           "prefix", False),
     _Spec("faust_r", "FAUST_r: the 100 FAUST shapes, each remeshed independently to ~5k vertices and scaled into "
           "a unit box; ground truth through 5000 samples shared by all 100 (subject = XXX // 10)",
-          _SGA18.format(cmd="faust_r", folder="FAUST"), "div10", False, "samples"),
+          _SGA18.format(cmd="faust_r", folder="FAUST"), "div10", False, "samples",
+          "every shape translated and scaled on its own into a unit box (scale 0.54-0.60 of FAUST's metres)"),
     _Spec("tosca_r", "TOSCA_r: 76 TOSCA shapes (cat, centaur, david, dog, horse, michael, victoria, wolf), each "
           "remeshed to ~5k vertices; ground truth through 5000 samples within a class",
           _SGA18.format(cmd="tosca_r", folder="TOSCA_Isometric"), "prefix", False, "samples"),
@@ -151,6 +153,18 @@ def _spec(name: str) -> _Spec:
     if name not in _REGISTRY:
         raise ValueError(f"unknown dataset {name!r}; registered datasets: {names()}")
     return _REGISTRY[name]
+
+
+def coordinate_frame(name: str) -> str:
+    """How dataset ``name``'s shapes were moved from their source's coordinates ("" if they were not).
+
+    A relative error of the coordinate functions depends on the frame (an offset lowers it), so XYZ
+    values of a moved dataset are not comparable with values measured in the source's frame.
+
+    >>> coordinate_frame("faust"), coordinate_frame("faust_r")[:26]
+    ('', 'every shape translated and')
+    """
+    return _spec(name).frame
 
 
 def ground_truth_kind(name: str) -> str:

@@ -302,6 +302,7 @@ _READING_RUNS = {"study_family_readings": "prodmaps.experiments.study_family_rea
                  "study_normalization": "prodmaps.experiments.study_normalization",
                  "study_no17": "prodmaps.experiments.study_no17", "fig12_13": "prodmaps.experiments.fig12_13_p2p"}
 _TABLES_MODULE = "prodmaps.experiments.tables_transfer"  # held_out_rows({"T1": results, ...})
+FRAME_DEPENDENT = ("XYZ",)  # table functions whose values depend on the shapes' coordinate frame
 REJECTED_NORMALIZATION = "metres"  # the normalisation the library used before (a table claim's verdict under it)
 
 
@@ -540,9 +541,18 @@ def dataset_report(folder, dataset: str = DEFAULT_DATASET, *, main: bool = False
     used = infos if main else present
     entries = [e for i in used for e in table_entries(i)]
     matches = match_published(entries, published_rows)[0] if published_rows else []
+    if dataset in datasets.names() and datasets.coordinate_frame(dataset):
+        # coordinates moved from the paper's frame: XYZ cells are not compared (their values stay in the appendix)
+        moved = [(r, e) for r, e in matches if r["function"] in FRAME_DEPENDENT]
+        matches = [(r, e) for r, e in matches if r["function"] not in FRAME_DEPENDENT]
+    else:
+        moved = []
     tables = (table_summaries(used, published_rows, matches, only_run=not main)
               if published_rows and (main or entries) else [])
-    cells = table_cells(published_rows, matches, {t.table for t in tables}) if tables else []
+    cells = table_cells(published_rows, matches + moved, {t.table for t in tables}) if tables else []
+    for c in cells:
+        if c["function"] in FRAME_DEPENDENT and moved:
+            c["not_compared"] = f"not compared: {datasets.coordinate_frame(dataset)}"
     studies = _studies(infos) if main else _studies(present, dataset=dataset)
     in_studies = {s.run for s in studies}  # a study's figures are shown with its section
     figures = [Figure(i.name, i.reproduces, list(i.figures)) for i in present if i.figures
