@@ -14,7 +14,11 @@ do enter the hashes.
 :mod:`.baselines`   the committed smoke baselines
 :mod:`.diffing`     numbers with per-key tolerances, images by pixel RMS
 :mod:`.report_data` the report's data: one :class:`~.report_data.DatasetReport` per dataset (results or JSON)
-:mod:`.report`      the report's document from that data and ``paper/report_text/``; ``build_report``
+:mod:`.report`      the report's document assembled from that data; ``build_report`` writes it
+:mod:`.main_text`   the report's main text: summary, glossary, claims, tables, forking paths
+:mod:`.appendices`  the report's appendices: figure gallery, studies, one per dataset, runs
+:mod:`.prose`       the paper's prose of the report, read from ``paper/report_text/``
+:mod:`.links`       folders and links as the report names them
 :mod:`.forking`     the report's forking paths: each open reading, chosen on FAUST, checked on the others
 :mod:`.document`    the document model, rendered to Markdown and HTML
 :mod:`.publishing`  a complete paper run into the committed ``paper/REPORT.md`` / ``.html``

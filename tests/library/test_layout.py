@@ -95,3 +95,18 @@ def test_module_doc_lines_counts_the_docstring_as_written(tmp_path):
     assert module_doc_lines(f) == 4  # the opening line to the closing quotes
     f.write_text("x = 1\n")
     assert module_doc_lines(f) == 0
+
+
+# The pipeline's modules each do one job (assembling the report, its main text, its appendices, rendering, ...);
+# none grows past this size (issue 48), so a module that does is split along what its parts do.
+MAX_PIPELINE_MODULE_LINES = 600
+
+
+def test_no_pipeline_module_is_over_600_lines():
+    pipeline = PACKAGE / "pipeline"
+    sizes = {p.relative_to(pipeline).as_posix(): len(p.read_text(encoding="utf-8").splitlines())
+             for p in sorted(pipeline.rglob("*.py"))}
+    assert {"report.py", "main_text.py", "appendices.py", "report_data.py", "cli.py"} <= set(sizes)
+    assert sizes["report.py"] > 100 and sum(sizes.values()) > 3000  # every module is counted, lines found
+    over = {f: n for f, n in sizes.items() if n > MAX_PIPELINE_MODULE_LINES}
+    assert over == {}, f"pipeline modules over {MAX_PIPELINE_MODULE_LINES} lines (split by what the parts do): {over}"
