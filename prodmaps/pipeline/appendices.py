@@ -170,6 +170,9 @@ def _cell_rows(cells, multi: bool) -> list:
         v, se, p = c["value"], c["se"], c["published"]
         if v is None:
             ours = ["—", "—", "", "", ""]
+        elif c.get("not_compared"):  # the dataset's frame differs from the paper's (datasets.coordinate_frame)
+            ours = [printed(v), "—" if se is None else printed(se), printed(v - p, signed=True), "not compared",
+                    "not compared"]
         else:
             diff = v - p
             noise = "—" if se is None else ("yes" if within_draw_noise(diff, se) else "no")
