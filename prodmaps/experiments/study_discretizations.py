@@ -2,7 +2,7 @@
 
 From a shape of a dataset (the *original* mesh) the study derives, in memory, other
 discretizations of the same surface in the same pose (:data:`DISCRETIZATIONS`): ``mesh`` (the
-original), ``iso`` and ``nonuniform`` (the remesh recipes of :mod:`prodmaps.prepare.variants`,
+original), ``iso`` and ``nonuniform`` (:func:`remesh`: the recipes of :mod:`prodmaps.prepare.variants`,
 pymeshlab), ``cloud`` and ``cloud2`` (:func:`sample_surface`, two seeded samplings uniform by area)
 and ``mc`` (:func:`marching_cubes_mesh`: libigl's marching cubes of the signed distance).
 
@@ -45,14 +45,14 @@ from ..mesh import Mesh, face_areas, face_normals, face_radius_ratio, repair
 from ..metrics import relative_error
 from ..p2p import from_fmap
 from ..pointcloud import PointCloud
-from ..prepare.variants import make_variant
+from ..prepare.variants import remesh_iso, remesh_nonuniform
 from ..transfers import transfer_operator
 from .shared import compare
 from .shared.anatomy import body_frame
 from .shared.families import make_family
 
 __all__ = ["DISCRETIZATIONS", "PAIRS", "METHODS", "CONVERSIONS", "FUNCTIONS", "MARGIN", "CLEAN", "MC_SPACING",
-           "GROUPS", "spread_shapes", "sample_surface", "marching_cubes_mesh", "discretizations",
+           "GROUPS", "spread_shapes", "sample_surface", "remesh", "marching_cubes_mesh", "discretizations",
            "surface_ground_truth", "ground_truth", "discretization_study", "find_cell", "pair_group", "summary",
            "finding_items", "finding_text", "figure", "front_axes", "report_blocks"]
 
@@ -102,6 +102,29 @@ def sample_surface(mesh: Mesh, n: int, *, seed: int = 0, normals: bool = True, n
     return PointCloud(P, N, name=name or f"{mesh.name}_cloud{seed}")
 
 
+def remesh(mesh: Mesh, recipe: str, *, name: str = "") -> Mesh:
+    """``recipe`` (``"iso"`` or ``"nonuniform"``) of :mod:`prodmaps.prepare.variants` applied to ``mesh``, repaired.
+
+    Where the surface touches itself (FAUST_r's hands on thighs, feet), the remesher can join
+    the sheets through edges of more than two faces: those faces are removed (pymeshlab), which
+    leaves at most a few tiny holes, then :func:`prodmaps.mesh.repair`. A manifold remesh is
+    unchanged by the removal.
+    """
+    import pymeshlab
+
+    recipes = {"iso": remesh_iso, "nonuniform": remesh_nonuniform}
+    if recipe not in recipes:
+        raise ValueError(f"recipe must be one of {sorted(recipes)}, got {recipe!r}")
+    v, f = recipes[recipe](mesh.vertices, mesh.faces)
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=v, face_matrix=np.asarray(f, dtype=np.int32)))
+    ms.meshing_repair_non_manifold_edges(method="Remove Faces")
+    m = ms.current_mesh()
+    out, _ = repair(m.vertex_matrix().astype(np.float64), m.face_matrix().astype(np.int64),
+                    name=name or f"{mesh.name}_{recipe}")
+    return out
+
+
 def marching_cubes_mesh(mesh: Mesh, spacing: float = MC_SPACING, *, name: str = "") -> Mesh:
     """Marching cubes (libigl) of ``mesh``'s signed distance on a grid of ``spacing · sqrt(area)``, repaired.
 
@@ -138,8 +161,8 @@ def discretizations(mesh: Mesh, names=DISCRETIZATIONS, *, seed: int = 0, cloud_p
         raise ValueError(f"unknown discretizations {sorted(bad)}; choose from {DISCRETIZATIONS}")
     n = mesh.n_vertices if cloud_points is None else int(cloud_points)
     make = {"mesh": lambda: mesh,
-            "iso": lambda: make_variant(mesh, "remesh_iso")[0],
-            "nonuniform": lambda: make_variant(mesh, "remesh_nonuniform")[0],
+            "iso": lambda: remesh(mesh, "iso"),
+            "nonuniform": lambda: remesh(mesh, "nonuniform"),
             "cloud": lambda: sample_surface(mesh, n, seed=seed, name=f"{mesh.name}_cloud"),
             "cloud2": lambda: sample_surface(mesh, n, seed=seed + 1, name=f"{mesh.name}_cloud2"),
             "mc": lambda: marching_cubes_mesh(mesh, mc_spacing, name=f"{mesh.name}_mc")}

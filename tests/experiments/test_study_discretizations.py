@@ -107,6 +107,8 @@ def test_discretizations_of_a_human(human_0, shapes):
     assert coarse.mean() < 0.35  # the faces: far fewer on the coarse side
     assert abs(np.mean(pts[:, 0] < cut) - areas[coarse].sum() / areas.sum()) < 0.02
     assert sd.discretizations(human_0, ["cloud"], cloud_points=500)["cloud"].n_points == 500
+    with pytest.raises(ValueError, match="recipe must be one of"):
+        sd.remesh(human_0, "voxels")
     with pytest.raises(ValueError, match="unknown discretizations"):
         sd.discretizations(human_0, ["mesh", "voxels"])
 
