@@ -407,7 +407,7 @@ def finding_text(results: dict) -> str:
 
 
 def figure(results: dict):
-    """Grid of mean errors per pair (rows) and function (columns), std / B / default side by side, one panel per k.
+    """Grid of mean errors per pair (rows) and function (columns), std / B / default side by side; a panel per k.
 
     Colour: the method's error over std's (log scale, blue below std); the text: the error.
     """
@@ -418,10 +418,10 @@ def figure(results: dict):
     plt = setup_matplotlib()
     errors, pmaps = results["errors"], results["point_maps"]
     pairs, fns, ms = results["pairs"], results["functions"], results["methods"]
-    fig, axes = plt.subplots(1, len(errors), figsize=(1.45 * len(fns) * len(ms) / 2.2 * len(errors) + 1.5,
-                                                     0.34 * len(pairs) + 1.9), squeeze=False)
     cols = [(f, m) for f in fns for m in ms] + [("p2p", c) for c in results["conversions"]]
-    for ax, kk in zip(axes[0], (f"k{k}" for k in results["ks"])):
+    fig, axes = plt.subplots(len(errors), 1, figsize=(0.62 * len(cols) + 1.6, (0.3 * len(pairs) + 1.5) * len(errors)),
+                             squeeze=False)
+    for ax, kk in zip(axes[:, 0], (f"k{k}" for k in results["ks"])):
         by_pair = errors[kk]
         E = np.array([[by_pair[p][f][m] for f, m in cols[:-2]] + [pmaps[kk][p][c] for _, c in cols[-2:]]
                       for p in pairs])  # (pairs, columns)
