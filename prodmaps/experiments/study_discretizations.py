@@ -36,6 +36,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .. import datasets, geodesics
 from ..approx import PAPER_RTOL
@@ -50,6 +51,7 @@ from ..transfers import transfer_operator
 from .shared import compare
 from .shared.anatomy import body_frame
 from .shared.families import make_family
+from .shared.results import setup_matplotlib
 
 __all__ = ["DISCRETIZATIONS", "PAIRS", "METHODS", "CONVERSIONS", "FUNCTIONS", "MARGIN", "CLEAN", "MC_SPACING",
            "GROUPS", "spread_shapes", "sample_surface", "remesh", "marching_cubes_mesh", "discretizations",
@@ -176,7 +178,6 @@ def surface_ground_truth(points_2, points_1, surface_vertices, surface_faces) ->
     (its mesh, or the mesh a cloud was sampled from). Shape 1's own points give the identity.
     """
     import igl
-    from scipy.spatial import cKDTree
 
     P2 = np.ascontiguousarray(points_2, dtype=np.float64)
     V = np.ascontiguousarray(surface_vertices, dtype=np.float64)
@@ -412,8 +413,6 @@ def figure(results: dict):
     Colour: the method's error over std's (log scale, blue below std); the text: the error.
     """
     import matplotlib.colors as mcolors
-
-    from .shared.results import setup_matplotlib
 
     plt = setup_matplotlib()
     errors, pmaps = results["errors"], results["point_maps"]
