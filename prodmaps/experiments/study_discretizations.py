@@ -41,10 +41,9 @@ from scipy.spatial import cKDTree
 from .. import datasets, geodesics
 from ..approx import PAPER_RTOL
 from ..basis import eigenbasis
-from ..mapping import fmap_from_p2p
 from ..mesh import Mesh, face_areas, face_normals, face_radius_ratio, repair
 from ..metrics import relative_error
-from ..p2p import from_fmap
+from ..p2p import fmap_from_p2p, from_fmap
 from ..pointcloud import PointCloud
 from ..prepare.variants import remesh_iso, remesh_nonuniform
 from ..transfers import transfer_operator
