@@ -61,25 +61,32 @@ def _weak_claims(main, claims, all_ds) -> list:
 def _weak_blocks(weak, detail: int) -> list:
     """The summary's list of the claims that do not hold or are inconclusive, those that do not hold first.
 
-    ``detail`` 3: per claim, its datasets and the first one's evidence; 2: the evidence only for the
-    claims that do not hold; 1: no evidence; 0: the claims' ids per verdict.
+    ``detail`` 3: per claim, its datasets and the evidence where it fails (else the first dataset's);
+    2: the claims that do not hold with that evidence, the inconclusive ones as one line of ids;
+    1: the same without evidence; 0: the claims' ids per verdict.
     """
     if not weak:
         return []
     weak = sorted(weak, key=lambda w: "does not hold" not in w[2])
     lead = ("p", "**Does not hold, or inconclusive**, on at least one dataset" + (
-        ", with the evidence on the first (each dataset's appendix gives all of it):" if detail >= 2 else
+        ", with the evidence where it fails (each dataset's appendix gives all of it):" if detail >= 2 else
         " (each dataset's appendix gives the evidence):"))
     if detail == 0:
         verdicts = list(dict.fromkeys(v for _, _, by in weak for v in by))
         return [lead, ("ul", [f"{v}: " + ", ".join(f"`{cid}`" for cid, _, by in weak if v in by) for v in verdicts])]
-    items = []
+    items, only_inconclusive = [], []
     for cid, where, by in weak:
+        if detail < 3 and "does not hold" not in by:
+            only_inconclusive.append(f"`{cid}`")
+            continue
         item = f"`{cid}` ({where}): " + "; ".join(f"{v} on {', '.join(x.name for x in sets)}" for v, sets in by.items())
-        first = next(iter(by.values()))[0]
-        if first.verdicts[cid].evidence and (detail == 3 or (detail == 2 and "does not hold" in by)):
+        first = (by.get("does not hold") or next(iter(by.values())))[0]
+        if first.verdicts[cid].evidence and detail >= 2:
             item += f". {first.name}: {_short(first.verdicts[cid].evidence)}"
         items.append(item)
+    if only_inconclusive:
+        items.append("inconclusive (neither the claim nor its opposite shown beyond 2·SE and its margin) on at "
+                     "least one dataset: " + ", ".join(only_inconclusive))
     return [lead, ("ul", items)]
 
 
