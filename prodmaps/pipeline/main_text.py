@@ -199,5 +199,8 @@ def forking_section(d: Document, text, all_ds) -> None:
     d.extend(forking_blocks(paths, {ds.dataset: ds.name for ds in all_ds}, [ds.dataset for ds in all_ds]))
     if verdicts and verdicts[0][0] == "table":
         d.p("The table claims whose verdict changes under another reading the ledger judged (per dataset: the "
-            "verdict as chosen, then each reading that changes it):")
+            "verdict as chosen, then each reading that changes it). The metres verdicts come from the "
+            "normalisation study, whose pairs are not the tables'; where its verdict under the chosen reading "
+            "differs from the tables', it is shown as *chosen reading, study's pairs*: compare the metres "
+            "verdict with that one.")
     d.extend(verdicts)

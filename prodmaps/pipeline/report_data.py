@@ -380,7 +380,7 @@ def _normalization_readings(infos, verdicts: dict) -> None:
             verdicts[cid].readings[f"{REJECTED_NORMALIZATION} normalisation"] = v
             mine = by_reading.get(chosen, {}).get(cid)
             if mine not in (None, "not measured here", verdicts[cid].verdict):
-                verdicts[cid].readings["the normalisation study, as chosen"] = mine
+                verdicts[cid].readings["chosen reading, study's pairs"] = mine
 
 
 # ------------------------------------------------------------------------------ one dataset
