@@ -19,7 +19,8 @@ eigenpairs) read on ``D`` through the ground truth from ``D`` to the original.
 For each pair ``s -> t`` and each ``k`` of ``ks`` (the paper's count of **non-constant**
 functions: bases of ``k + 1`` columns), ``C_12 = Φ_tᵀ A_t Φ_s[p2p_ts]`` ``(k + 1, k + 1)``; the
 transfers :data:`METHODS` go through the registry (``pm.transfer_operator``; ``svd`` with
-``rtol = PAPER_RTOL`` and ordered pairs is the paper's Approach B). Error: the relative error
+``rtol = PAPER_RTOL`` and ordered pairs is the paper's Approach B, ``svd_gain`` the same with the
+threshold the gain rule picks from the map). Error: the relative error
 (:func:`prodmaps.relative_error`) against the pull-back ``f_s[p2p_ts]`` on the target. Point maps
 (:func:`prodmaps.p2p.from_fmap`, ``std`` and ``extended``, the kernel from all ``kernel_eig``
 eigenpairs) on ``n_eval`` seeded target points: heat-method geodesic distance on the source
@@ -28,7 +29,7 @@ Meshes get the cotangent Laplacian, clouds the point-cloud Laplacian (``pm.eigen
 
 The finding (:func:`summary`, :func:`finding_text`) is computed from the numbers: which pairs the
 products help (XYZ), which cells Approach B and the default make worse than the standard transfer
-by more than :data:`MARGIN` (relative), grouped by the kind of source.
+by more than :data:`MARGIN` (relative), grouped by the kind of source; the gain rule beside them.
 """
 
 from __future__ import annotations
@@ -52,7 +53,7 @@ from .shared.anatomy import body_frame
 from .shared.families import make_family
 from .shared.results import setup_matplotlib
 
-__all__ = ["DISCRETIZATIONS", "PAIRS", "METHODS", "CONVERSIONS", "FUNCTIONS", "MARGIN", "CLEAN", "MC_SPACING",
+__all__ = ["DISCRETIZATIONS", "PAIRS", "METHODS", "COMPARED", "NAMES", "SHORT", "CONVERSIONS", "FUNCTIONS", "MARGIN", "CLEAN", "MC_SPACING",
            "GROUPS", "spread_shapes", "sample_surface", "remesh", "marching_cubes_mesh", "discretizations",
            "surface_ground_truth", "ground_truth", "discretization_study", "find_cell", "pair_group", "summary",
            "finding_items", "finding_text", "figure", "front_axes", "report_blocks"]
@@ -62,8 +63,16 @@ DISCRETIZATIONS = ("mesh", "iso", "nonuniform", "cloud", "cloud2", "mc")
 PAIRS = (("mesh", "iso"), ("iso", "mesh"), ("mesh", "nonuniform"), ("nonuniform", "mesh"), ("iso", "nonuniform"),
          ("mesh", "cloud"), ("cloud", "mesh"), ("cloud", "cloud2"), ("mesh", "mc"), ("mc", "mesh"), ("mc", "cloud"))
 """The default (source, target) pairs: both directions where a direction tells something new."""
-METHODS = {"std": ("std", {}), "svd": ("svd", {"rtol": PAPER_RTOL}), "default": ("default", {})}
-"""Label -> (registry method, parameters): the standard transfer, the paper's Approach B, the library's default."""
+METHODS = {"std": ("std", {}), "svd": ("svd", {"rtol": PAPER_RTOL}), "gain": ("svd_gain", {}), "default": ("default", {})}
+"""Label -> (registry method, parameters): the standard transfer, the paper's Approach B, Approach B at the
+threshold of the gain rule (no ground truth: beside the paper), the library's default."""
+COMPARED = ("svd", "gain", "default")
+"""The methods judged against ``std`` in :func:`summary`."""
+NAMES = {"svd": "Approach B (the paper's threshold)", "gain": "Approach B with the gain rule",
+         "default": "The default transfer"}
+"""Display names of :data:`COMPARED` in the finding."""
+SHORT = {"std": "std", "svd": "B", "gain": "B gain", "default": "default"}
+"""Column labels of the figure and the report's tables."""
 CONVERSIONS = ("std", "extended")
 """The point-map conversions of :func:`prodmaps.p2p.from_fmap`."""
 FUNCTIONS = ("X", "Y", "Z", "Indicator", "hk")
@@ -339,7 +348,7 @@ def pair_group(pair_key: str) -> str:
 def summary(results: dict) -> dict:
     """The finding, from ``results`` (:func:`discretization_study`).
 
-    ``worse``: per method (``svd``, ``default``) and group of pairs (``all`` and :data:`GROUPS`),
+    ``worse``: per method (:data:`COMPARED`) and group of pairs (``all`` and :data:`GROUPS`),
     the single functions (``cells``) whose error exceeds std's by more than :data:`MARGIN`
     (relative; a tie by :func:`prodmaps.experiments.shared.compare.is_tie` never counts), the
     worst ratio to std and its cell, the pairs with such cells. ``xyz_better``: per k and method,
@@ -348,7 +357,7 @@ def summary(results: dict) -> dict:
     """
     cells = results["cells"]
     worse = {}
-    for m in ("svd", "default"):
+    for m in (m for m in COMPARED if m in results["methods"]):
         worse[m] = {}
         for grp in ("all", *GROUPS):
             sel = [c for c in cells if grp == "all" or pair_group(c["pair"]) == grp]
@@ -366,7 +375,7 @@ def summary(results: dict) -> dict:
         E, Pm = results["errors"][kk], results["point_maps"][kk]
         xyz[kk] = {m: [p for p in results["pairs"] if compare.lower(np.mean([E[p][c][m] for c in "XYZ"]),
                                                                     np.mean([E[p][c]["std"] for c in "XYZ"]))]
-                   for m in ("svd", "default")}
+                   for m in COMPARED if m in results["methods"]}
         pmaps[kk] = [p for p in results["pairs"] if compare.lower(Pm[p]["extended"], Pm[p]["std"])]
     return {"margin": MARGIN, "worse": worse, "xyz_better": xyz, "point_maps_better": pmaps,
             "n_pairs": len(results["pairs"])}
@@ -383,12 +392,13 @@ def finding_items(results: dict) -> list[str]:
     for kk in (f"k{k}" for k in results["ks"]):
         by_m = s["xyz_better"][kk]
         both = [p for p in by_m["svd"] if p in by_m["default"]]
+        gain = f", with the gain rule in {len(by_m['gain'])}" if "gain" in by_m else ""
         out.append(f"**{kk.replace('k', 'k = ')}**: products lower the mean XYZ error in {len(both)} of {n} pairs "
                    f"with both Approach B and the default ({_pairs_text(both)}); with Approach B in "
-                   f"{len(by_m['svd'])}, with the default in {len(by_m['default'])}. The extended point map beats the "
-                   f"standard one in {len(s['point_maps_better'][kk])} of {n} pairs.")
-    for m, name in (("svd", "Approach B (the paper's threshold)"), ("default", "The default transfer")):
-        w = s["worse"][m]
+                   f"{len(by_m['svd'])}{gain}, with the default in {len(by_m['default'])}. The extended point map "
+                   f"beats the standard one in {len(s['point_maps_better'][kk])} of {n} pairs.")
+    for m in (m for m in COMPARED if m in s["worse"]):
+        name, w = NAMES[m], s["worse"][m]
         a = w["all"]
         text = (f"**{name}** is worse than the standard transfer by more than {pct} on "
                 f"{a['worse_by_more_than_margin']} of {a['cells']} single functions (worst {a['worst_ratio']:.3f} "
@@ -407,7 +417,7 @@ def finding_text(results: dict) -> str:
 
 
 def figure(results: dict):
-    """Grid of mean errors per pair (rows) and function (columns), std / B / default side by side; a panel per k.
+    """Grid of mean errors per pair (rows) and function (columns), the methods side by side; a panel per k.
 
     Colour: the method's error over std's (log scale, blue below std); the text: the error.
     """
@@ -430,7 +440,7 @@ def figure(results: dict):
             for j in range(E.shape[1]):
                 ax.text(j, i, f"{E[i, j]:.3f}"[1:] if E[i, j] < 1 else f"{E[i, j]:.2f}", ha="center", va="center",
                         fontsize=5.5, color="white" if abs(np.log2(E[i, j] / ref[i, j])) > 1.3 else "black")
-        ax.set_xticks(range(len(cols)), [f"{f} {'B' if m == 'svd' else m}" for f, m in cols], fontsize=6,
+        ax.set_xticks(range(len(cols)), [f"{f} {SHORT.get(m, m)}" for f, m in cols], fontsize=6,
                       rotation=60, ha="right")
         for j in range(len(ms), len(cols) - 2, len(ms)):
             ax.axvline(j - 0.5, color="k", lw=0.6)
@@ -460,7 +470,7 @@ def _fmt(v: float) -> str:
 def report_blocks(results: dict, dataset: str, *, main: bool = True) -> list:
     """The study's section of the report: ``("h", level, text)``, ``("p", text)``, ``("table", header, rows)`` blocks.
 
-    Per k, a table of the mean errors per pair (XYZ mean, Indicator and hk: std / B / default;
+    Per k, a table of the mean errors per pair (XYZ mean, Indicator and hk: the methods of the run;
     point maps: std / extended), then the finding (:func:`finding_text`). ``dataset``: the
     display name, in the heading of a per-dataset section (``main=False``).
     """
@@ -472,19 +482,21 @@ def report_blocks(results: dict, dataset: str, *, main: bool = True) -> list:
     out = [("h", 2 if main else 3, f"Study: transfer and point maps across discretizations{on}"),
            ("p", f"Discretizations derived from {len(results['shapes'])} shape(s) (vertices or points on the first: "
                  f"{sizes}); ground truth: nearest point on the source surface, read as the nearest source vertex; "
-                 "ground-truth maps; Approach B at the paper's threshold (`study_discretizations`).")]
+                 "ground-truth maps; Approach B at the paper's threshold and with the gain rule (`study_discretizations`).")]
     for kk in (f"k{k}" for k in results["ks"]):
         rows = []
         for p in results["pairs"]:
             e = results["errors"][kk][p]
-            xyz = {m: np.mean([e[c][m] for c in "XYZ"]) for m in METHODS}
+            ms = results["methods"]
+            xyz = {m: np.mean([e[c][m] for c in "XYZ"]) for m in ms}
             pm_ = results["point_maps"][kk][p]
-            rows.append([f"`{p}`", " / ".join(_fmt(xyz[m]) for m in METHODS),
-                         " / ".join(_fmt(e["Indicator"][m]) for m in METHODS),
-                         " / ".join(_fmt(e["hk"][m]) for m in METHODS),
+            rows.append([f"`{p}`", " / ".join(_fmt(xyz[m]) for m in ms),
+                         " / ".join(_fmt(e["Indicator"][m]) for m in ms),
+                         " / ".join(_fmt(e["hk"][m]) for m in ms),
                          f"{_fmt(pm_['std'])} / {_fmt(pm_['extended'])}"])
         out.append(("p", f"{kk.replace('k', 'k = ')} (bases of {int(kk[1:]) + 1} columns): relative transfer errors "
-                         "std / B / default; point maps: mean geodesic error std / extended."))
+                         f"{' / '.join(SHORT.get(m, m) for m in results['methods'])}; point maps: mean geodesic "
+                         "error std / extended."))
         out.append(("table", ["pair", "XYZ", "Indicator", "hk", "point map"], rows))
     out.append(("p", "Finding, computed from the numbers:"))
     out.append(("ul", finding_items(results)))

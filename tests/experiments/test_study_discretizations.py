@@ -187,16 +187,19 @@ def _results(cells):
     errors = {"k10": {p: {f: {m: float(np.mean([c[m] for c in cells if c["pair"] == p])) for m in sd.METHODS}
                           for f in sd.FUNCTIONS} for p in pairs}}
     pmaps = {"k10": {p: {"std": 0.05, "extended": 0.04 if p.startswith("mesh") else 0.06} for p in pairs}}
-    return {"cells": cells, "pairs": pairs, "ks": [10], "errors": errors, "point_maps": pmaps}
+    return {"cells": cells, "pairs": pairs, "ks": [10], "errors": errors, "point_maps": pmaps,
+            "methods": list(sd.METHODS)}
 
 
-def _cell(pair, std, svd, default, function="X"):
-    return {"shape": "s", "k": 10, "pair": pair, "function": function, "std": std, "svd": svd, "default": default}
+def _cell(pair, std, svd, default, function="X", gain=None):
+    """One single-function cell; the gain rule's error is std's unless given."""
+    return {"shape": "s", "k": 10, "pair": pair, "function": function, "std": std, "svd": svd, "default": default,
+            "gain": std if gain is None else gain}
 
 
 def test_summary_counts_cells_worse_than_std_by_more_than_the_margin():
     cells = [_cell("mesh->iso", 1.0, 0.8, 0.9), _cell("mesh->cloud", 1.0, 1.02, 1.005),
-             _cell("cloud->mesh", 1.0, 1.5, 1.0 + 1e-7), _cell("mc->mesh", 1.0, 1.009, 0.95)]
+             _cell("cloud->mesh", 1.0, 1.5, 1.0 + 1e-7, gain=1.2), _cell("mc->mesh", 1.0, 1.009, 0.95, gain=0.9)]
     s = sd.summary(_results(cells))
     assert s["worse"]["svd"]["all"]["worse_by_more_than_margin"] == 2
     assert s["worse"]["svd"]["all"]["worst_ratio"] == pytest.approx(1.5)
@@ -207,6 +210,9 @@ def test_summary_counts_cells_worse_than_std_by_more_than_the_margin():
     assert s["worse"]["default"]["all"]["worse_by_more_than_margin"] == 0  # 1.005 is within 1 %, 1 + 1e-7 a tie
     assert s["xyz_better"]["k10"]["svd"] == ["mesh->iso"]
     assert s["xyz_better"]["k10"]["default"] == ["mesh->iso", "mc->mesh"]
+    assert s["worse"]["gain"]["all"]["worse_by_more_than_margin"] == 1  # std's own value is a tie
+    assert s["worse"]["gain"]["all"]["worst_cell"] == "s/k10/cloud->mesh/X"
+    assert s["xyz_better"]["k10"]["gain"] == ["mc->mesh"]
     assert s["point_maps_better"]["k10"] == ["mesh->iso", "mesh->cloud"]
     assert [sd.pair_group(p) for p in ("mesh->nonuniform", "iso->cloud2", "mc->iso")] == \
         ["clean", "to_rough", "from_rough"]
@@ -218,6 +224,8 @@ def test_finding_and_report_are_computed_from_the_numbers(tiny):
     w = res["summary"]["worse"]
     assert f"on {w['svd']['all']['worse_by_more_than_margin']} of {w['svd']['all']['cells']} single" in text
     assert f"on {w['default']['all']['worse_by_more_than_margin']} of 15 single functions" in text
+    assert f"**Approach B with the gain rule** is worse than the standard transfer by more than 1 % on " \
+           f"{w['gain']['all']['worse_by_more_than_margin']} of 15 single functions" in text
     blocks = sd.report_blocks(res, "embedded humans")
     assert blocks[0] == ("h", 2, "Study: transfer and point maps across discretizations")
     tables = [b for b in blocks if b[0] == "table"]
