@@ -53,17 +53,18 @@ from .shared.anatomy import body_frame
 from .shared.families import make_family
 from .shared.results import setup_matplotlib
 
-__all__ = ["DISCRETIZATIONS", "PAIRS", "METHODS", "COMPARED", "NAMES", "SHORT", "CONVERSIONS", "FUNCTIONS", "MARGIN", "CLEAN", "MC_SPACING",
-           "GROUPS", "spread_shapes", "sample_surface", "remesh", "marching_cubes_mesh", "discretizations",
-           "surface_ground_truth", "ground_truth", "discretization_study", "find_cell", "pair_group", "summary",
-           "finding_items", "finding_text", "figure", "front_axes", "report_blocks"]
+__all__ = ["DISCRETIZATIONS", "PAIRS", "METHODS", "COMPARED", "NAMES", "SHORT", "CONVERSIONS", "FUNCTIONS", "MARGIN",
+           "CLEAN", "MC_SPACING", "GROUPS", "spread_shapes", "sample_surface", "remesh", "marching_cubes_mesh",
+           "discretizations", "surface_ground_truth", "ground_truth", "discretization_study", "find_cell",
+           "pair_group", "summary", "finding_items", "finding_text", "figure", "front_axes", "report_blocks"]
 
 DISCRETIZATIONS = ("mesh", "iso", "nonuniform", "cloud", "cloud2", "mc")
 """The derived discretizations (module doc); ``cloud2`` is a second sampling of the same surface."""
 PAIRS = (("mesh", "iso"), ("iso", "mesh"), ("mesh", "nonuniform"), ("nonuniform", "mesh"), ("iso", "nonuniform"),
          ("mesh", "cloud"), ("cloud", "mesh"), ("cloud", "cloud2"), ("mesh", "mc"), ("mc", "mesh"), ("mc", "cloud"))
 """The default (source, target) pairs: both directions where a direction tells something new."""
-METHODS = {"std": ("std", {}), "svd": ("svd", {"rtol": PAPER_RTOL}), "gain": ("svd_gain", {}), "default": ("default", {})}
+METHODS = {"std": ("std", {}), "svd": ("svd", {"rtol": PAPER_RTOL}), "gain": ("svd_gain", {}),
+           "default": ("default", {})}
 """Label -> (registry method, parameters): the standard transfer, the paper's Approach B, Approach B at the
 threshold of the gain rule (no ground truth: beside the paper), the library's default."""
 COMPARED = ("svd", "gain", "default")
@@ -482,7 +483,8 @@ def report_blocks(results: dict, dataset: str, *, main: bool = True) -> list:
     out = [("h", 2 if main else 3, f"Study: transfer and point maps across discretizations{on}"),
            ("p", f"Discretizations derived from {len(results['shapes'])} shape(s) (vertices or points on the first: "
                  f"{sizes}); ground truth: nearest point on the source surface, read as the nearest source vertex; "
-                 "ground-truth maps; Approach B at the paper's threshold and with the gain rule (`study_discretizations`).")]
+                 "ground-truth maps; Approach B at the paper's threshold and with the gain rule "
+                 "(`study_discretizations`).")]
     for kk in (f"k{k}" for k in results["ks"]):
         rows = []
         for p in results["pairs"]:
