@@ -57,6 +57,12 @@ __all__ = ["from_fmap", "fmap_from_p2p", "extended_embeddings", "point_functions
 
 METHODS = ("std", "extended")
 POINTS = ("heat", "delta", "closed_form")  # a point's function in the extended conversion
+SUBSPACE_MIN_SIZE = 2000
+"""Gram matrices of at least this many rows take the subspace iteration for their kept eigenpairs (smaller: LAPACK)."""
+SUBSPACE_BLOCK = 512
+"""The subspace iteration's first block size (it grows as the kept directions need)."""
+SUBSPACE_TOL = 1e-14
+"""Largest residual ``|S v - θ v|`` of a converged Ritz pair, relative to ``w_max`` (LAPACK reaches about 1e-15)."""
 CONVENTIONS = ("area", "pyfm")  # the standard conversion's scale of the transferred deltas
 DEFAULT_KERNEL_EIG = 200  # eigenpairs of the squared heat kernel (the experiments store's basis size)
 KERNEL_BLOCK_BYTES = 64 << 20  # point functions evaluated (n, b) float64 columns at a time, at most this size
@@ -240,27 +246,136 @@ def _gram_upper(blocks, m: int, trans: int) -> np.ndarray:
     return G
 
 
-def _top_eigenpairs(G: np.ndarray, rtol: float) -> tuple[np.ndarray, np.ndarray]:
+def _separable_gram(pb, normalization: str, sq: np.ndarray) -> np.ndarray | None:
+    """The n-side Gram ``XXᵀ`` ``(n, n)`` of ``X = sqrt(A) B_s D`` in ``O(n² k)`` for order-2 products, or None.
+
+    Every normalisation but ``"columns"`` weighs a product by its factors' weights, ``D = c_l c_m``, so
+    the products' part is a Hadamard square: ``Σ_{l,m} c_l² c_m² (φ_l φ_m)(φ_l φ_m)ᵀ = K∘K`` with
+    ``K = Φ₊ diag(c²) Φ₊ᵀ`` (``Φ₊`` the non-constant columns). Ordered pairs (the solver's
+    ``sqrt(#orderings)``) give ``K∘K``; unique pairs count each multiset once, ``(K∘K + PPᵀ) / 2`` with
+    ``P = Φ₊² diag(c²)``. The single factors add ``K``, the constant ``c_0² φ_0 φ_0ᵀ``. Both triangles are
+    filled, the upper one equal to :func:`_gram_upper` of the solver columns to rounding (tested), at
+    about ``k / K_u`` of its cost.
+    """
+    base = pb.base
+    k = base.k
+    if pb.order != 2 or normalization == "columns" or pb.unique_index.shape[0] != 1 + (k - 1) * (k + 2) // 2:
+        return None
+    c = column_weights(base, normalization)
+    c2 = (np.ones(k) if c is None else np.asarray(c, dtype=float)) ** 2  # (k,)
+    Phi = base.vecs  # (n, k)
+    K = (Phi[:, 1:] * c2[1:]) @ Phi[:, 1:].T  # (n, n), symmetric
+    G = K * K  # the products, ordered pairs
+    sla.blas.dger(c2[0], Phi[:, 0], Phi[:, 0], a=K.T, overwrite_a=1)  # in place: the constant
+    if pb.pairs == "unique":
+        G *= 0.5
+        P = (Phi[:, 1:] ** 2) * (c2[1:] * np.sqrt(0.5))  # (n, k - 1)
+        sla.blas.dgemm(1.0, P, P, trans_b=1, beta=1.0, c=G.T, overwrite_c=1)  # in place (G.T: G, F-ordered)
+    G += K  # the single factors
+    del K
+    G *= sq[:, None]
+    G *= sq[None, :]
+    return G
+
+
+def _orthonormal(Z: np.ndarray) -> np.ndarray:
+    """An orthonormal basis ``(m, l)`` of the columns of ``Z`` by Cholesky-QR.
+
+    Repeated once unless ``R``'s diagonal spans less than a factor 100 (one pass is orthogonal to about
+    ``eps·cond(Z)²``); Householder QR if Cholesky fails.
+    """
+    for _ in range(2):
+        try:
+            R = sla.cholesky(Z.T @ Z, lower=False, check_finite=False)
+        except np.linalg.LinAlgError:
+            return np.linalg.qr(Z)[0]
+        Z = Z @ sla.solve_triangular(R, np.eye(R.shape[0]), lower=False, check_finite=False)  # Z R⁻¹
+        d = np.abs(np.diag(R))
+        if d.max() <= 100.0 * d.min():
+            break
+    return Z
+
+
+def _symmetrized(G: np.ndarray) -> np.ndarray:
+    """``G`` ``(m, m)`` in full from its upper triangle (a copy, by blocks of rows)."""
+    m = G.shape[0]
+    S = np.empty((m, m))
+    for b in range(0, m, 1024):
+        e = min(m, b + 1024)
+        S[b:e, e:] = G[b:e, e:]
+        S[e:, b:e] = G[b:e, e:].T
+        S[b:e, b:e] = np.triu(G[b:e, b:e]) + np.triu(G[b:e, b:e], 1).T
+    return S
+
+
+def _subspace_eigenpairs(S: np.ndarray, rtol: float, *, seed: int = 0, max_iter: int = 30):
+    """Eigenpairs ``(w, V)``, descending, of the symmetric PSD ``S`` above ``rtol² w_max / 2``; None if not found.
+
+    Subspace iteration with Rayleigh–Ritz from a seeded random block (the largest Ritz value, a lower
+    bound of ``w_max``, sets the floor), grown until at most 60 % of its Ritz values lie above the floor:
+    the block then reaches well below the threshold, and the kept directions converge at the ratio of
+    the block's last eigenvalue to theirs (about 1e-3 per step for the spectra of product bases). Each
+    step orthonormalises ``S V θ⁻¹`` (the Ritz vectors' images, near orthonormal). Converged when every
+    Ritz pair above a quarter of the floor has a residual below ``SUBSPACE_TOL · w_max``. None (the caller takes
+    LAPACK) when the block would exceed half of ``S``'s size or ``max_iter`` steps do not converge.
+    """
+    m = S.shape[0]
+    rng = np.random.default_rng(seed)
+    ell = min(m, SUBSPACE_BLOCK)
+    Q = _orthonormal(rng.standard_normal((m, ell)))  # (m, ell)
+    for _ in range(max_iter):
+        Y = S @ Q  # (m, ell)
+        H = Q.T @ Y
+        theta, W = np.linalg.eigh(0.5 * (H + H.T))
+        theta, W = theta[::-1], W[:, ::-1]
+        if not theta[0] > 0:
+            return None
+        floor = 0.5 * rtol**2 * theta[0]
+        above = int(np.sum(theta > floor))
+        V = Q @ W  # (m, ell) Ritz vectors
+        if above > 0.6 * ell:  # grow the block: the Ritz vectors above the floor, then new random columns
+            grow = max(2 * ell, int(1.7 * above) + 64)
+            if grow > m // 2:
+                return None
+            Q = _orthonormal(np.hstack([V[:, :above], rng.standard_normal((m, grow - above))]))
+            ell = grow
+            continue
+        SV = Y @ W  # (m, ell)
+        check = int(np.sum(theta > 0.25 * floor))
+        res = np.linalg.norm(SV[:, :check] - V[:, :check] * theta[:check], axis=0)
+        if res.max() <= SUBSPACE_TOL * theta[0]:
+            return theta[:above], V[:, :above]
+        Q = _orthonormal(SV / np.where(theta > 0, theta, 1.0))
+    return None
+
+
+def _top_eigenpairs(G: np.ndarray, rtol: float, *, full: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Eigenpairs ``(w (r,), V (m, r))``, descending, of the PSD ``G`` with ``sqrt(w) > rtol·sqrt(w_max)``.
 
-    ``G`` holds its upper triangle (:func:`_gram_upper`) and is overwritten. Approach B's truncation rule
-    on the Gram matrix of the scaled columns (its operator's ``route="gram"``), computed for the kept
-    eigenpairs only: MRRR on the interval above a lower bound of the threshold, then the exact rule with
-    the computed ``w_max``.
+    ``G`` holds its upper triangle (:func:`_gram_upper`; ``full``: both, :func:`_separable_gram`) and is
+    overwritten. Approach B's truncation rule on the Gram matrix of the scaled columns (its operator's
+    ``route="gram"``), computed for the kept eigenpairs only: from ``SUBSPACE_MIN_SIZE`` rows on by
+    :func:`_subspace_eigenpairs`; else, or if that does not converge, by LAPACK's MRRR on the interval
+    above a lower bound of the threshold. Then the exact rule with the computed ``w_max``.
     """
-    v = np.full(G.shape[0], 1.0 / np.sqrt(G.shape[0]))
-    for _ in range(20):  # power steps: a Rayleigh quotient never exceeds w_max, so the interval holds every
-        u = sla.blas.dsymv(1.0, G, v, lower=0)  # kept eigenvalue
-        nu = float(np.linalg.norm(u))
-        if nu == 0.0:
-            break
-        v = u / nu
-    lam = float(v @ sla.blas.dsymv(1.0, G, v, lower=0))
-    if not lam > 0:
-        raise ValueError("the extended basis is zero on this mesh: no canonical coefficients")
-    w, V = sla.eigh(G, lower=False, subset_by_value=(0.5 * rtol**2 * lam, np.inf), driver="evr", overwrite_a=True,
-                    check_finite=False)
-    w, V = w[::-1], V[:, ::-1]
+    found = None
+    if G.shape[0] >= SUBSPACE_MIN_SIZE:
+        found = _subspace_eigenpairs(G if full else _symmetrized(G), rtol)
+    if found is None:
+        v = np.full(G.shape[0], 1.0 / np.sqrt(G.shape[0]))
+        for _ in range(20):  # power steps: a Rayleigh quotient never exceeds w_max, so the interval holds every
+            u = sla.blas.dsymv(1.0, G, v, lower=0)  # kept eigenvalue
+            nu = float(np.linalg.norm(u))
+            if nu == 0.0:
+                break
+            v = u / nu
+        lam = float(v @ sla.blas.dsymv(1.0, G, v, lower=0))
+        if not lam > 0:
+            raise ValueError("the extended basis is zero on this mesh: no canonical coefficients")
+        w, V = sla.eigh(G, lower=False, subset_by_value=(0.5 * rtol**2 * lam, np.inf), driver="evr",
+                        overwrite_a=True, check_finite=False)
+        found = w[::-1], V[:, ::-1]
+    w, V = found
     s = np.sqrt(np.maximum(w, 0.0))
     r = int(np.sum(s > rtol * s[0]))
     return w[:r], V[:, :r]
@@ -311,8 +426,11 @@ def _canonical_frame(pb, rtol: float, normalization: str, block_bytes: int):
                     Xc[:, 0] = base.vecs[:, 0]  # the constant column
                 return Xc * ((1.0 if sc is None else sc[cols]) * dd[cols]) * sq[:, None]
 
-            G = _gram_upper((columns(j) for j in range(0, K_u, cstep)), n, 0)
-            w, U = _top_eigenpairs(G, rtol)
+            G = _separable_gram(pb, normalization, sq)
+            full = G is not None
+            if not full:
+                G = _gram_upper((columns(j) for j in range(0, K_u, cstep)), n, 0)
+            w, U = _top_eigenpairs(G, rtol, full=full)
             del G
             s = np.sqrt(w)
             VS = pb.solver_rmatmul(sq[:, None] * U) * dd[:, None]  # (K_u, r) = Xᵀ U = V Σ

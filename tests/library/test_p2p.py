@@ -399,3 +399,33 @@ def test_extended_conversions_from_one_source_reuse_its_work_with_the_same_numbe
         fresh = from_fmap(C2, pm.Basis(basis_0.vecs, basis_0.evals, basis_0.mass),
                           pm.Basis(basis_13.vecs, basis_13.evals, basis_13.mass), "extended", pairs=pairs, vertices=ev)
         np.testing.assert_array_equal(again, fresh)
+
+
+@pytest.mark.parametrize("pairs", ["unique", "ordered"])
+def test_extended_subspace_iteration_equals_lapacks_eigenpairs(monkeypatch, pairs):
+    """Above ``SUBSPACE_MIN_SIZE`` rows the kept eigenpairs of the Gram matrix come from the subspace
+    iteration; on 2562 vertices with 60 x 72 products (K = 1830: the source's K x K side; K = 2628: the
+    target's n x n side, the Hadamard-square Gram) it gives LAPACK's embeddings: the same dimension and
+    the same distances to 1e-8, and LAPACK's eigensolver is not called."""
+    from prodmaps import p2p
+
+    m1 = pm.mesh.ellipsoid(4)
+    v = m1.vertices * np.array([1.1, 0.9, 1.0]) + 0.08 * np.sin(2.0 * m1.vertices[:, [1, 2, 0]])
+    b1, b2 = pm.eigenbasis(m1, 90), pm.eigenbasis(pm.Mesh(v, m1.faces), 90)
+    rng = np.random.default_rng(2)
+    C = pm.fmap_from_p2p(np.arange(b2.n), b1.truncate(60), b2.truncate(72)) + 0.02 * rng.normal(size=(72, 60))
+    ev = np.sort(rng.choice(b2.n, 300, replace=False))
+    kw = {"pairs": pairs, "dtype": "float64", "vertices": ev}
+    monkeypatch.setattr(p2p, "SUBSPACE_MIN_SIZE", 10**9)
+    r1, r2, ref = extended_embeddings(C, b1, b2, **kw)
+    monkeypatch.setattr(p2p, "SUBSPACE_MIN_SIZE", 1000)
+
+    def no_lapack(*args, **kwargs):
+        raise AssertionError("LAPACK's eigensolver was called")
+
+    monkeypatch.setattr(p2p.sla, "eigh", no_lapack)
+    e1, e2, info = extended_embeddings(C, b1, b2, **kw)
+    assert info["dim"] == ref["dim"] and 0 < info["dim"] < b2.n // 2
+    D = cdist(r2, r1)
+    np.testing.assert_allclose(cdist(e2, e1), D, rtol=0, atol=1e-8 * D.max())
+    assert np.array_equal(np.argmin(cdist(e2, e1), axis=1), np.argmin(D, axis=1))
