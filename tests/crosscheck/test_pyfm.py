@@ -228,11 +228,10 @@ def test_pyfm_point_map_convention_is_pyfms_exactly(human_0, human_13):
     assert err["area"] < 0.7 * err["pyfm"], err  # the area rule is the better one here (measured 0.5x)
 
 
-def test_the_readmes_pyfm_snippet_runs_against_pyfm(tmp_path, human_0, human_13):
+def test_the_readmes_pyfm_snippet_runs_against_pyfm(tmp_path, monkeypatch, human_0, human_13):
     """The README's "Coming from pyFM or geomfum" block, as written, with its two mesh files filled by
     embedded humans: pyFM's FunctionalMapping fit, our bases from the model's meshes, the default
     transfer and pyFM's point map through convention="pyfm"."""
-    import os
     import re
     from pathlib import Path
 
@@ -243,12 +242,8 @@ def test_the_readmes_pyfm_snippet_runs_against_pyfm(tmp_path, human_0, human_13)
         pm.save_mesh(tmp_path / name, mesh)
     assert '"shape_1.off"' in block and '"shape_2.off"' in block
     ns: dict = {}
-    old = os.getcwd()
-    os.chdir(tmp_path)
-    try:
-        exec(compile(block, "README.md", "exec"), ns)
-    finally:
-        os.chdir(old)
+    monkeypatch.chdir(tmp_path)  # the block's relative file names
+    exec(compile(block, "README.md", "exec"), ns)
     model = ns["model"]
     assert model.FM_12.shape == (30, 30) and ns["b1"].k == 30 and ns["b2"].k == 30
     assert ns["g"].shape == (human_13.n_vertices, 3) and np.all(np.isfinite(ns["g"]))

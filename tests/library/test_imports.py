@@ -212,8 +212,8 @@ def test_the_function_level_import_check_finds_local_imports(monkeypatch):
                      ("prodmaps.probe", "prodmaps.approx"): [12]}
 
 
-def _private_defined(tree) -> set[str]:
-    """Private names a module defines: functions, classes, methods, assigned names and attributes."""
+def _bound_names(tree) -> set[str]:
+    """Names a module or test file binds itself: functions, classes, assigned names and attributes, arguments."""
     out = set()
     for node in ast.walk(tree):
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
@@ -224,9 +224,12 @@ def _private_defined(tree) -> set[str]:
             out.add(node.attr)
         elif isinstance(node, ast.arg):
             out.add(node.arg)
-        elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
-            out.add(node.target.id)
-    return {n for n in out if n.startswith("_") and not n.startswith("__")}
+    return out
+
+
+def _private_defined(tree) -> set[str]:
+    """Private names a module defines: functions, classes, methods, assigned names and attributes."""
+    return {n for n in _bound_names(tree) if n.startswith("_") and not n.startswith("__")}
 
 
 PRIVATE = {name: _private_defined(tree) for name, tree in TREES.items()}
@@ -330,21 +333,6 @@ def _private_callables() -> dict[str, set[str]]:
 PRIVATE_CALLABLES = _private_callables()
 
 
-def _test_defined(tree) -> set[str]:
-    """Names a test file binds itself (helpers, fixtures, variables, arguments, attributes it sets)."""
-    out = set()
-    for node in ast.walk(tree):
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
-            out.add(node.name)
-        elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
-            out.add(node.id)
-        elif isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store):
-            out.add(node.attr)
-        elif isinstance(node, ast.arg):
-            out.add(node.arg)
-    return out
-
-
 def _test_module_aliases(tree) -> dict[str, str]:
     """Local names a test file binds to prodmaps modules by its imports."""
     out = {}
@@ -369,7 +357,7 @@ def _label(name: str, module: str | None = None) -> str:
 def _private_calls_in(source: str) -> list[tuple[int, str]]:
     """``(line, qualified name)`` of every use of a private library function in one test file's source."""
     tree = ast.parse(source)
-    own, aliases = _test_defined(tree), _test_module_aliases(tree)
+    own, aliases = _bound_names(tree), _test_module_aliases(tree)
     found = []
 
     def private(name) -> bool:
